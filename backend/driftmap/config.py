@@ -1,0 +1,38 @@
+"""Server and CLI settings, read from ``DRIFTMAP_*`` environment variables."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    """Where driftmap keeps its data and which services it talks to."""
+
+    model_config = SettingsConfigDict(env_prefix="DRIFTMAP_", env_file=None, extra="ignore")
+
+    data_dir: Path = Path("./data")
+    """Directory of the embedded SQLite database and of the frame blob store."""
+    database_url: str | None = None
+    """SQLAlchemy URL; when unset, ``sqlite:///<data_dir>/driftmap.sqlite3``."""
+    redis_url: str | None = None
+    """Redis URL for the job queue; when unset, an SQLite-backed queue under ``data_dir``."""
+
+    def resolved_database_url(self) -> str:
+        """The database URL in force: the configured one or the embedded SQLite file."""
+        if self.database_url:
+            return self.database_url
+        return f"sqlite:///{(self.data_dir / 'driftmap.sqlite3').resolve()}"
+
+    @property
+    def blob_dir(self) -> Path:
+        """Root of the content-addressed blob store."""
+        return self.data_dir / "blobs"
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process-wide settings, read once from the environment."""
+    return Settings()
