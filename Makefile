@@ -1,0 +1,51 @@
+# driftmap: `make demo` sets everything up and runs the main job; `make test` sets up and runs every check.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+DEMO_DIR ?= data/demo
+DEMO_SEED ?= 7
+
+.PHONY: demo test lint typecheck imports pytest bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+# Runtime install: re-run whenever pyproject.toml changes.
+$(VENV)/.installed-run: pyproject.toml | $(BIN)/python
+	$(BIN)/pip install --quiet -e .
+	touch $@
+
+# Development install (tests, linters, type checker).
+$(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $@ $(VENV)/.installed-run
+
+demo: $(VENV)/.installed-run
+	rm -rf $(DEMO_DIR)
+	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap simulate --seed $(DEMO_SEED) --size small --out $(DEMO_DIR)/site
+	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap site create demo --survey $(DEMO_DIR)/site/survey.dxf --drives $(DEMO_DIR)/site/drives
+	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap drive list demo
+
+lint: $(VENV)/.installed-dev
+	$(BIN)/ruff check backend tests bench migrations
+	$(BIN)/ruff format --check backend tests bench migrations
+
+typecheck: $(VENV)/.installed-dev
+	$(BIN)/mypy
+
+imports: $(VENV)/.installed-dev
+	$(BIN)/lint-imports
+
+pytest: $(VENV)/.installed-dev
+	$(BIN)/pytest -q
+
+test: lint typecheck imports pytest
+
+bench: $(VENV)/.installed-dev
+	$(BIN)/python bench/bench_import.py
+	$(BIN)/python bench/bench_simulate.py
+
+clean:
+	rm -rf $(VENV) data .mypy_cache .ruff_cache .pytest_cache

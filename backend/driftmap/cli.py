@@ -1,0 +1,227 @@
+"""The ``driftmap`` command line: thin typer commands that parse, call a service, and print."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from driftmap.config import get_settings
+from driftmap.errors import BadInputError, DriftmapError
+from driftmap.services import drives as drive_service
+from driftmap.services import sites as site_service
+from driftmap.store.storage import Storage
+
+app = typer.Typer(
+    help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
+)
+site_app = typer.Typer(help="Sites and their survey maps.", no_args_is_help=True)
+drive_app = typer.Typer(help="Recorded drives: import, export, list.", no_args_is_help=True)
+db_app = typer.Typer(help="The database schema.", no_args_is_help=True)
+app.add_typer(site_app, name="site")
+app.add_typer(drive_app, name="drive")
+app.add_typer(db_app, name="db")
+
+console = Console()
+err_console = Console(stderr=True)
+
+
+@contextmanager
+def _user_errors() -> Iterator[None]:
+    """Print a DriftmapError as one clear line and exit 2, without a traceback."""
+    try:
+        yield
+    except DriftmapError as exc:
+        err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        raise typer.Exit(2) from None
+
+
+@contextmanager
+def _progress(description: str) -> Iterator[Progress]:
+    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"))
+    with Progress(*columns, TimeElapsedColumn(), console=err_console, transient=False) as progress:
+        yield progress
+
+
+def _storage() -> Storage:
+    return Storage.open(get_settings())
+
+
+@app.callback()
+def main(
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
+) -> None:
+    """Configure logging for every command."""
+    logging.basicConfig(
+        level=logging.DEBUG if verbose else logging.WARNING,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+
+
+@app.command()
+def simulate(
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder to write the site into (must be empty or absent).")
+    ],
+    seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same site.")] = 1,
+    size: Annotated[
+        str, typer.Option(help="tiny, small (~400 m), medium (~1.5 km) or large (~6 km).")
+    ] = "small",
+    obscurants: Annotated[
+        bool, typer.Option("--obscurants/--no-obscurants", help="Also write dust and water copies.")
+    ] = True,
+) -> None:
+    """Simulate a synthetic mine: survey.dxf, mapping and localisation drives with ground truth."""
+    from driftmap.sim import simulate_site
+
+    with _user_errors(), _progress("simulating") as progress:
+        task = progress.add_task("simulating", total=1.0)
+
+        def report(stage: str, fraction: float) -> None:
+            progress.update(task, description=stage, completed=fraction)
+
+        summary = simulate_site(out, seed=seed, size=size, obscurants=obscurants, progress=report)
+    console.print(summary.describe() if hasattr(summary, "describe") else summary)
+
+
+@db_app.command("upgrade")
+def db_upgrade() -> None:
+    """Create or upgrade the database schema to the newest migration."""
+    settings = get_settings()
+    with _user_errors():
+        storage = Storage.open(settings)
+        storage.close()
+    console.print(f"schema up to date at {settings.resolved_database_url()}")
+
+
+@site_app.command("create")
+def site_create(
+    name: Annotated[str, typer.Argument(help="Name of the new site.")],
+    survey: Annotated[Path, typer.Option("--survey", help="Surveyed plan of the site (DXF, metres).")],
+    drives: Annotated[
+        Path | None, typer.Option("--drives", help="Also import every drive folder inside this folder.")
+    ] = None,
+    description: Annotated[str, typer.Option(help="Free text about the site.")] = "",
+) -> None:
+    """Create a site from its survey DXF (and optionally import a folder of drives)."""
+    storage = _storage()
+    with _user_errors():
+        if not survey.is_file():
+            raise BadInputError("no such file", file=survey, field="--survey")
+        data = survey.read_bytes()
+        with storage.blobs.batch() as batch, storage.db.session() as session:
+            site = site_service.create_site(session, name, description)
+            survey_map = site_service.add_survey_map(session, batch, site, data, str(survey))
+            layers = ", ".join(sorted(survey_map.layers))
+        console.print(f"site {name!r} created; survey {survey.name}: layers {layers}")
+        if drives is not None:
+            for folder in drive_service.drive_folders_in(drives):
+                _import_one(storage, name, folder)
+
+
+def _import_one(storage: Storage, site_name: str, path: Path, **video: str | None) -> None:
+    with _progress(f"import {path.name}") as progress:
+        task = progress.add_task(f"import {path.name}", total=1.0)
+
+        def report(fraction: float) -> None:
+            progress.update(task, completed=fraction)
+
+        with storage.blobs.batch() as batch, storage.db.session() as session:
+            site = site_service.get_site(session, site_name)
+            drive = drive_service.import_drive(session, batch, site, path, progress=report, **video)
+            summary = f"drive {drive.name!r} ({drive.kind}): {drive.frame_count} frames"
+    console.print(summary)
+
+
+@drive_app.command("import")
+def drive_import(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    path: Annotated[Path, typer.Argument(help="A drive folder (formats.md), or an mp4/avi video file.")],
+    calibration: Annotated[
+        Path | None, typer.Option(help="For a video: JSON file holding the camera block (and optional fps).")
+    ] = None,
+    name: Annotated[
+        str | None, typer.Option(help="For a video: the drive's name (default: file stem).")
+    ] = None,
+    kind: Annotated[str, typer.Option(help="For a video: mapping or localisation.")] = "mapping",
+) -> None:
+    """Import one drive into a site; a failed import leaves nothing behind."""
+    storage = _storage()
+    with _user_errors():
+        if path.is_dir():
+            _import_one(storage, site, path)
+        else:
+            _import_one(
+                storage,
+                site,
+                path,
+                calibration=str(calibration) if calibration else None,
+                name=name,
+                kind=kind,
+            )
+
+
+@drive_app.command("export")
+def drive_export(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    drive: Annotated[str, typer.Argument(help="Drive name.")],
+    out: Annotated[Path, typer.Argument(help="Folder to write (must not exist or be empty).")],
+) -> None:
+    """Write a stored drive back as a drive folder in the formats.md layout."""
+    storage = _storage()
+    with _user_errors(), storage.db.session() as session:
+        record = drive_service.export_drive(
+            session, storage.blobs, site_service.get_site(session, site), drive, out
+        )
+        console.print(f"wrote {record.frame_count} frames of {record.name!r} to {out}")
+
+
+@drive_app.command("list")
+def drive_list(site: Annotated[str, typer.Argument(help="Site name.")]) -> None:
+    """List the drives of a site."""
+    storage = _storage()
+    with _user_errors(), storage.db.session() as session:
+        rows = drive_service.list_drives(session, site_service.get_site(session, site))
+        table = Table("id", "name", "kind", "frames", "fps", "duration s", "groundings", "truth")
+        for row in rows:
+            table.add_row(
+                str(row.id),
+                row.name,
+                row.kind,
+                str(row.frame_count),
+                f"{row.fps:g}",
+                f"{row.duration_s:.1f}",
+                str(row.grounding_count),
+                "yes" if row.has_truth else "no",
+            )
+    console.print(table)
+
+
+@site_app.command("list")
+def site_list() -> None:
+    """List the sites."""
+    storage = _storage()
+    with _user_errors(), storage.db.session() as session:
+        table = Table("id", "name", "survey maps", "drives", "created")
+        for site in site_service.list_sites(session):
+            table.add_row(
+                str(site.id),
+                site.name,
+                str(len(site.survey_maps)),
+                str(len(site.drives)),
+                f"{site.created_at:%Y-%m-%d}",
+            )
+    console.print(table)
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,73 @@
+"""Sites and their survey maps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from driftmap.errors import BadInputError, ConflictError, NotFoundError
+from driftmap.formats.survey_dxf import read_survey_dxf, survey_map_to_json
+from driftmap.store.blobs import BlobBatch
+from driftmap.store.models import Site, SurveyMap
+
+
+def get_site(session: Session, name_or_id: str | int) -> Site:
+    """The site named ``name_or_id`` (or with that numeric id)."""
+    site = session.scalar(select(Site).where(Site.name == str(name_or_id)))
+    if site is None and str(name_or_id).isdigit():
+        site = session.get(Site, int(name_or_id))
+    if site is None:
+        raise NotFoundError(f"no site named {name_or_id!r}")
+    return site
+
+
+def list_sites(session: Session) -> list[Site]:
+    """Every site, oldest first."""
+    return list(session.scalars(select(Site).order_by(Site.id)))
+
+
+def create_site(session: Session, name: str, description: str = "") -> Site:
+    """A new, empty site; the name must be unused."""
+    name = name.strip()
+    if not name:
+        raise BadInputError("a site needs a non-empty name", field="name")
+    if session.scalar(select(Site.id).where(Site.name == name)) is not None:
+        raise ConflictError(f"a site named {name!r} already exists")
+    site = Site(name=name, description=description)
+    session.add(site)
+    session.flush()
+    return site
+
+
+def add_survey_map(session: Session, batch: BlobBatch, site: Site, data: bytes, filename: str) -> SurveyMap:
+    """Parse a DXF plan and store it (original bytes as a blob, parsed layers as JSON) on ``site``."""
+    survey = read_survey_dxf(data, filename)
+    sha = batch.put(data)
+    parsed = survey_map_to_json(survey)
+    min_x, min_y, max_x, max_y = survey.extents
+    record = SurveyMap(
+        site_id=site.id,
+        filename=Path(filename).name,
+        dxf_sha256=sha,
+        units="m",
+        min_x_m=min_x,
+        min_y_m=min_y,
+        max_x_m=max_x,
+        max_y_m=max_y,
+        layers=parsed,
+    )
+    session.add(record)
+    session.flush()
+    return record
+
+
+def latest_survey_map(session: Session, site: Site) -> SurveyMap:
+    """The newest survey map of ``site``."""
+    record = session.scalar(
+        select(SurveyMap).where(SurveyMap.site_id == site.id).order_by(SurveyMap.id.desc()).limit(1)
+    )
+    if record is None:
+        raise NotFoundError(f"site {site.name!r} has no survey map")
+    return record

@@ -1,0 +1,146 @@
+"""SQLAlchemy 2 models of everything driftmap stores.
+
+Frame pixels and original files live in the blob store; rows hold their SHA-256 and small metadata.
+Positions are survey-frame metres (x east, y north), headings radians counter-clockwise from +x,
+times seconds since drive start. The schema changes only through Alembic migrations.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    DateTime,
+    Float,
+    ForeignKey,
+    Integer,
+    MetaData,
+    String,
+    Text,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+NAMING_CONVENTION = {
+    "ix": "ix_%(column_0_label)s",
+    "uq": "uq_%(table_name)s_%(column_0_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+
+def utc_now() -> datetime:
+    """The current time, timezone-aware UTC."""
+    return datetime.now(UTC)
+
+
+class Base(DeclarativeBase):
+    metadata = MetaData(naming_convention=NAMING_CONVENTION)
+    type_annotation_map = {dict[str, Any]: JSON}
+
+
+class Site(Base):
+    """One mine (or one part of a mine) with its own survey grid."""
+
+    __tablename__ = "sites"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+    description: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+    survey_maps: Mapped[list[SurveyMap]] = relationship(
+        back_populates="site", cascade="all, delete-orphan", order_by="SurveyMap.id"
+    )
+    drives: Mapped[list[Drive]] = relationship(
+        back_populates="site", cascade="all, delete-orphan", order_by="Drive.id"
+    )
+
+
+class SurveyMap(Base):
+    """A surveyed DXF plan of a site: the original file (a blob) and its parsed layers."""
+
+    __tablename__ = "survey_maps"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"), index=True)
+    filename: Mapped[str] = mapped_column(String(500))
+    dxf_sha256: Mapped[str] = mapped_column(String(64))
+    units: Mapped[str] = mapped_column(String(20), default="m")
+    min_x_m: Mapped[float] = mapped_column(Float)
+    min_y_m: Mapped[float] = mapped_column(Float)
+    max_x_m: Mapped[float] = mapped_column(Float)
+    max_y_m: Mapped[float] = mapped_column(Float)
+    layers: Mapped[dict[str, Any]] = mapped_column(JSON)
+    """Layer name -> GeoJSON-like FeatureCollection in plane metres."""
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+    site: Mapped[Site] = relationship(back_populates="survey_maps")
+
+
+class Drive(Base):
+    """One recorded drive of one vehicle: its camera calibration and its frames."""
+
+    __tablename__ = "drives"
+    __table_args__ = (UniqueConstraint("site_id", "name", name="uq_drives_site_id_name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    kind: Mapped[str] = mapped_column(String(20))
+    fps: Mapped[float] = mapped_column(Float)
+    camera: Mapped[dict[str, Any]] = mapped_column(JSON)
+    """The ``camera`` block of drive.json, verbatim keys of formats.md."""
+    frame_count: Mapped[int] = mapped_column(Integer, default=0)
+    source: Mapped[str] = mapped_column(String(1000), default="")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+    site: Mapped[Site] = relationship(back_populates="drives")
+    frames: Mapped[list[Frame]] = relationship(
+        back_populates="drive", cascade="all, delete-orphan", order_by="Frame.index", passive_deletes=True
+    )
+    groundings: Mapped[list[Grounding]] = relationship(
+        back_populates="drive", cascade="all, delete-orphan", order_by="Grounding.id", passive_deletes=True
+    )
+
+
+class Frame(Base):
+    """One camera frame of a drive; pixels in the blob store under ``blob_sha256``."""
+
+    __tablename__ = "frames"
+    __table_args__ = (UniqueConstraint("drive_id", "index", name="uq_frames_drive_id_index"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    drive_id: Mapped[int] = mapped_column(ForeignKey("drives.id", ondelete="CASCADE"), index=True)
+    index: Mapped[int] = mapped_column(Integer)
+    """The frame number of the drive folder's file name."""
+    t_s: Mapped[float] = mapped_column(Float)
+    blob_sha256: Mapped[str] = mapped_column(String(64), index=True)
+    image_ext: Mapped[str] = mapped_column(String(8))
+    true_x_m: Mapped[float | None] = mapped_column(Float, nullable=True)
+    true_y_m: Mapped[float | None] = mapped_column(Float, nullable=True)
+    true_yaw_rad: Mapped[float | None] = mapped_column(Float, nullable=True)
+
+    drive: Mapped[Drive] = relationship(back_populates="frames")
+
+
+class Grounding(Base):
+    """A surveyor's statement: this frame was taken at this surveyed point."""
+
+    __tablename__ = "groundings"
+    __table_args__ = (UniqueConstraint("frame_id", name="uq_groundings_frame_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    drive_id: Mapped[int] = mapped_column(ForeignKey("drives.id", ondelete="CASCADE"), index=True)
+    frame_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
+    x_m: Mapped[float] = mapped_column(Float)
+    y_m: Mapped[float] = mapped_column(Float)
+    created_by: Mapped[str] = mapped_column(String(200), default="import")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+
+    drive: Mapped[Drive] = relationship(back_populates="groundings")
+    frame: Mapped[Frame] = relationship()
