@@ -5,9 +5,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from driftmap.errors import BadInputError, ConflictError
-from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder, write_drive_folder
+from driftmap.formats.drive_folder import (
+    frames_text,
+    iter_frame_images,
+    parse_frames_csv,
+    read_drive_folder,
+    write_drive_folder,
+)
 from driftmap.formats.records import FrameRow, GroundingRow
 from tests.formats.builders import make_frames, make_groundings, make_jpeg, make_meta, make_png
 
@@ -131,3 +139,237 @@ class TestWriteAtomically:
             write_drive_folder(
                 tmp_path / "d", make_meta(), make_frames(2), [make_png(0)] * 2, [GroundingRow(9, 0.0, 0.0)]
             )
+
+
+@pytest.fixture
+def drive(tmp_path: Path) -> Path:
+    """A valid drive folder of five frames with groundings, to be broken by each test."""
+    out = tmp_path / "drive"
+    write_sample(out)
+    return out
+
+
+def edit(file: Path, old: str, new: str) -> None:
+    text = file.read_text()
+    assert old in text, f"{old!r} not in {file}"
+    file.write_text(text.replace(old, new, 1))
+
+
+def read_error(path: Path) -> BadInputError:
+    with pytest.raises(BadInputError) as info:
+        read_drive_folder(path)
+    return info.value
+
+
+class TestMissingPieces:
+    def test_missing_folder(self, tmp_path: Path) -> None:
+        err = read_error(tmp_path / "nowhere")
+        assert err.file == str(tmp_path / "nowhere")
+        assert "does not exist" in str(err)
+
+    @pytest.mark.parametrize("name", ["drive.json", "frames.csv"])
+    def test_missing_file(self, drive: Path, name: str) -> None:
+        (drive / name).unlink()
+        err = read_error(drive)
+        assert err.file == str(drive / name)
+        assert "missing" in err.reason
+
+    def test_missing_frames_folder(self, drive: Path) -> None:
+        for f in (drive / "frames").iterdir():
+            f.unlink()
+        (drive / "frames").rmdir()
+        assert read_error(drive).file == str(drive / "frames")
+
+    def test_missing_frame_file_names_the_row(self, drive: Path) -> None:
+        (drive / "frames" / "000003.png").unlink()
+        err = read_error(drive)
+        assert (err.file, err.line, err.field) == (str(drive / "frames.csv"), 5, "frame")
+        assert "000003.png" in err.reason
+
+    def test_two_files_for_one_frame(self, drive: Path) -> None:
+        (drive / "frames" / "000002.jpg").write_bytes(make_jpeg(0))
+        err = read_error(drive)
+        assert (err.line, err.field) == (4, "frame")
+        assert "000002.jpg" in err.reason and "000002.png" in err.reason
+
+    def test_groundings_file_is_optional(self, drive: Path) -> None:
+        (drive / "groundings.csv").unlink()
+        assert read_drive_folder(drive).groundings == []
+
+
+class TestDriveJsonErrors:
+    """Each broken drive.json names the file, the line and the key (drive.json's layout is fixed)."""
+
+    @pytest.mark.parametrize(
+        ("old", "new", "line", "field", "words"),
+        [
+            ('"kind": "mapping",', '"kind": "mapping"', 5, "kind", "invalid JSON"),
+            ('"fps": 10.0', '"fps": NaN', 5, "fps", "NaN"),
+            ("driftmap-drive/1", "driftmap-drive/2", 2, "format", "driftmap-drive/1"),
+            ('"kind": "mapping"', '"kind": "survey"', 4, "kind", "mapping, localisation"),
+            ('"fps": 10.0', '"fps": 0', 5, "fps", "positive"),
+            ('"fps": 10.0', '"fps": "10"', 5, "fps", "finite number"),
+            ('"width": 32', '"width": "32"', 7, "camera.width", "integer"),
+            ('"k_x": 0.30000000000000004', '"k_x": [1]', 10, "camera.k_x", "finite number"),
+            ('"forward_sign": -1', '"forward_sign": 0', 14, "camera.forward_sign", "1 or -1"),
+            (
+                '"ground_roi": [4, 12, 24, 10]',
+                '"ground_roi": [4, 12, 29, 10]',
+                9,
+                "camera.ground_roi",
+                "32x24",
+            ),
+            (
+                '"ground_roi": [4, 12, 24, 10]',
+                '"ground_roi": [4, 12, 24]',
+                9,
+                "camera.ground_roi",
+                "4 integers",
+            ),
+            ('"y_h": 4.000000000000001,', '"y_h": 4.0, "y_h": 5.0,', 13, "y_h", "duplicate"),
+        ],
+    )
+    def test_bad_value(
+        self, drive: Path, old: str, new: str, line: int, field: str | None, words: str
+    ) -> None:
+        edit(drive / "drive.json", old, new)
+        err = read_error(drive)
+        assert (err.file, err.line, err.field) == (str(drive / "drive.json"), line, field)
+        assert words in err.reason
+
+    def test_missing_camera_key(self, drive: Path) -> None:
+        edit(drive / "drive.json", '"y_c": -0.7,', "")
+        err = read_error(drive)
+        assert (err.line, err.field) == (6, "camera.y_c")
+
+    def test_missing_top_level_key(self, drive: Path) -> None:
+        edit(drive / "drive.json", '"name": "east-mapping-1",', "")
+        assert read_error(drive).field == "name"
+
+
+class TestFramesCsvErrors:
+    @pytest.mark.parametrize(
+        ("old", "new", "line", "field", "words"),
+        [
+            ("frame,t,x,y,yaw", "frame,time,x,y,yaw", 1, "t", "header"),
+            ("frame,t,x,y,yaw", "frame,t,x,y", 1, "yaw", "header"),
+            ("\n2,0.2,", "\n2.5,0.2,", 4, "frame", "integer"),
+            ("\n2,0.2,", "\nabc,0.2,", 4, "frame", "integer"),
+            ("\n2,0.2,", "\n2,zero,", 4, "t", "finite number"),
+            ("\n2,0.2,", "\n2,nan,", 4, "t", "finite number"),
+            ("\n1,0.1,12.41", "\n1,0.1,inf", 3, "x", "finite number"),
+            ("\n1,0.1,12.41", "\n1,0.1,1e999", 3, "x", "finite number"),
+            ("\n1,0.1,12.41,", "\n1,0.1,,", 3, "x", "all of x, y, yaw"),
+            ("\n3,0.3,", "\n1,0.3,", 5, "frame", "twice"),
+            ("\n3,0.3,", "\n3,0.2,", 5, "t", "increase"),
+            ("\n2,0.2,", "\n-2,0.2,", 4, "frame", "negative"),
+            ("\n2,0.2,12.51,", "\n2,0.2,12.51,1,", 4, "(extra)", "cells"),
+            ("\n2,0.2,12.51,", '\n2,"0.2,12.51,', 4, None, "quoting"),
+        ],
+    )
+    def test_bad_row(self, drive: Path, old: str, new: str, line: int, field: str | None, words: str) -> None:
+        edit(drive / "frames.csv", old, new)
+        err = read_error(drive)
+        assert (err.file, err.line, err.field) == (str(drive / "frames.csv"), line, field)
+        assert words in err.reason
+
+    def test_empty_drive(self, drive: Path) -> None:
+        (drive / "frames.csv").write_text("frame,t,x,y,yaw\n")
+        err = read_error(drive)
+        assert (err.line, err.field) == (1, "frame")
+        assert "no frames" in err.reason
+
+    def test_empty_file(self, drive: Path) -> None:
+        (drive / "frames.csv").write_text("")
+        assert (read_error(drive).line, read_error(drive).field) == (1, "header")
+
+    def test_header_without_truth_is_accepted(self, drive: Path) -> None:
+        (drive / "frames.csv").write_text("frame,t\r\n0,0\r\n1,0.5\r\n\r\n")
+        (drive / "groundings.csv").unlink()
+        assert read_drive_folder(drive).frames == [FrameRow(0, 0.0), FrameRow(1, 0.5)]
+
+    def test_blank_lines_keep_line_numbers(self, drive: Path) -> None:
+        (drive / "frames.csv").write_text("frame,t\n\n0,0\n\n0,1\n")
+        assert read_error(drive).line == 5
+
+
+class TestGroundingsErrors:
+    @pytest.mark.parametrize(
+        ("text", "line", "field", "words"),
+        [
+            ("frame,x\n0,1\n", 1, "y", "header"),
+            ("frame,x,y\n0,1,2\n9,1,2\n", 3, "frame", "not in frames.csv"),
+            ("frame,x,y\n0,1,2\n0,1,3\n", 3, "frame", "twice"),
+            ("frame,x,y\n0,1,\n", 2, "y", "finite number"),
+        ],
+    )
+    def test_bad_groundings(self, drive: Path, text: str, line: int, field: str, words: str) -> None:
+        (drive / "groundings.csv").write_text(text)
+        err = read_error(drive)
+        assert (err.file, err.line, err.field) == (str(drive / "groundings.csv"), line, field)
+        assert words in err.reason
+
+
+class TestFrameImages:
+    def frame_error(self, drive: Path) -> BadInputError:
+        folder = read_drive_folder(drive)
+        with pytest.raises(BadInputError) as info:
+            list(iter_frame_images(folder))
+        return info.value
+
+    def test_png_cut_in_half(self, drive: Path) -> None:
+        file = drive / "frames" / "000002.png"
+        data = file.read_bytes()
+        file.write_bytes(data[: len(data) // 2])
+        err = self.frame_error(drive)
+        assert err.file == str(file)
+        assert "truncated" in err.reason
+
+    def test_frame_of_another_size_names_both_sizes(self, drive: Path) -> None:
+        file = drive / "frames" / "000004.png"
+        file.write_bytes(make_png(0, width=30, height=24))
+        err = self.frame_error(drive)
+        assert err.file == str(file)
+        assert "30x24" in err.reason and "32x24" in err.reason
+
+    def test_garbage_file(self, drive: Path) -> None:
+        (drive / "frames" / "000000.png").write_bytes(b"not an image at all")
+        assert "not a PNG or JPEG" in self.frame_error(drive).reason
+
+    def test_colour_frames_are_accepted(self, tmp_path: Path) -> None:
+        images = [make_png(i, channels=3) for i in range(2)]
+        write_drive_folder(tmp_path / "d", make_meta(), make_frames(2), images)
+        assert [d for _, d in iter_frame_images(read_drive_folder(tmp_path / "d"))] == images
+
+
+FINITE = st.floats(allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def frame_rows(draw: st.DrawFn) -> list[FrameRow]:
+    numbers = draw(st.lists(st.integers(0, 10**7), min_size=1, max_size=20, unique=True))
+    times = sorted(draw(st.lists(FINITE, min_size=len(numbers), max_size=len(numbers), unique=True)))
+    rows = []
+    for frame, t in zip(numbers, times, strict=True):
+        truth = draw(st.none() | st.tuples(FINITE, FINITE, FINITE))
+        rows.append(FrameRow(frame, t, *(truth or (None, None, None))))
+    return rows
+
+
+class TestFramesCsvProperties:
+    @given(frame_rows())
+    def test_rows_round_trip_exactly(self, rows: list[FrameRow]) -> None:
+        text = frames_text(rows)
+        assert parse_frames_csv(text, "frames.csv") == rows
+        assert frames_text(parse_frames_csv(text, "frames.csv")) == text
+
+    @settings(max_examples=200)
+    @given(st.lists(st.text(alphabet=',.-+e0123456789naif "\r', max_size=30), max_size=6))
+    def test_garbage_lines_give_bad_input(self, lines: list[str]) -> None:
+        text = "frame,t,x,y,yaw\n" + "\n".join(lines)
+        try:
+            rows = parse_frames_csv(text, "frames.csv")
+        except BadInputError as exc:
+            assert exc.file == "frames.csv" and exc.line is not None
+        else:
+            assert rows

@@ -16,6 +16,7 @@ from driftmap.core.camera import CameraModel
 from driftmap.errors import BadInputError
 from driftmap.formats.records import DRIVE_FORMAT, DRIVE_KINDS, DriveKind, DriveMeta
 
+_KEY_RE = re.compile(r'"([^"\\]*)"\s*:')
 CAMERA_KEYS: tuple[str, ...] = ("width", "height", "ground_roi", "k_x", "k_y", "y_c", "y_h", "forward_sign")
 
 
@@ -69,7 +70,14 @@ def load_json(text: str, file: str | Path) -> Any:
     """Parse JSON text; syntax errors, NaN/Infinity and duplicate keys name the file and line."""
 
     def reject_constant(name: str) -> Any:
-        raise BadInputError(f"{name} is not allowed in JSON", file=file, line=_line_of_token(text, name))
+        pos = text.find(name)
+        keys = list(_KEY_RE.finditer(text, 0, max(pos, 0)))
+        raise BadInputError(
+            f"{name} is not allowed in JSON",
+            file=file,
+            line=text.count("\n", 0, pos) + 1 if pos >= 0 else None,
+            field=keys[-1].group(1) if keys else None,
+        )
 
     def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -84,8 +92,12 @@ def load_json(text: str, file: str | Path) -> Any:
     try:
         return json.loads(text, parse_constant=reject_constant, object_pairs_hook=pairs)
     except json.JSONDecodeError as exc:
+        keys = list(_KEY_RE.finditer(text, 0, exc.pos))
         raise BadInputError(
-            f"invalid JSON: {exc.msg} (column {exc.colno})", file=file, line=exc.lineno
+            f"invalid JSON: {exc.msg} (column {exc.colno})",
+            file=file,
+            line=exc.lineno,
+            field=keys[-1].group(1) if keys else None,
         ) from None
     except RecursionError:
         raise BadInputError("JSON nested too deeply", file=file, line=1) from None
@@ -243,8 +255,3 @@ def _line_of(text: str, *path: str, last: bool = False) -> int | None:
             return None
         pos = matches[-1].start()
     return text.count("\n", 0, pos) + 1
-
-
-def _line_of_token(text: str, token: str) -> int | None:
-    pos = text.find(token)
-    return None if pos < 0 else text.count("\n", 0, pos) + 1
