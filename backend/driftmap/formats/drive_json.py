@@ -246,12 +246,16 @@ def _number(v: object, key: str, text: str, file: str | Path) -> float:
 
 
 def _line_of(text: str, *path: str, last: bool = False) -> int | None:
-    """1-based line of the key at the end of ``path`` (each key searched after the previous one)."""
+    """1-based line of the key at the end of ``path``, each key searched after the previous one.
+
+    A parent key that is absent is skipped (a calibration file may hold the camera block unwrapped).
+    """
     pos = 0
-    for key in path:
+    for depth, key in enumerate(path, start=1):
         pattern = re.compile(r'"' + re.escape(key) + r'"\s*:')
         matches = list(pattern.finditer(text, pos)) if last else [m for m in [pattern.search(text, pos)] if m]
-        if not matches:
+        if matches:
+            pos = matches[-1].start()
+        elif depth == len(path):
             return None
-        pos = matches[-1].start()
     return text.count("\n", 0, pos) + 1
