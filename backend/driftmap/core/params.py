@@ -1,0 +1,132 @@
+"""Parameter sets of the image core: frozen dataclasses with named presets.
+
+Each pipeline step takes one of these; presets are module constants named ``<STEP>_<NAME>``:
+``PAPER`` follows the papers as closely as they say, ``DEFAULT`` is what driftmap uses, ``FAST``
+trades accuracy for speed. Units are in the field names (``_px``, ``_m``, ``_rad``) or comments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+__all__ = [
+    "IMAGES_DEFAULT",
+    "IMAGES_FAST",
+    "IMAGES_PAPER",
+    "ODOMETRY_DEFAULT",
+    "ODOMETRY_FAST",
+    "ODOMETRY_PAPER",
+    "SAD_DEFAULT",
+    "SAD_FAST",
+    "SAD_PAPER",
+    "ImageParams",
+    "OdometryModel",
+    "OdometryParams",
+    "SadParams",
+]
+
+
+@dataclass(frozen=True)
+class ImageParams:
+    """Place-recognition pre-processing (paper 000 IV-C): gray, crop, down-sample, patch normalise."""
+
+    crop_px: tuple[int, int, int, int] | None = None  # (x, y, w, h) kept before down-sampling; None keeps all
+    crop_margins_px: tuple[int, int, int, int] | None = None  # (left, top, right, bottom) removed instead
+    size_px: tuple[int, int] | None = (64, 32)  # (width, height) after INTER_AREA down-sampling; None keeps
+    patch_px: int = 8  # side of the patch-normalisation square, pixels of the down-sampled image
+    min_std: float = 1e-3  # local std (input intensity units) below which a patch is flat and outputs 0
+
+    def __post_init__(self) -> None:
+        if self.crop_px is not None and self.crop_margins_px is not None:
+            raise ValueError("ImageParams: give crop_px or crop_margins_px, not both")
+        if self.size_px is not None and min(self.size_px) <= 0:
+            raise ValueError(f"ImageParams.size_px must be positive, got {self.size_px}")
+        if self.patch_px < 2:
+            raise ValueError(f"ImageParams.patch_px must be >= 2, got {self.patch_px}")
+
+
+@dataclass(frozen=True)
+class SadParams:
+    """Shifted SAD image comparison (paper 000 eq. 3/4; masked form of paper 001 eq. 6)."""
+
+    max_shift_x_px: int = 4  # lateral search +-x_max, pixels of the compared images
+    max_shift_y_px: int = 2  # vertical search +-y_max, pixels
+    chunk_bytes: int = 1 << 20  # bound on float32 temporaries per chunk; ~L2-cache sized is fastest
+
+    def __post_init__(self) -> None:
+        if self.max_shift_x_px < 0 or self.max_shift_y_px < 0:
+            raise ValueError("SadParams: shifts must be >= 0")
+        if self.chunk_bytes < 1024:
+            raise ValueError("SadParams.chunk_bytes must be >= 1024")
+
+
+OdometryModel = Literal["auto", "linear", "homography"]
+
+
+@dataclass(frozen=True)
+class OdometryParams:
+    """Ground-plane visual odometry (paper 000 eq. 1, 2; bird's-eye extension)."""
+
+    model: OdometryModel = "auto"  # "linear": eq. 1-2 with k_x/k_y; "homography": bird's-eye; auto picks
+    max_step_m: float = 2.0  # largest forward or reverse travel per frame that is searched, metres
+    max_turn_rad: float = 0.15  # largest heading change per frame that is searched, radians
+    max_lateral_m: float = 0.3  # sideways slip searched on top of what a turn explains, metres
+    bev_res_m: float = 0.02  # bird's-eye grid cell, metres (coarsened when the grid would exceed bev_max_px)
+    bev_max_px: int = 640  # largest side of the bird's-eye grid, cells
+    max_roi_px: int = 480  # linear model: the ROI window is down-sampled so its longer side is at most this
+    patch_px: int = 8  # patch-normalisation square on every pyramid level, pixels
+    coarse_min_px: int = 8  # the coarsest pyramid level keeps at least this many pixels across the ROI
+    coarse_candidates: int = 3  # local minima of the coarse exhaustive search refined to full resolution
+    refine_radius_px: int = 2  # search radius around the up-sampled estimate on each finer level
+    rotation_steps: int = 3  # bird's-eye: heading candidates on each side of the eq.-1 estimate
+    rotation_step_rad: float = 0.006  # spacing of those candidates, radians
+    nonholonomic: bool = True  # bird's-eye: project the motion onto a rear-axle arc (no sideways slip)
+    stationary_px: float = 0.3  # |shift| below this (pixels of the matching grid) with a good match -> zero
+    stationary_min_confidence: float = 0.3  # the "good match" of stationary detection
+    texture_ref: float = 4.0  # high-pass intensity std (grey levels) giving texture factor 1 - 1/e
+    blur_ref: float = 0.12  # re-blur gradient loss at which the blur factor reaches 1 (sharp enough)
+    distinct_ref: float = 0.25  # 1 - best/second-best cost at which the match factor reaches 1
+    saturated_low: int = 5  # grey level at or below which a pixel is black-clipped
+    saturated_high: int = 250  # grey level at or above which a pixel is white-clipped
+    flat_std: float = 1.0  # local 5x5 intensity std (grey levels) below which a pixel counts as flat
+    sigma_xy_base_m: float = 0.01  # position sigma of a perfect step, metres
+    sigma_xy_per_m: float = 0.03  # plus this fraction of the step length
+    sigma_theta_base_rad: float = 0.002  # heading sigma of a perfect step, radians
+    sigma_theta_per_m: float = 0.004  # plus this many radians per metre travelled
+    confidence_floor: float = 0.05  # sigmas are divided by max(confidence, this)
+
+    def __post_init__(self) -> None:
+        if self.model not in ("auto", "linear", "homography"):
+            raise ValueError(f"OdometryParams.model must be auto, linear or homography, got {self.model!r}")
+        positive = {
+            "max_step_m": self.max_step_m,
+            "bev_res_m": self.bev_res_m,
+            "rotation_step_rad": self.rotation_step_rad,
+            "texture_ref": self.texture_ref,
+            "blur_ref": self.blur_ref,
+            "distinct_ref": self.distinct_ref,
+            "confidence_floor": self.confidence_floor,
+        }
+        for name, value in positive.items():
+            if not value > 0:
+                raise ValueError(f"OdometryParams.{name} must be > 0, got {value}")
+        if self.max_turn_rad < 0 or self.max_lateral_m < 0:
+            raise ValueError("OdometryParams: max_turn_rad and max_lateral_m must be >= 0")
+        if self.patch_px < 2 or self.coarse_min_px < 2 or self.coarse_candidates < 1:
+            raise ValueError("OdometryParams: patch_px >= 2, coarse_min_px >= 2, coarse_candidates >= 1")
+        if self.refine_radius_px < 1 or self.rotation_steps < 0 or self.bev_max_px < 16 or self.max_roi_px < 16:
+            raise ValueError("OdometryParams: bad refine_radius_px, rotation_steps, bev_max_px or max_roi_px")
+
+
+IMAGES_PAPER = ImageParams(size_px=(64, 32), patch_px=8)
+IMAGES_DEFAULT = IMAGES_PAPER
+IMAGES_FAST = ImageParams(size_px=(32, 24), patch_px=4)
+
+SAD_PAPER = SadParams(max_shift_x_px=4, max_shift_y_px=2)
+SAD_DEFAULT = SAD_PAPER
+SAD_FAST = SadParams(max_shift_x_px=2, max_shift_y_px=1)
+
+ODOMETRY_DEFAULT = OdometryParams()
+ODOMETRY_PAPER = OdometryParams(model="linear")
+ODOMETRY_FAST = OdometryParams(bev_res_m=0.04, max_roi_px=240, rotation_steps=2, rotation_step_rad=0.01)
