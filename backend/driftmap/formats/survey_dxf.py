@@ -282,10 +282,16 @@ def _is_mesh(entity: DXFGraphic) -> bool:
 
 
 def _line_feature(entity: DXFGraphic, scale: float) -> dict[str, Any] | None:
-    curve = ezpath.make_path(entity)
-    points = [(v.x * scale, v.y * scale) for v in curve.flattening(SAGITTA_M / scale, segments=16)]
-    closed = entity.dxftype() in ("CIRCLE",) or _closed_flag(entity)
-    if entity.dxftype() == "ELLIPSE":
+    dxftype, sagitta = entity.dxftype(), SAGITTA_M / scale
+    if dxftype in ("ARC", "CIRCLE"):  # exact points on the curve, not on a Bezier approximation
+        vertices = entity.flattening(sagitta)  # type: ignore[attr-defined]
+    elif dxftype in ("ELLIPSE", "SPLINE"):
+        vertices = entity.flattening(sagitta, segments=16)  # type: ignore[attr-defined]
+    else:  # LINE and polylines; bulges become cubic Beziers within ~1e-4 of the arc radius
+        vertices = ezpath.make_path(entity).flattening(sagitta, segments=16)
+    points = [(v.x * scale, v.y * scale) for v in vertices]
+    closed = dxftype == "CIRCLE" or _closed_flag(entity)
+    if dxftype == "ELLIPSE":
         closed = math.isclose(abs(entity.dxf.end_param - entity.dxf.start_param), math.tau, abs_tol=1e-9)
     if closed and points and points[0] != points[-1]:
         points.append(points[0])
@@ -295,7 +301,7 @@ def _line_feature(entity: DXFGraphic, scale: float) -> dict[str, Any] | None:
     return {
         "type": "Feature",
         "geometry": {"type": "LineString", "coordinates": [list(p) for p in points]},
-        "properties": {"entity": entity.dxftype(), "closed": bool(closed)},
+        "properties": {"entity": dxftype, "closed": bool(closed)},
     }
 
 
