@@ -9,6 +9,7 @@ naming the file, the 1-based line (the header is line 1) and the column. Floats 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 from driftmap.errors import BadInputError
@@ -18,6 +19,7 @@ from driftmap.formats.tables import (
     format_float,
     parse_float,
     parse_int,
+    parse_text,
     read_table,
     table_text,
     write_text_atomic,
@@ -75,3 +77,201 @@ def parse_groundings_rows(text: str, file: str | Path) -> list[tuple[int, Ground
 def read_groundings_csv(path: Path) -> list[GroundingRow]:
     """Read and validate a ``groundings.csv`` file."""
     return parse_groundings_csv(decode_text(Path(path).read_bytes(), path), path)
+
+
+# ---------------------------------------------------------------------------------------------- map poses
+
+
+@dataclass(frozen=True)
+class PoseRow:
+    """One row of the map poses export: a mapping-drive frame's pose in the survey frame.
+
+    ``x_m, y_m`` is the floor point under the camera (metres), ``yaw_rad`` the heading counter-clockwise
+    from +x (radians).
+    """
+
+    drive: str
+    frame: int
+    x_m: float
+    y_m: float
+    yaw_rad: float
+
+
+POSES_HEADER: tuple[str, ...] = ("drive", "frame", "x", "y", "yaw")
+
+
+def poses_text(rows: Iterable[PoseRow]) -> str:
+    """Poses CSV text, header ``drive,frame,x,y,yaw``."""
+    return table_text(
+        POSES_HEADER,
+        (
+            [
+                _name(r.drive, "drive"),
+                str(int(r.frame)),
+                format_float(r.x_m, field="x"),
+                format_float(r.y_m, field="y"),
+                format_float(r.yaw_rad, field="yaw"),
+            ]
+            for r in rows
+        ),
+    )
+
+
+def write_poses_csv(path: Path, rows: Iterable[PoseRow]) -> None:
+    """Write the poses CSV atomically."""
+    write_text_atomic(path, poses_text(rows))
+
+
+def parse_poses_csv(text: str, file: str | Path) -> list[PoseRow]:
+    """Parse poses CSV text; each (drive, frame) may appear once."""
+    _, table = read_table(text, file, [POSES_HEADER])
+    out: list[PoseRow] = []
+    seen: set[tuple[str, int]] = set()
+    for row in table:
+        cells, line = row.cells, row.line
+        drive = parse_text(cells["drive"], file=file, line=line, field="drive")
+        frame = parse_int(cells["frame"], file=file, line=line, field="frame")
+        if (drive, frame) in seen:
+            raise BadInputError(
+                f"drive {drive!r} frame {frame} appears twice", file=file, line=line, field="frame"
+            )
+        seen.add((drive, frame))
+        x, y, yaw = (parse_float(cells[k], file=file, line=line, field=k) for k in ("x", "y", "yaw"))
+        out.append(PoseRow(drive, frame, x, y, yaw))
+    return out
+
+
+def read_poses_csv(path: Path) -> list[PoseRow]:
+    """Read and validate a poses CSV file."""
+    return parse_poses_csv(decode_text(Path(path).read_bytes(), path), path)
+
+
+# ---------------------------------------------------------------------------------------------- localisation
+
+
+@dataclass(frozen=True)
+class LocalisationRow:
+    """One row of a localisation export: the best map node for a query frame.
+
+    ``node`` is the best node id b(i), ``x_m, y_m`` its metric position (metres, survey frame), ``score``
+    X_i(b(i)) (higher = more confident) and ``matched`` whether score >= the configured X_thresh.
+    """
+
+    frame: int
+    node: int
+    x_m: float
+    y_m: float
+    score: float
+    matched: bool
+
+
+LOCALISATION_HEADER: tuple[str, ...] = ("frame", "node", "x", "y", "score", "matched")
+
+
+def localisation_text(rows: Iterable[LocalisationRow]) -> str:
+    """Localisation CSV text, header ``frame,node,x,y,score,matched``; matched is 1 or 0."""
+    return table_text(
+        LOCALISATION_HEADER,
+        (
+            [
+                str(int(r.frame)),
+                str(int(r.node)),
+                format_float(r.x_m, field="x"),
+                format_float(r.y_m, field="y"),
+                format_float(r.score, field="score"),
+                "1" if r.matched else "0",
+            ]
+            for r in rows
+        ),
+    )
+
+
+def write_localisation_csv(path: Path, rows: Iterable[LocalisationRow]) -> None:
+    """Write the localisation CSV atomically."""
+    write_text_atomic(path, localisation_text(rows))
+
+
+def parse_localisation_csv(text: str, file: str | Path) -> list[LocalisationRow]:
+    """Parse localisation CSV text; each frame may appear once, ``matched`` must be 0 or 1."""
+    _, table = read_table(text, file, [LOCALISATION_HEADER])
+    out: list[LocalisationRow] = []
+    seen: set[int] = set()
+    for row in table:
+        cells, line = row.cells, row.line
+        frame = parse_int(cells["frame"], file=file, line=line, field="frame")
+        if frame in seen:
+            raise BadInputError(f"frame {frame} appears twice", file=file, line=line, field="frame")
+        seen.add(frame)
+        node = parse_int(cells["node"], file=file, line=line, field="node")
+        x, y, score = (parse_float(cells[k], file=file, line=line, field=k) for k in ("x", "y", "score"))
+        if cells["matched"] not in ("0", "1"):
+            raise BadInputError(
+                f"must be 0 or 1, found {cells['matched'][:20]!r}", file=file, line=line, field="matched"
+            )
+        out.append(LocalisationRow(frame, node, x, y, score, cells["matched"] == "1"))
+    return out
+
+
+def read_localisation_csv(path: Path) -> list[LocalisationRow]:
+    """Read and validate a localisation CSV file."""
+    return parse_localisation_csv(decode_text(Path(path).read_bytes(), path), path)
+
+
+# ---------------------------------------------------------------------------------------------- place recognition
+
+
+@dataclass(frozen=True)
+class PlaceMatchRow:
+    """One row of a place-recognition export: the best reference image for a query image.
+
+    ``query`` and ``db`` are file names; ``score`` a similarity, higher = more similar (e.g. negative SAD).
+    """
+
+    query: str
+    db: str
+    score: float
+
+
+PLACE_HEADER: tuple[str, ...] = ("query", "db", "score")
+
+
+def place_matches_text(rows: Iterable[PlaceMatchRow]) -> str:
+    """Place-recognition CSV text, header ``query,db,score``."""
+    return table_text(
+        PLACE_HEADER,
+        ([_name(r.query, "query"), _name(r.db, "db"), format_float(r.score, field="score")] for r in rows),
+    )
+
+
+def write_place_matches_csv(path: Path, rows: Iterable[PlaceMatchRow]) -> None:
+    """Write the place-recognition CSV atomically."""
+    write_text_atomic(path, place_matches_text(rows))
+
+
+def parse_place_matches_csv(text: str, file: str | Path) -> list[PlaceMatchRow]:
+    """Parse place-recognition CSV text; each query may appear once."""
+    _, table = read_table(text, file, [PLACE_HEADER])
+    out: list[PlaceMatchRow] = []
+    seen: set[str] = set()
+    for row in table:
+        cells, line = row.cells, row.line
+        query = parse_text(cells["query"], file=file, line=line, field="query")
+        if query in seen:
+            raise BadInputError(f"query {query!r} appears twice", file=file, line=line, field="query")
+        seen.add(query)
+        db = parse_text(cells["db"], file=file, line=line, field="db")
+        score = parse_float(cells["score"], file=file, line=line, field="score")
+        out.append(PlaceMatchRow(query, db, score))
+    return out
+
+
+def read_place_matches_csv(path: Path) -> list[PlaceMatchRow]:
+    """Read and validate a place-recognition CSV file."""
+    return parse_place_matches_csv(decode_text(Path(path).read_bytes(), path), path)
+
+
+def _name(value: str, field: str) -> str:
+    """A name cell as written: non-empty, one line, no surrounding blanks (which readers strip)."""
+    if not value or value != value.strip() or "\n" in value or "\r" in value:
+        raise ValueError(f"{field} {value!r} cannot be written as a CSV cell (empty, padded or multi-line)")
+    return value
