@@ -131,7 +131,7 @@ class TestWriteAtomically:
     ) -> None:
         with pytest.raises(BadInputError) as info:
             write_drive_folder(tmp_path / "d", make_meta(), frames, [make_png(0)] * len(frames))
-        assert info.value.field == field
+        assert (info.value.file, info.value.field) == (str(tmp_path / "d" / "frames.csv"), field)
         assert list(tmp_path.iterdir()) == []
 
     def test_groundings_of_absent_frames_are_refused(self, tmp_path: Path) -> None:
@@ -253,6 +253,7 @@ class TestFramesCsvErrors:
         [
             ("frame,t,x,y,yaw", "frame,time,x,y,yaw", 1, "t", "header"),
             ("frame,t,x,y,yaw", "frame,t,x,y", 1, "yaw", "header"),
+            ("frame,t,x,y,yaw", "frame,t,x,y,yaw,z", 1, "z", "header"),
             ("\n2,0.2,", "\n2.5,0.2,", 4, "frame", "integer"),
             ("\n2,0.2,", "\nabc,0.2,", 4, "frame", "integer"),
             ("\n2,0.2,", "\n2,zero,", 4, "t", "finite number"),

@@ -201,11 +201,11 @@ def write_drive_folder(
         raise ConflictError(f"{out_dir} already exists and is not empty")
     if not (meta.fps > 0 and meta.fps < float("inf")):
         raise BadInputError(
-            f"fps must be finite and positive, got {meta.fps!r}", file="drive.json", field="fps"
+            f"fps must be finite and positive, got {meta.fps!r}", file=out_dir / "drive.json", field="fps"
         )
-    check_frame_rows([(i + 2, r) for i, r in enumerate(frames)], "frames.csv")
+    check_frame_rows([(i + 2, r) for i, r in enumerate(frames)], out_dir / "frames.csv")
     if groundings is not None:
-        _check_groundings(groundings, frames, "groundings.csv", range(2, len(groundings) + 2))
+        _check_groundings(groundings, frames, out_dir / "groundings.csv", range(2, len(groundings) + 2))
     drive_json, frames_csv = dump_drive_json(meta), frames_text(frames)
     groundings_csv = groundings_text(groundings) if groundings is not None else None
 
@@ -218,10 +218,14 @@ def write_drive_folder(
         for count, row in enumerate(frames):
             data = next(remaining, None)
             if data is None:
-                raise BadInputError(f"got {count} images for {len(frames)} frames", field="images")
+                raise BadInputError(
+                    f"got {count} images for {len(frames)} frames", file=out_dir / "frames", field="images"
+                )
             (frames_dir / frame_file_name(row.frame, ext)).write_bytes(data)
         if next(remaining, None) is not None:
-            raise BadInputError(f"got more images than the {len(frames)} frames", field="images")
+            raise BadInputError(
+                f"got more images than the {len(frames)} frames", file=out_dir / "frames", field="images"
+            )
         (tmp / "frames.csv").write_text(frames_csv, encoding="utf-8", newline="")
         if groundings_csv is not None:
             (tmp / "groundings.csv").write_text(groundings_csv, encoding="utf-8", newline="")

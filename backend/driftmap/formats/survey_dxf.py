@@ -37,7 +37,6 @@ from ezdxf.lldxf.const import DXFError
 
 from driftmap.errors import BadInputError
 
-SURVEY_FORMAT = "driftmap-survey/1"
 SAGITTA_M = 0.05  # largest distance between a flattened curve and its chords, metres
 _MAX_BLOCK_DEPTH = 16  # nested block references deeper than this are taken as a cycle
 _BINARY_DXF_MAGIC = b"AutoCAD Binary DXF"
@@ -127,60 +126,62 @@ def read_survey_dxf(data: bytes, source: str) -> SurveyMap:
         )
         for name in sorted(features)
     }
-    boxes = [layer.extents for layer in layers.values()]
-    extents = (
-        min(b[0] for b in boxes),
-        min(b[1] for b in boxes),
-        max(b[2] for b in boxes),
-        max(b[3] for b in boxes),
-    )
+    extents = _union([layer.extents for layer in layers.values()])
     return SurveyMap(source, insunits, scale, layers, extents, dict(sorted(skipped.items())))
 
 
 def survey_map_to_json(survey: SurveyMap) -> dict[str, Any]:
-    """A plain-JSON dict of ``survey`` for storage; :func:`survey_map_from_json` reverses it."""
+    """The parsed layers of ``survey`` as plain JSON, for storage.
+
+    Returns:
+        Layer name -> GeoJSON FeatureCollection dict (coordinates in plane metres) with two extra
+        members: ``extents`` ``[min_x, min_y, max_x, max_y]`` (metres) and ``counts`` (features per DXF
+        entity type). The plan's ``source``, ``insunits`` and ``skipped`` are not included; store them
+        beside it if needed and hand them back to :func:`survey_map_from_json`.
+    """
     return {
-        "format": SURVEY_FORMAT,
-        "source": survey.source,
-        "insunits": survey.insunits,
-        "metres_per_unit": survey.metres_per_unit,
-        "extents": list(survey.extents),
-        "skipped": dict(survey.skipped),
-        "layers": {
-            name: {"extents": list(layer.extents), "counts": dict(layer.counts), **layer.features}
-            for name, layer in survey.layers.items()
-        },
+        name: {**layer.features, "extents": list(layer.extents), "counts": dict(layer.counts)}
+        for name, layer in survey.layers.items()
     }
 
 
-def survey_map_from_json(obj: dict[str, Any]) -> SurveyMap:
+def survey_map_from_json(
+    layers: dict[str, Any],
+    *,
+    source: str = "stored survey map",
+    insunits: int = 6,
+    metres_per_unit: float = 1.0,
+    skipped: dict[str, int] | None = None,
+) -> SurveyMap:
     """Rebuild a :class:`SurveyMap` from :func:`survey_map_to_json` output.
 
+    Args:
+        layers: the stored layers.
+        source: the plan's file name.
+        insunits: the ``$INSUNITS`` code the plan had (its coordinates are metres whatever it was).
+        metres_per_unit: the scale that was applied.
+        skipped: the counts of left-out entities.
+
     Raises:
-        BadInputError: a dict of another format or version.
+        BadInputError: ``layers`` is not what :func:`survey_map_to_json` writes.
     """
-    if not isinstance(obj, dict) or obj.get("format") != SURVEY_FORMAT:
-        raise BadInputError(f"not a stored survey map (format must be '{SURVEY_FORMAT}')", field="format")
     try:
-        layers = {
-            name: SurveyLayer(
-                name=name,
+        if not isinstance(layers, dict) or not layers:
+            raise TypeError("expected a non-empty dict of layers")
+        parsed: dict[str, SurveyLayer] = {}
+        for name, layer in layers.items():
+            if layer["type"] != "FeatureCollection" or not isinstance(layer["features"], list):
+                raise TypeError(f"layer {name!r} is not a FeatureCollection")
+            parsed[str(name)] = SurveyLayer(
+                name=str(name),
                 features={"type": "FeatureCollection", "features": list(layer["features"])},
                 extents=_as_extents(layer["extents"]),
                 counts={str(k): int(v) for k, v in layer["counts"].items()},
             )
-            for name, layer in obj["layers"].items()
-        }
-        return SurveyMap(
-            source=str(obj["source"]),
-            insunits=int(obj["insunits"]),
-            metres_per_unit=float(obj["metres_per_unit"]),
-            layers=layers,
-            extents=_as_extents(obj["extents"]),
-            skipped={str(k): int(v) for k, v in obj.get("skipped", {}).items()},
-        )
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise BadInputError(f"stored survey map is damaged: {exc!r}", field="layers") from None
+        raise BadInputError(f"stored survey map is damaged: {exc}", file=source, field="layers") from None
+    boxes = [layer.extents for layer in parsed.values()]
+    return SurveyMap(source, insunits, metres_per_unit, parsed, _union(boxes), dict(skipped or {}))
 
 
 # ----------------------------------------------------------------------------------------------- loading
@@ -190,8 +191,8 @@ def _load(data: bytes, source: str) -> Drawing:
     if data.startswith(_BINARY_DXF_MAGIC):
         return _load_binary(data, source)
     text = _decode(data, source)
-    stripped = text.rstrip()
-    if not stripped.endswith("EOF") or stripped.rsplit("\n", 2)[-2].strip() != "0":
+    last_tags = [line.strip() for line in text.rstrip().rsplit("\n", 2)[-2:]]
+    if last_tags != ["0", "EOF"]:
         raise BadInputError("not a complete DXF file (no '0 / EOF' at the end; truncated?)", file=source)
     try:
         return read_dxf_stream(io.StringIO(text))
@@ -344,6 +345,15 @@ def _extents(features: list[dict[str, Any]]) -> Extents:
         xs.extend(c[0] for c in coords)
         ys.extend(c[1] for c in coords)
     return (min(xs), min(ys), max(xs), max(ys))
+
+
+def _union(boxes: list[Extents]) -> Extents:
+    return (
+        min(b[0] for b in boxes),
+        min(b[1] for b in boxes),
+        max(b[2] for b in boxes),
+        max(b[3] for b in boxes),
+    )
 
 
 def _as_extents(values: Any) -> Extents:

@@ -74,9 +74,12 @@ def read_table(
     if found not in accepted:
         wanted = " or ".join(f"'{','.join(h)}'" for h in accepted)
         best = max(accepted, key=len)
-        bad_field = next(
-            (b for a, b in zip(found, best, strict=False) if a != b), best[min(len(found), len(best) - 1)]
-        )
+        if len(found) > len(best) and found[: len(best)] == best:
+            bad_field = found[len(best)]
+        else:
+            bad_field = next(
+                (b for a, b in zip(found, best, strict=False) if a != b), best[min(len(found), len(best) - 1)]
+            )
         raise BadInputError(
             f"header must be {wanted}, found '{','.join(found)}'", file=file, line=1, field=bad_field
         )
