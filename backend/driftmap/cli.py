@@ -128,7 +128,15 @@ def site_create(
                 _import_one(storage, name, folder)
 
 
-def _import_one(storage: Storage, site_name: str, path: Path, **video: str | None) -> None:
+def _import_one(
+    storage: Storage,
+    site_name: str,
+    path: Path,
+    *,
+    calibration: Path | None = None,
+    name: str | None = None,
+    kind: str = "mapping",
+) -> None:
     with _progress(f"import {path.name}") as progress:
         task = progress.add_task(f"import {path.name}", total=1.0)
 
@@ -137,7 +145,16 @@ def _import_one(storage: Storage, site_name: str, path: Path, **video: str | Non
 
         with storage.blobs.batch() as batch, storage.db.session() as session:
             site = site_service.get_site(session, site_name)
-            drive = drive_service.import_drive(session, batch, site, path, progress=report, **video)
+            drive = drive_service.import_drive(
+                session,
+                batch,
+                site,
+                path,
+                progress=report,
+                calibration=str(calibration) if calibration else None,
+                name=name,
+                kind=kind,
+            )
             summary = f"drive {drive.name!r} ({drive.kind}): {drive.frame_count} frames"
     console.print(summary)
 
@@ -157,17 +174,7 @@ def drive_import(
     """Import one drive into a site; a failed import leaves nothing behind."""
     storage = _storage()
     with _user_errors():
-        if path.is_dir():
-            _import_one(storage, site, path)
-        else:
-            _import_one(
-                storage,
-                site,
-                path,
-                calibration=str(calibration) if calibration else None,
-                name=name,
-                kind=kind,
-            )
+        _import_one(storage, site, path, calibration=calibration, name=name, kind=kind)
 
 
 @drive_app.command("export")

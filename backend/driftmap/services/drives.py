@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder, write_drive_folder
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
-from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
+from driftmap.formats.records import DriveKind, DriveMeta, FrameRow, GroundingRow
 from driftmap.formats.video import read_video_drive
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import Drive, Frame, Grounding, Site
@@ -154,7 +154,7 @@ def _store_drive(
     if frame_rows:
         session.execute(insert(Frame), frame_rows)
     if groundings:
-        ids = dict(session.execute(select(Frame.index, Frame.id).where(Frame.drive_id == drive.id)).tuples())
+        ids = dict(session.execute(select(Frame.index, Frame.id).where(Frame.drive_id == drive.id)).all())
         session.execute(
             insert(Grounding),
             [
@@ -177,7 +177,7 @@ def _store_drive(
 def drive_meta(drive: Drive) -> DriveMeta:
     """The stored drive's ``drive.json`` contents."""
     camera = parse_camera_block(drive.camera, "", f"drive {drive.name!r}")
-    kind = "mapping" if drive.kind == "mapping" else "localisation"
+    kind: DriveKind = "mapping" if drive.kind == "mapping" else "localisation"
     return DriveMeta(name=drive.name, kind=kind, fps=drive.fps, camera=camera)
 
 
@@ -194,7 +194,7 @@ def grounding_rows(session: Session, drive: Drive) -> list[GroundingRow]:
         .where(Grounding.drive_id == drive.id)
         .order_by(Frame.index)
     )
-    return [GroundingRow(frame=i, x_m=x, y_m=y) for i, x, y in session.execute(query).tuples()]
+    return [GroundingRow(frame=i, x_m=x, y_m=y) for i, x, y in session.execute(query).all()]
 
 
 def export_drive(session: Session, blobs: BlobStore, site: Site, name: str, out_dir: Path) -> Drive:
@@ -229,7 +229,7 @@ def list_drives(session: Session, site: Site) -> list[DriveSummary]:
             .join(Drive)
             .where(Drive.site_id == site.id)
             .group_by(Grounding.drive_id)
-        ).tuples()
+        ).all()
     )
     spans = {
         drive_id: (t_min, t_max, truth)
@@ -238,7 +238,7 @@ def list_drives(session: Session, site: Site) -> list[DriveSummary]:
             .join(Drive)
             .where(Drive.site_id == site.id)
             .group_by(Frame.drive_id)
-        ).tuples()
+        ).all()
     }
     summaries = []
     for drive in session.scalars(select(Drive).where(Drive.site_id == site.id).order_by(Drive.id)):

@@ -1,0 +1,86 @@
+"""The typer CLI end to end on real SQLite files: parse, call services, print, exit codes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import ezdxf
+import pytest
+from typer.testing import CliRunner
+
+from driftmap.cli import app
+from driftmap.config import get_settings
+from tests.drive_factory import write_test_drive
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def data_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    data = tmp_path / "data"
+    monkeypatch.setenv("DRIFTMAP_DATA_DIR", str(data))
+    monkeypatch.delenv("DRIFTMAP_DATABASE_URL", raising=False)
+    get_settings.cache_clear()
+    yield data
+    get_settings.cache_clear()
+
+
+def _survey(path: Path) -> Path:
+    doc = ezdxf.new("R2000")
+    doc.header["$INSUNITS"] = 6
+    msp = doc.modelspace()
+    msp.add_lwpolyline([(0, 0), (100, 0), (100, 5), (0, 5)], close=True, dxfattribs={"layer": "WALLS"})
+    msp.add_line((0, 2.5), (100, 2.5), dxfattribs={"layer": "CENTRELINE"})
+    doc.saveas(path)
+    return path
+
+
+class TestSiteAndDrives:
+    def test_create_import_list_export(self, data_dir: Path, tmp_path: Path) -> None:
+        survey = _survey(tmp_path / "survey.dxf")
+        drives = tmp_path / "drives"
+        write_test_drive(drives / "a", name="east-1", frames=7)
+        write_test_drive(drives / "b", name="west-1", frames=5, seed=3)
+        result = runner.invoke(
+            app, ["site", "create", "demo", "--survey", str(survey), "--drives", str(drives)]
+        )
+        assert result.exit_code == 0, result.output
+        assert "CENTRELINE" in result.output and "WALLS" in result.output
+        assert (data_dir / "driftmap.sqlite3").is_file()
+
+        listing = runner.invoke(app, ["drive", "list", "demo"])
+        assert listing.exit_code == 0, listing.output
+        assert "east-1" in listing.output and "west-1" in listing.output
+
+        out = tmp_path / "exported"
+        exported = runner.invoke(app, ["drive", "export", "demo", "east-1", str(out)])
+        assert exported.exit_code == 0, exported.output
+        assert (out / "frames.csv").read_bytes() == (drives / "a" / "frames.csv").read_bytes()
+        assert len(list((out / "frames").iterdir())) == 7
+
+        sites = runner.invoke(app, ["site", "list"])
+        assert "demo" in sites.output
+
+    def test_bad_input_exits_2_with_the_file_named(self, data_dir: Path, tmp_path: Path) -> None:
+        survey = _survey(tmp_path / "survey.dxf")
+        assert runner.invoke(app, ["site", "create", "demo", "--survey", str(survey)]).exit_code == 0
+        bad = write_test_drive(tmp_path / "bad", frames=4)
+        (bad / "frames.csv").write_text("frame,t,x,y,yaw\n0,0.0,,,\n1,0.1,,,\n2,0.1,,,\n3,0.3,,,\n")
+        result = runner.invoke(app, ["drive", "import", "demo", str(bad)])
+        assert result.exit_code == 2
+        assert "frames.csv:4" in result.output
+        assert "Traceback" not in result.output
+        assert "east-mapping-1" not in runner.invoke(app, ["drive", "list", "demo"]).output
+
+    def test_unknown_site_and_missing_survey(self, data_dir: Path, tmp_path: Path) -> None:
+        result = runner.invoke(app, ["drive", "list", "nowhere"])
+        assert result.exit_code == 2 and "nowhere" in result.output
+        result = runner.invoke(app, ["site", "create", "x", "--survey", str(tmp_path / "missing.dxf")])
+        assert result.exit_code == 2 and "missing.dxf" in result.output
+
+    def test_db_upgrade_and_help(self, data_dir: Path) -> None:
+        assert runner.invoke(app, ["db", "upgrade"]).exit_code == 0
+        help_text = runner.invoke(app, ["--help"]).output
+        for command in ("simulate", "site", "drive", "db"):
+            assert command in help_text
