@@ -144,3 +144,98 @@ class Grounding(Base):
 
     drive: Mapped[Drive] = relationship(back_populates="groundings")
     frame: Mapped[Frame] = relationship()
+
+
+class MapVersion(Base):
+    """One immutable build of a site's map: optimised poses, closures, residuals, topological map.
+
+    ``version`` counts up per site from 1. The topological map's arrays (node positions, sparse
+    adjacency) are one ``.npz`` blob named by ``topomap_sha256``; nodes and node frames are also rows
+    so that the API can query them.
+    """
+
+    __tablename__ = "map_versions"
+    __table_args__ = (UniqueConstraint("site_id", "version", name="uq_map_versions_site_id_version"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"), index=True)
+    version: Mapped[int] = mapped_column(Integer)
+    params: Mapped[dict[str, Any]] = mapped_column(JSON)
+    stats: Mapped[dict[str, Any]] = mapped_column(JSON)
+    """Build figures: frames, keyframes, closures, graph errors, seconds per stage."""
+    topomap_sha256: Mapped[str] = mapped_column(String(64))
+    created_by: Mapped[str] = mapped_column(String(200), default="cli")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+
+class MapPose(Base):
+    """The optimised pose of one mapping frame in one map version (survey frame, metres, radians)."""
+
+    __tablename__ = "map_poses"
+    __table_args__ = (
+        UniqueConstraint("map_version_id", "frame_id", name="uq_map_poses_map_version_id_frame_id"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    map_version_id: Mapped[int] = mapped_column(ForeignKey("map_versions.id", ondelete="CASCADE"), index=True)
+    frame_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
+    x_m: Mapped[float] = mapped_column(Float)
+    y_m: Mapped[float] = mapped_column(Float)
+    yaw_rad: Mapped[float] = mapped_column(Float)
+
+
+class MapLoopClosure(Base):
+    """A loop closure found during a build, with its SAD score and whether the optimiser kept it."""
+
+    __tablename__ = "map_loop_closures"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    map_version_id: Mapped[int] = mapped_column(ForeignKey("map_versions.id", ondelete="CASCADE"), index=True)
+    frame_a_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
+    frame_b_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
+    d_score: Mapped[float] = mapped_column(Float)
+    accepted: Mapped[bool] = mapped_column()
+    chi2: Mapped[float] = mapped_column(Float)
+
+
+class MapGroundingResidual(Base):
+    """How far the optimised map lands from one grounding: optimised minus surveyed, metres."""
+
+    __tablename__ = "map_grounding_residuals"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    map_version_id: Mapped[int] = mapped_column(ForeignKey("map_versions.id", ondelete="CASCADE"), index=True)
+    grounding_id: Mapped[int | None] = mapped_column(
+        ForeignKey("groundings.id", ondelete="SET NULL"), nullable=True
+    )
+    frame_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
+    surveyed_x_m: Mapped[float] = mapped_column(Float)
+    surveyed_y_m: Mapped[float] = mapped_column(Float)
+    dx_m: Mapped[float] = mapped_column(Float)
+    dy_m: Mapped[float] = mapped_column(Float)
+    distance_m: Mapped[float] = mapped_column(Float)
+
+
+class MapNode(Base):
+    """A place of the compressed topological map (paper III-A-4), every N metres."""
+
+    __tablename__ = "map_nodes"
+    __table_args__ = (UniqueConstraint("map_version_id", "node", name="uq_map_nodes_map_version_id_node"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    map_version_id: Mapped[int] = mapped_column(ForeignKey("map_versions.id", ondelete="CASCADE"), index=True)
+    node: Mapped[int] = mapped_column(Integer)
+    x_m: Mapped[float] = mapped_column(Float)
+    y_m: Mapped[float] = mapped_column(Float)
+
+
+class MapNodeFrame(Base):
+    """A frame chosen to represent a node (several per node: headings, appearances)."""
+
+    __tablename__ = "map_node_frames"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    map_version_id: Mapped[int] = mapped_column(ForeignKey("map_versions.id", ondelete="CASCADE"), index=True)
+    node: Mapped[int] = mapped_column(Integer)
+    frame_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
+    rank: Mapped[int] = mapped_column(Integer)
