@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -16,7 +17,7 @@ from driftmap.formats.drive_folder import (
     read_drive_folder,
     write_drive_folder,
 )
-from driftmap.formats.records import FrameRow, GroundingRow
+from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 from tests.formats.builders import make_frames, make_groundings, make_jpeg, make_meta, make_png
 
 
@@ -133,6 +134,26 @@ class TestWriteAtomically:
             write_drive_folder(tmp_path / "d", make_meta(), frames, [make_png(0)] * len(frames))
         assert (info.value.file, info.value.field) == (str(tmp_path / "d" / "frames.csv"), field)
         assert list(tmp_path.iterdir()) == []
+
+    def test_meta_a_reader_would_reject_is_refused(self, tmp_path: Path) -> None:
+        meta = make_meta()
+        bad = DriveMeta(meta.name, meta.kind, meta.fps, replace(meta.camera, k_x_m_per_px=-1.0))
+        with pytest.raises(BadInputError) as info:
+            write_drive_folder(tmp_path / "d", bad, make_frames(1), [make_png(0)])
+        assert (info.value.file, info.value.field) == (str(tmp_path / "d" / "drive.json"), "camera.k_x")
+        with pytest.raises(BadInputError) as info:
+            write_drive_folder(tmp_path / "d", replace(meta, fps=float("nan")), make_frames(1), [make_png(0)])
+        assert info.value.field == "fps"
+        hom = ((1.0, 0.0, 0.0), (0.0, float("inf"), 0.0), (0.0, 0.0, 1.0))
+        with pytest.raises(BadInputError) as info:
+            camera = replace(meta.camera, ground_homography=hom)
+            write_drive_folder(tmp_path / "d", replace(meta, camera=camera), make_frames(1), [make_png(0)])
+        assert info.value.field == "camera.ground_homography"
+        assert list(tmp_path.iterdir()) == []
+
+    def test_folder_gets_ordinary_permissions(self, tmp_path: Path) -> None:
+        write_sample(tmp_path / "d")
+        assert (tmp_path / "d").stat().st_mode & 0o777 == (tmp_path / "d" / "frames").stat().st_mode & 0o777
 
     def test_groundings_of_absent_frames_are_refused(self, tmp_path: Path) -> None:
         with pytest.raises(BadInputError, match=r"not in frames\.csv"):

@@ -15,14 +15,14 @@ import logging
 import os
 import re
 import shutil
-import tempfile
+import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from driftmap.errors import BadInputError, ConflictError
 from driftmap.formats.csv_exports import groundings_text, parse_groundings_rows
-from driftmap.formats.drive_json import dump_drive_json, parse_drive_json
+from driftmap.formats.drive_json import checked_drive_json, parse_drive_json
 from driftmap.formats.frame_images import check_frame_image
 from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 from driftmap.formats.tables import (
@@ -199,18 +199,15 @@ def write_drive_folder(
         raise BadInputError(f"image_ext must be one of {', '.join(IMAGE_EXTS)}", field="image_ext")
     if out_dir.exists() and not overwrite and (not out_dir.is_dir() or any(out_dir.iterdir())):
         raise ConflictError(f"{out_dir} already exists and is not empty")
-    if not (meta.fps > 0 and meta.fps < float("inf")):
-        raise BadInputError(
-            f"fps must be finite and positive, got {meta.fps!r}", file=out_dir / "drive.json", field="fps"
-        )
+    drive_json = checked_drive_json(meta, out_dir / "drive.json")
     check_frame_rows([(i + 2, r) for i, r in enumerate(frames)], out_dir / "frames.csv")
     if groundings is not None:
         _check_groundings(groundings, frames, out_dir / "groundings.csv", range(2, len(groundings) + 2))
-    drive_json, frames_csv = dump_drive_json(meta), frames_text(frames)
+    frames_csv = frames_text(frames)
     groundings_csv = groundings_text(groundings) if groundings is not None else None
 
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".partial", dir=out_dir.parent))
+    tmp = _fresh_sibling(out_dir, "partial")
     try:
         frames_dir = tmp / "frames"
         frames_dir.mkdir()
@@ -236,6 +233,17 @@ def write_drive_folder(
         raise
 
 
+def _fresh_sibling(out_dir: Path, suffix: str) -> Path:
+    """A new hidden folder beside ``out_dir`` (created with the usual umask, unlike ``mkdtemp``'s 0700)."""
+    while True:
+        candidate = out_dir.parent / f".{out_dir.name}.{uuid.uuid4().hex[:12]}.{suffix}"
+        try:
+            candidate.mkdir()
+        except FileExistsError:
+            continue
+        return candidate
+
+
 def _move_into_place(tmp: Path, out_dir: Path, overwrite: bool) -> None:
     if not out_dir.exists() and not out_dir.is_symlink():
         os.rename(tmp, out_dir)
@@ -246,7 +254,7 @@ def _move_into_place(tmp: Path, out_dir: Path, overwrite: bool) -> None:
         return
     if not overwrite:
         raise ConflictError(f"{out_dir} already exists and is not empty")
-    trash = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".old", dir=out_dir.parent))
+    trash = _fresh_sibling(out_dir, "old")
     os.rename(out_dir, trash / "old")
     os.rename(tmp, out_dir)
     shutil.rmtree(trash, ignore_errors=True)

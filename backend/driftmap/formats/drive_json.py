@@ -66,6 +66,34 @@ def _dump(value: Any, indent: str) -> str:
     return "{\n" + ",\n".join(items) + "\n" + indent + "}"
 
 
+def checked_drive_json(meta: DriveMeta, file: str | Path) -> str:
+    """:func:`dump_drive_json`, refusing anything :func:`parse_drive_json` would refuse.
+
+    Raises:
+        BadInputError: a non-finite number or a value out of range, naming ``file`` and the key.
+    """
+    bad_key = _non_finite_key(meta_to_json(meta))
+    if bad_key is not None:
+        raise BadInputError("must be a finite number", file=file, field=bad_key)
+    text = dump_drive_json(meta)
+    parse_drive_json(text, file)
+    return text
+
+
+def _non_finite_key(value: object, key: str = "") -> str | None:
+    """The dotted key of the first NaN or infinity inside a JSON-like value, or None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return key
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else []
+    for child_key, child in items:
+        found = _non_finite_key(
+            child, f"{key}.{child_key}" if key and isinstance(child_key, str) else key or str(child_key)
+        )
+        if found is not None:
+            return found
+    return None
+
+
 def load_json(text: str, file: str | Path) -> Any:
     """Parse JSON text; syntax errors, NaN/Infinity and duplicate keys name the file and line."""
 
