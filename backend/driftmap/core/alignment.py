@@ -165,7 +165,7 @@ class Anchor:
 
     chain: int
     frame: int
-    wTi: tuple[float, float, float]
+    wTi: tuple[float, float, float]  # noqa: N815 (frame names, house style)
     heading_only: bool
 
 

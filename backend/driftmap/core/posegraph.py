@@ -11,11 +11,12 @@ graph and re-solves warm-started from its last solution when only groundings cha
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import gtsam
 import numpy as np
@@ -28,11 +29,13 @@ FrameRef = tuple[int, int]
 LoopKernel = Literal["none", "huber", "cauchy", "dcs", "geman_mcclure", "gnc_tls"]
 
 _FREE_SIGMA_M = 1e3  # position sigma of a heading-only anchor, metres
-_ESTIMATORS = {
-    "huber": gtsam.noiseModel.mEstimator.Huber,
-    "cauchy": gtsam.noiseModel.mEstimator.Cauchy,
-    "dcs": gtsam.noiseModel.mEstimator.DCS,
-    "geman_mcclure": gtsam.noiseModel.mEstimator.GemanMcClure,
+_NM = gtsam.noiseModel
+_M = _NM.mEstimator
+_ESTIMATORS: dict[str, Callable[[float], Any]] = {  # kernel name -> m-estimator factory
+    "huber": _M.Huber.Create,
+    "cauchy": _M.Cauchy.Create,
+    "dcs": _M.DCS.Create,
+    "geman_mcclure": _M.GemanMcClure.Create,
 }
 
 
@@ -47,10 +50,10 @@ class OdometryChain:
         wTi_init: optional (N, 3) initial poses already in the survey frame; else dead-reckoned and aligned.
     """
 
-    iTj: FloatArray
+    iTj: FloatArray  # noqa: N815 (frame names, house style)
     sigmas: FloatArray
     information: FloatArray | None = None
-    wTi_init: FloatArray | None = None
+    wTi_init: FloatArray | None = None  # noqa: N815
 
     @property
     def num_frames(self) -> int:
@@ -74,7 +77,7 @@ class LoopClosure:
     a: FrameRef
     b: FrameRef
     sigmas: tuple[float, float, float]
-    aTb: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    aTb: tuple[float, float, float] = (0.0, 0.0, 0.0)  # noqa: N815
     sad: float = math.nan
     information: FloatArray | None = None
 
@@ -112,10 +115,20 @@ class PoseGraphParams:
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
     absolute_error_tol: float = 1e-5  # or by less than this
 
+    def __post_init__(self) -> None:
+        if self.loop_kernel not in (*_ESTIMATORS, "none", "gnc_tls"):
+            raise ValueError(f"PoseGraphParams: unknown loop_kernel {self.loop_kernel!r}")
+        if self.solver not in ("lm", "isam2"):
+            raise ValueError(f"PoseGraphParams: unknown solver {self.solver!r}")
+        if min(self.min_sigma_m, self.min_sigma_rad, self.anchor_sigma_m, self.anchor_sigma_rad) <= 0:
+            raise ValueError("PoseGraphParams: sigmas must be positive")
+        if self.max_iterations < 1 or self.kernel_width <= 0:
+            raise ValueError("PoseGraphParams: max_iterations and kernel_width must be positive")
 
-ROBUST = PoseGraphParams()
-PAPER = PoseGraphParams(loop_kernel="none")  # the paper's plain least squares
-INCREMENTAL = PoseGraphParams(solver="isam2")  # escapes local minima that stop batch LM
+
+POSEGRAPH_DEFAULT = PoseGraphParams()  # DCS on closures: false closures do not bend the map
+POSEGRAPH_PAPER = PoseGraphParams(loop_kernel="none")  # the paper's plain least squares
+POSEGRAPH_INCREMENTAL = PoseGraphParams(solver="isam2")  # escapes local minima that stop batch LM
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,7 +148,7 @@ class PoseGraphResult:
         solve_time_s: wall time of the optimisation, seconds.
     """
 
-    wTi: tuple[FloatArray, ...]
+    wTi: tuple[FloatArray, ...]  # noqa: N815
     closure_whitened_error: FloatArray
     closure_weight: FloatArray
     closure_accepted: NDArray[np.bool_]
@@ -175,7 +188,7 @@ def _noise_models(
     """Gaussian noise models with sigmas clamped to the minimum (information to the matching maximum)."""
     floor = np.array([params.min_sigma_m, params.min_sigma_m, params.min_sigma_rad])
     if information is None:
-        return [gtsam.noiseModel.Diagonal.Sigmas(row) for row in np.maximum(sigmas, floor)]
+        return [_NM.Diagonal.Sigmas(row) for row in np.maximum(sigmas, floor)]
     info = np.asarray(information, dtype=np.float64)
     if info.shape != (sigmas.shape[0], 3, 3) or not np.all(np.isfinite(info)):
         raise _fail(f"information must be ({sigmas.shape[0]}, 3, 3) and finite", field)
@@ -187,7 +200,7 @@ def _noise_models(
             field,
         )
     clamped = np.einsum("kij,kj,klj->kil", V, np.minimum(w, 1.0), V) / floor[:, None] / floor[None, :]
-    return [gtsam.noiseModel.Gaussian.Information(m) for m in clamped]
+    return [_NM.Gaussian.Information(m) for m in clamped]
 
 
 class PoseGraphSession:
@@ -208,43 +221,36 @@ class PoseGraphSession:
         chains: Sequence[OdometryChain],
         closures: Sequence[LoopClosure],
         groundings: Sequence[Grounding] = (),
-        params: PoseGraphParams = ROBUST,
+        params: PoseGraphParams = POSEGRAPH_DEFAULT,
     ) -> None:
-        if params.loop_kernel not in (*_ESTIMATORS, "none", "gnc_tls"):
-            raise _fail(f"unknown loop kernel {params.loop_kernel!r}", "loop_kernel")
         self.params = params
         self._sizes = [c.num_frames for c in chains]
         self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).astype(np.int64)
-        self._graph = gtsam.NonlinearFactorGraph()
-        self._dead_reckoned: list[FloatArray] = []
-        self._dead_reckoned_steps: list[FloatArray] = []
+        self._graph = gtsam.NonlinearFactorGraph()  # odometry, then closures; groundings added per solve
+        self._steps: list[FloatArray] = []
+        self._chain_init: list[FloatArray] = []  # dead-reckoned, or given in the survey frame
         for c, chain in enumerate(chains):
             steps = np.asarray(chain.iTj, dtype=np.float64)
             if steps.ndim != 2 or steps.shape[1] != 3 or not np.all(np.isfinite(steps)):
                 raise _fail("iTj must be (N-1, 3) and finite", f"chains[{c}].iTj")
             sigmas = _sigmas(chain.sigmas, steps.shape[0], f"chains[{c}].sigmas")
-            self._dead_reckoned_steps.append(steps)
-            for i, model in enumerate(
-                _noise_models(sigmas, chain.information, params, f"chains[{c}].information")
-            ):
+            models = _noise_models(sigmas, chain.information, params, f"chains[{c}].information")
+            for i, model in enumerate(models):
                 self._graph.add(
                     gtsam.BetweenFactorPose2(
                         self.key((c, i)), self.key((c, i + 1)), gtsam.Pose2(*steps[i]), model
                     )
                 )
             init = chain.wTi_init
-            if init is not None and (
-                np.shape(init) != (steps.shape[0] + 1, 3) or not np.all(np.isfinite(init))
-            ):
-                raise _fail(f"wTi_init must be ({steps.shape[0] + 1}, 3) and finite", f"chains[{c}].wTi_init")
-            self._dead_reckoned.append(
-                dead_reckon(steps) if init is None else np.array(init, dtype=np.float64)
-            )
+            if init is not None and (np.shape(init) != (len(steps) + 1, 3) or not np.all(np.isfinite(init))):
+                raise _fail(f"wTi_init must be ({len(steps) + 1}, 3) and finite", f"chains[{c}].wTi_init")
+            self._steps.append(steps)
+            self._chain_init.append(dead_reckon(steps) if init is None else np.array(init, dtype=np.float64))
         self._given = [c.wTi_init is not None for c in chains]
         self._first_closure = self._graph.size()
         self._closure_frames = np.zeros((len(closures), 4), dtype=np.int64)
         self._closure_aTb = np.zeros((len(closures), 3))
-        self._closure_models = []
+        self._closures: list[tuple[gtsam.BetweenFactorPose2, gtsam.noiseModel.Base]] = []  # Gaussian part
         for k, lc in enumerate(closures):
             field = f"closures[{k}]"
             self._closure_frames[k] = (
@@ -256,20 +262,16 @@ class PoseGraphSession:
             base = _noise_models(
                 _sigmas(lc.sigmas, 1, field + ".sigmas"), info, params, field + ".information"
             )[0]
-            self._closure_models.append(base)
-            if params.loop_kernel in _ESTIMATORS:
-                kernel = _ESTIMATORS[params.loop_kernel].Create(params.kernel_width)
-                model = gtsam.noiseModel.Robust.Create(kernel, base)
-            else:
-                model = base
-            self._graph.add(
-                gtsam.BetweenFactorPose2(self.key(lc.a), self.key(lc.b), gtsam.Pose2(*lc.aTb), model)
-            )
+            kernel = _ESTIMATORS.get(params.loop_kernel)
+            model = base if kernel is None else _NM.Robust.Create(kernel(params.kernel_width), base)
+            factor = gtsam.BetweenFactorPose2(self.key(lc.a), self.key(lc.b), gtsam.Pose2(*lc.aTb), model)
+            self._graph.add(factor)
+            self._closures.append((factor, base))
         self._groundings: dict[int, Grounding] = {}
         for g in groundings:
             self.add_grounding(g)
         self._previous: gtsam.Values | None = None
-        self._previous_gauge: list[tuple[int, int, bool]] | None = None
+        self._previous_gauge: list[tuple[int, int, bool]] = []
 
     def key(self, ref: FrameRef) -> int:
         """The GTSAM key of frame ``(chain, frame)``."""
@@ -278,7 +280,7 @@ class PoseGraphSession:
     def _check_ref(self, ref: FrameRef, field: str) -> FrameRef:
         c, i = int(ref[0]), int(ref[1])
         if not (0 <= c < len(self._sizes) and 0 <= i < self._sizes[c]):
-            raise _fail(f"no frame {ref} (there are {len(self._sizes)} chains)", field)
+            raise _fail(f"no frame {tuple(ref)} (there are {len(self._sizes)} chains)", field)
         return c, i
 
     @property
@@ -307,144 +309,51 @@ class PoseGraphSession:
         field = f"groundings[{gid}]"
         frame = self._check_ref(g.frame, field + ".frame")
         xy = (float(g.xy_m[0]), float(g.xy_m[1]))
-        if not (np.all(np.isfinite(xy)) and math.isfinite(g.sigma_m) and g.sigma_m > 0):
+        if not (math.isfinite(xy[0]) and math.isfinite(xy[1]) and math.isfinite(g.sigma_m) and g.sigma_m > 0):
             raise _fail("position must be finite and sigma positive", field)
         self._groundings[gid] = Grounding(frame, xy, float(g.sigma_m))
 
     def solve(self) -> PoseGraphResult:
         """Optimise the graph with the current groundings; see :class:`PoseGraphResult`."""
-        p = self.params
-        ids = sorted(self._groundings)
+        p, ids = self.params, sorted(self._groundings)
         g_frames = np.array([self._groundings[i].frame for i in ids], dtype=np.int64).reshape(-1, 2)
         g_xy = np.array([self._groundings[i].xy_m for i in ids], dtype=np.float64).reshape(-1, 2)
         poses, anchors = initial_guess(
-            self._dead_reckoned, self._given, self._closure_frames, self._closure_aTb, g_frames, g_xy,
+            self._chain_init, self._given, self._closure_frames, self._closure_aTb, g_frames, g_xy,
             p.placement_inlier_m,
         )  # fmt: skip
         graph = gtsam.NonlinearFactorGraph(self._graph)
         for a in anchors:
             xy_sigma = _FREE_SIGMA_M if a.heading_only else p.anchor_sigma_m
-            model = gtsam.noiseModel.Diagonal.Sigmas(np.array([xy_sigma, xy_sigma, p.anchor_sigma_rad]))
+            model = _NM.Diagonal.Sigmas(np.array([xy_sigma, xy_sigma, p.anchor_sigma_rad]))
             graph.add(gtsam.PriorFactorPose2(self.key((a.chain, a.frame)), gtsam.Pose2(*a.wTi), model))
         for i in ids:
             g = self._groundings[i]
-            model = gtsam.noiseModel.Isotropic.Sigma(2, max(g.sigma_m, p.min_sigma_m))
+            model = _NM.Isotropic.Sigma(2, max(g.sigma_m, p.min_sigma_m))
             graph.add(gtsam.PoseTranslationPrior2D(self.key(g.frame), np.array(g.xy_m), model))
         initial = gtsam.Values()
-        for key, pose in enumerate(np.concatenate(poses) if poses else np.zeros((0, 3))):
+        for key, pose in enumerate(np.concatenate(poses)):
             initial.insert(key, gtsam.Pose2(*pose))
         gauge = [(a.chain, a.frame, a.heading_only) for a in anchors]
-        warm = self._previous is not None and gauge == self._previous_gauge
-        start = self._previous if warm and self._previous is not None else initial
         t0 = time.perf_counter()
-        if p.solver == "isam2" and not warm:
-            values, iterations, weights = self._isam2(graph, initial, anchors), 0, None
+        if self._previous is not None and gauge == self._previous_gauge:
+            start = self._previous  # warm start: only groundings changed
         else:
-            values, iterations, weights = self._batch(graph, start)
+            start = self._isam2(graph, initial, anchors) if p.solver == "isam2" else initial
+        values, iterations, weights = self._batch(graph, start)
         elapsed = time.perf_counter() - t0
         self._previous, self._previous_gauge = values, gauge
-        return self._result(graph, initial, values, iterations, weights, ids, g_xy, elapsed)
-
-    def _batch(
-        self, graph: gtsam.NonlinearFactorGraph, start: gtsam.Values
-    ) -> tuple[gtsam.Values, int, FloatArray | None]:
-        p = self.params
-        lm = gtsam.LevenbergMarquardtParams()
-        lm.setMaxIterations(p.max_iterations)
-        lm.setRelativeErrorTol(p.relative_error_tol)
-        lm.setAbsoluteErrorTol(p.absolute_error_tol)
-        if p.loop_kernel != "gnc_tls":
-            optimizer = gtsam.LevenbergMarquardtOptimizer(graph, start, lm)
-            values = optimizer.optimize()
-            return values, int(optimizer.iterations()), None
-        gnc = gtsam.GncLMParams(lm)
-        gnc.setLossType(gtsam.GncLossType.TLS)
-        closures = range(self._first_closure, self._first_closure + len(self._closure_models))
-        gnc.setKnownInliers([i for i in range(graph.size()) if i not in closures])
-        optimizer = gtsam.GncLMOptimizer(graph, start, gnc)
-        optimizer.setInlierCostThresholds(p.gnc_inlier_cost)
-        values = optimizer.optimize()
-        return values, 0, np.asarray(optimizer.getWeights(), dtype=np.float64)[closures.start : closures.stop]
-
-    def _isam2(
-        self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, anchors: list[Anchor]
-    ) -> gtsam.Values:
-        """Feed frames in key order to iSAM2 (QR), each chain's first frame held by a temporary prior."""
-        p = self.params
-        isam_params = gtsam.ISAM2Params()
-        isam_params.setFactorization("QR")
-        isam_params.relinearizeSkip = 1
-        isam = gtsam.ISAM2(isam_params)
-        due: list[list[tuple[object, bool]]] = [[] for _ in range(int(self._offsets[-1]))]
-        for i in range(graph.size()):
-            factor = graph.at(i)
-            due[max(factor.keys())].append((factor, False))
-        anchored = {self.key((a.chain, a.frame)) for a in anchors if not a.heading_only}
-        model = gtsam.noiseModel.Diagonal.Sigmas(
-            np.array([p.anchor_sigma_m, p.anchor_sigma_m, p.anchor_sigma_rad])
-        )
-        for start in self._offsets[:-1]:
-            if int(start) not in anchored and int(start) < len(due):
-                due[int(start)].append(
-                    (gtsam.PriorFactorPose2(int(start), initial.atPose2(int(start)), model), True)
-                )
-        temporary: list[int] = []
-        starts = set(self._offsets[:-1].tolist())
-        for key, factors in enumerate(due):
-            new, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-            for factor, _ in factors:
-                new.add(factor)
-            if key in starts:
-                values.insert(key, initial.atPose2(key))
-            else:  # dead-reckon from the current estimate of the previous frame
-                c = int(np.searchsorted(self._offsets, key, side="right")) - 1
-                step = gtsam.Pose2(*self._dead_reckoned_steps[c][key - int(self._offsets[c]) - 1])
-                values.insert(key, isam.calculateEstimatePose2(key - 1).compose(step))
-            indices = isam.update(new, values).getNewFactorsIndices()
-            temporary += [int(ix) for ix, (_, temp) in zip(indices, factors, strict=True) if temp]
-        isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), temporary)
-        error = graph.error(isam.calculateEstimate())
-        for _ in range(p.max_iterations):
-            isam.update()
-            new_error = graph.error(isam.calculateEstimate())
-            if error - new_error < max(p.absolute_error_tol, p.relative_error_tol * error):
-                break
-            error = new_error
-        return isam.calculateEstimate()
-
-    def _result(
-        self,
-        graph: gtsam.NonlinearFactorGraph,
-        initial: gtsam.Values,
-        values: gtsam.Values,
-        iterations: int,
-        weights: FloatArray | None,
-        ids: list[int],
-        g_xy: FloatArray,
-        elapsed: float,
-    ) -> PoseGraphResult:
-        p = self.params
-        poses = gtsam.utilities.extractPose2(values) if values.size() else np.zeros((0, 3))
-        wTi = tuple(poses[a:b].copy() for a, b in zip(self._offsets[:-1], self._offsets[1:], strict=True))
-        K = len(self._closure_models)
-        whitened = np.zeros((K, 3))
-        for k in range(K):
-            error = graph.at(self._first_closure + k).unwhitenedError(values)
-            whitened[k] = self._closure_models[k].whiten(error)
-        norms = np.linalg.norm(whitened, axis=1)
-        if weights is None:
-            if p.loop_kernel in _ESTIMATORS:
-                kernel = _ESTIMATORS[p.loop_kernel].Create(p.kernel_width)
-                weights = np.array([kernel.weight(float(n)) for n in norms])
-            else:
-                weights = np.ones(K)
-        keys = np.array([self.key(self._groundings[i].frame) for i in ids], dtype=np.int64)
-        d = poses[keys, :2] - g_xy if len(ids) else np.zeros((0, 2))
+        all_wTi = gtsam.utilities.extractPose2(values)
+        whitened = np.array([m.whiten(f.unwhitenedError(values)) for f, m in self._closures]).reshape(-1, 3)
+        if weights is None and p.loop_kernel in _ESTIMATORS:
+            kernel = _ESTIMATORS[p.loop_kernel](p.kernel_width)
+            weights = np.array([kernel.weight(float(n)) for n in np.linalg.norm(whitened, axis=1)])
+        d = all_wTi[[self.key(self._groundings[i].frame) for i in ids], :2] - g_xy
         return PoseGraphResult(
-            wTi=wTi,
+            wTi=tuple(all_wTi[a:b].copy() for a, b in itertools.pairwise(self._offsets)),
             closure_whitened_error=whitened,
-            closure_weight=weights,
-            closure_accepted=norms**2 < p.accept_chi2,
+            closure_weight=np.ones(len(self._closures)) if weights is None else weights,
+            closure_accepted=(whitened**2).sum(axis=1) < p.accept_chi2,
             grounding_ids=tuple(ids),
             grounding_residual_m=np.column_stack([d, np.hypot(d[:, 0], d[:, 1])]),
             initial_error=float(graph.error(initial)),
@@ -453,69 +362,67 @@ class PoseGraphSession:
             solve_time_s=elapsed,
         )
 
+    def _batch(
+        self, graph: gtsam.NonlinearFactorGraph, start: gtsam.Values
+    ) -> tuple[gtsam.Values, int, FloatArray | None]:
+        """Levenberg-Marquardt, or GNC-TLS over it; returns values, iterations and GNC's closure weights."""
+        p = self.params
+        lm = gtsam.LevenbergMarquardtParams()
+        lm.setMaxIterations(p.max_iterations)
+        lm.setRelativeErrorTol(p.relative_error_tol)
+        lm.setAbsoluteErrorTol(p.absolute_error_tol)
+        if p.loop_kernel != "gnc_tls":
+            optimizer = gtsam.LevenbergMarquardtOptimizer(graph, start, lm)
+            return optimizer.optimize(), int(optimizer.iterations()), None
+        closures = range(self._first_closure, self._first_closure + len(self._closures))
+        gnc = gtsam.GncLMParams(lm)
+        gnc.setLossType(gtsam.GncLossType.TLS)
+        gnc.setKnownInliers([i for i in range(graph.size()) if i not in closures])  # factor indices
+        gnc_optimizer = gtsam.GncLMOptimizer(graph, start, gnc)
+        gnc_optimizer.setInlierCostThresholds(p.gnc_inlier_cost)
+        values = gnc_optimizer.optimize()
+        return (
+            values,
+            0,
+            np.asarray(gnc_optimizer.getWeights(), dtype=np.float64)[closures.start : closures.stop],
+        )
+
+    def _isam2(
+        self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, anchors: list[Anchor]
+    ) -> gtsam.Values:
+        """Feed the frames in key order to iSAM2 (QR factorisation survives long weak chains).
+
+        A factor joins when its last frame arrives; each chain's first frame is held by a temporary prior
+        at its initial guess (not in ``graph``, so the LM polish that follows drops it).
+        """
+        p = self.params
+        isam_params = gtsam.ISAM2Params()
+        isam_params.setFactorization("QR")
+        isam = gtsam.ISAM2(isam_params)
+        due = [gtsam.NonlinearFactorGraph() for _ in range(int(self._offsets[-1]))]
+        for i in range(graph.size()):
+            due[max(graph.at(i).keys())].add(graph.at(i))
+        anchored = {self.key((a.chain, a.frame)) for a in anchors if not a.heading_only}
+        hold = _NM.Diagonal.Sigmas(np.array([p.anchor_sigma_m, p.anchor_sigma_m, p.anchor_sigma_rad]))
+        for c, size in enumerate(self._sizes):
+            for i in range(size):
+                key, values = self.key((c, i)), gtsam.Values()
+                if i > 0:  # dead-reckon from the current estimate of the previous frame
+                    step = gtsam.Pose2(*self._steps[c][i - 1])
+                    values.insert(key, isam.calculateEstimatePose2(key - 1).compose(step))
+                else:
+                    values.insert(key, initial.atPose2(key))
+                    if key not in anchored:
+                        due[key].add(gtsam.PriorFactorPose2(key, initial.atPose2(key), hold))
+                isam.update(due[key], values)
+        return isam.calculateEstimate()
+
 
 def optimise_pose_graph(
     chains: Sequence[OdometryChain],
     closures: Sequence[LoopClosure],
     groundings: Sequence[Grounding] = (),
-    params: PoseGraphParams = ROBUST,
+    params: PoseGraphParams = POSEGRAPH_DEFAULT,
 ) -> PoseGraphResult:
     """Build and solve the pose graph of several drives; see :class:`PoseGraphSession` for the arguments."""
     return PoseGraphSession(chains, closures, groundings, params).solve()
-
-
-def optimise_g2o_like(
-    wTi_init: FloatArray,
-    edge_ij: NDArray[np.int64],
-    iTj: FloatArray,
-    information: FloatArray,
-    params: PoseGraphParams = ROBUST,
-) -> PoseGraphResult:
-    """Solve a benchmark graph (e.g. a g2o file) as odometry chains plus loop closures.
-
-    The first edge i -> i+1 for every i is odometry; where none exists the chain breaks; every other
-    edge is a loop closure under ``params.loop_kernel``. The first pose is held at its initial value.
-
-    Args:
-        wTi_init: (N, 3) initial poses, [x_m, y_m, yaw_rad].
-        edge_ij: (K, 2) int pose indices (0..N-1) of each edge.
-        iTj: (K, 3) measured pose of j in i.
-        information: (K, 3, 3) information matrices (x, y, theta order).
-        params: how to solve.
-
-    Returns:
-        The result; ``result.all_poses()`` is (N, 3) in pose order, closures in edge order minus odometry.
-    """
-    poses, edges = np.asarray(wTi_init, dtype=np.float64), np.asarray(edge_ij, dtype=np.int64)
-    num = poses.shape[0]
-    if poses.ndim != 2 or poses.shape[1] != 3 or edges.ndim != 2 or edges.shape[1] != 2:
-        raise _fail("wTi_init must be (N, 3) and edge_ij (K, 2)", "edge_ij")
-    if edges.size and (edges.min() < 0 or edges.max() >= num):
-        raise _fail(f"edge indices must lie in 0..{num - 1}", "edge_ij")
-    odometry = np.full(max(num - 1, 0), -1, dtype=np.int64)
-    for k in np.flatnonzero(edges[:, 1] == edges[:, 0] + 1)[::-1]:
-        odometry[edges[k, 0]] = k  # reversed, so the first edge of each pair wins
-    starts = np.concatenate([[0], np.flatnonzero(odometry < 0) + 1, [num]])
-    chain_of = np.searchsorted(starts, np.arange(num), side="right") - 1
-    info = np.asarray(information, dtype=np.float64)
-    chains = []
-    for s, e in zip(starts[:-1], starts[1:], strict=True):
-        rows = odometry[s : e - 1]
-        sigmas = 1.0 / np.sqrt(np.abs(np.diagonal(info[rows], axis1=1, axis2=2)) + 1e-300)
-        chains.append(OdometryChain(iTj[rows], sigmas.reshape(-1, 3), info[rows], poses[s:e]))
-    used = np.zeros(edges.shape[0], dtype=bool)
-    used[odometry[odometry >= 0]] = True
-    closures = []
-    for k in np.flatnonzero(~used):
-        i, j = (int(v) for v in edges[k])
-        a, b = (
-            (int(chain_of[i]), i - int(starts[chain_of[i]])),
-            (int(chain_of[j]), j - int(starts[chain_of[j]])),
-        )
-        sig = 1.0 / np.sqrt(np.abs(np.diag(info[k])) + 1e-300)
-        closures.append(
-            LoopClosure(
-                a, b, (sig[0], sig[1], sig[2]), (iTj[k][0], iTj[k][1], iTj[k][2]), information=info[k]
-            )
-        )
-    return optimise_pose_graph(chains, closures, (), params)

@@ -4,11 +4,13 @@ These are the formats of the standard benchmarks in ``shared/data/posegraphs`` (
 MIT Killian). A vertex is a pose [x, y, theta] (metres, radians) in the file's world frame; an edge
 ``i j dx dy dtheta`` is the measured pose of vertex j in vertex i with an information matrix given by its
 upper triangle, in g2o order ``I11 I12 I13 I22 I23 I33`` or TORO order ``xx xy yy tt xt yt``. Every error
-names the file, the 1-based line and the field at fault.
+names the file, the 1-based line and the field at fault. :func:`to_pose_graph` turns a graph into the
+odometry chains and loop closures of :mod:`driftmap.core.posegraph`.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from driftmap.core.posegraph import LoopClosure, OdometryChain
 from driftmap.errors import BadInputError
 
 _VERTEX_FIELDS = ("id", "x", "y", "theta")
@@ -186,3 +189,44 @@ def read_pose_table(path: str | Path) -> NDArray[np.float64]:
             raise BadInputError(f"expected 3 values (x y theta), got {len(tokens)}", file=path, line=line_no)
         rows.append(_numbers(tokens, _VERTEX_FIELDS[1:], path, line_no))
     return np.array(rows, dtype=np.float64).reshape(-1, 3)
+
+
+def to_pose_graph(graph: G2oGraph) -> tuple[list[OdometryChain], list[LoopClosure]]:
+    """Split a benchmark graph into odometry chains and loop closures for the pose-graph core.
+
+    The first edge from vertex row r to row r+1 is odometry; where there is none the chain breaks, so the
+    chains' frames are the vertex rows in order (``np.concatenate(result.wTi)`` lines up with ``wTi``).
+    Every other edge is a loop closure, in file order. Vertex poses become the chains' initial poses and
+    the information matrices are kept whole.
+
+    Args:
+        graph: as read by :func:`read_g2o`.
+
+    Returns:
+        (chains, closures).
+    """
+    num, ij = graph.wTi.shape[0], graph.edge_ij
+    odometry = np.full(num - 1, -1, dtype=np.int64)
+    for k in np.flatnonzero(ij[:, 1] == ij[:, 0] + 1)[::-1]:
+        odometry[ij[k, 0]] = k  # walking backwards, the first edge of a pair wins
+    starts = np.concatenate([[0], np.flatnonzero(odometry < 0) + 1, [num]])
+    chain_of = np.searchsorted(starts, np.arange(num), side="right") - 1
+    ref = [(int(chain_of[r]), int(r - starts[chain_of[r]])) for r in range(num)]
+    ones = np.ones(3)  # sigmas are required but the information matrices rule
+    chains = [
+        OdometryChain(
+            graph.iTj[odometry[a : b - 1]], ones, graph.information[odometry[a : b - 1]], graph.wTi[a:b]
+        )
+        for a, b in itertools.pairwise(starts)
+    ]
+    is_closure = np.ones(ij.shape[0], dtype=bool)
+    is_closure[odometry[odometry >= 0]] = False
+    closures = []
+    for k in np.flatnonzero(is_closure):
+        x, y, theta = (float(v) for v in graph.iTj[k])
+        closures.append(
+            LoopClosure(
+                ref[ij[k, 0]], ref[ij[k, 1]], (1.0, 1.0, 1.0), (x, y, theta), information=graph.information[k]
+            )
+        )
+    return chains, closures
