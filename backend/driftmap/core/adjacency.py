@@ -1,0 +1,370 @@
+"""Connectivity of the stored map: nodes traced along the drives, the graph, sparse distances A, HMM transitions.
+
+:func:`trace_nodes` walks the optimised drives once and lays nodes every N metres of tunnel, reusing nodes that
+other passes made (paper III-A-4, Fig. 3). Drives are taken one after the other, each pose by pose:
+
+* **Stand still.** A pose less than ``stationary_tol_m`` from the last moving pose is standing still: it
+  belongs to the same node and adds no travel, so stops of any length make no nodes.
+* **Join.** A pose within ``merge_radius_m`` of a node centre joins the nearest such node that is
+  *plausible*; moving to a node other than the current one adds the graph edge between the two. Joining is
+  heading-agnostic, so both travel directions and every repeated drive share nodes.
+* **Plausible (the wall rule).** Tunnels behind a thin pillar, or either side of a pillar nose, can come
+  closer than the merge radius. Let the drive have travelled ``s`` metres since it was closest to its current
+  node. A candidate that the graph already reaches from the current node by a path longer than ``s`` plus
+  both pose-to-centre distances plus one spacing, yet shorter than ``wall_detour_m``, is refused: the vehicle
+  cannot have driven there in that distance, so it lies across a wall. Unreached candidates (a junction with
+  another drive's tunnels) and longer detours (a loop closing) are joined. A refusal costs a few duplicate
+  nodes, a wrong join puts a shortcut through rock into the HMM; the detour limit is kept short so that
+  genuine loops (pillar perimeters are longer) still close.
+* **Create.** Otherwise, once the pose is ``spacing_m`` or more from the current node's centre, a new node is
+  made exactly ``spacing_m`` from it on the trajectory (several if one step was long) and joined to it. The
+  straight-line trigger equals the travelled distance along tunnels (bend radii >> N), and jitter,
+  reversals and turning manoeuvres inside one node's area make no nodes and no self-edges.
+* **Break.** A jump longer than ``max_frame_step_m`` between consecutive poses (a gap in the data) starts
+  afresh without an edge across it.
+
+The graph's shortest-path matrix A(x, y) (III-A-4) feeds the HMM transition matrix of III-B (eq. 9-10):
+``beta(k) = 1 if k < A_t else 0``, every column normalised to sum to 1. A dense A is quadratic in the number
+of nodes and only short paths matter to the HMM (A_t is the distance a vehicle travels in one frame
+interval), so A is stored sparsely up to a maximum distance: a missing off-diagonal entry means "further than
+the stored maximum" (infinite for the HMM) and the diagonal is zero by definition, never stored. Matrices are
+``scipy.sparse.csr_array`` of shape (M, M) over node indices 0..M-1, distances in metres.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import dijkstra
+
+from driftmap.errors import BadInputError
+
+#: Shortest edge stored, metres: keeps every edge and path strictly positive so that a stored
+#: distance is never confused with the implicit zero of a sparse matrix.
+MIN_EDGE_M = 1e-6
+
+#: Dijkstra runs on blocks of source nodes so that its dense (block, M) output stays below this many cells.
+_BLOCK_CELLS = 1 << 22
+
+
+class GrowingGraph:
+    """Undirected weighted graph that grows while a map is built and answers bounded path queries.
+
+    Nodes are consecutive integers from 0; edge lengths are metres. ``version`` changes whenever an edge
+    is added, so callers can cache path lengths between additions.
+    """
+
+    def __init__(self) -> None:
+        self._nbrs: list[dict[int, float]] = []
+        self.version = 0
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes added so far."""
+        return len(self._nbrs)
+
+    def add_node(self) -> int:
+        """Add an isolated node and return its index."""
+        self._nbrs.append({})
+        return len(self._nbrs) - 1
+
+    def add_edge(self, i: int, j: int, length_m: float) -> None:
+        """Join nodes ``i`` and ``j`` (no-op for ``i == j`` or an existing edge)."""
+        if i == j or j in self._nbrs[i]:
+            return
+        length_m = max(float(length_m), MIN_EDGE_M)
+        self._nbrs[i][j] = length_m
+        self._nbrs[j][i] = length_m
+        self.version += 1
+
+    def edge_length_m(self, i: int, j: int) -> float | None:
+        """Length of edge (i, j) in metres, or None when the nodes are not joined directly."""
+        return self._nbrs[i].get(j)
+
+    def path_length_m(self, src: int, dst: int, limit_m: float) -> float:
+        """Shortest-path length from ``src`` to ``dst`` in metres, or ``inf`` when longer than ``limit_m``."""
+        if src == dst:
+            return 0.0
+        best = {src: 0.0}
+        heap = [(0.0, src)]
+        while heap:
+            d, u = heapq.heappop(heap)
+            if u == dst:
+                return d
+            if d > best[u]:
+                continue
+            for v, w in self._nbrs[u].items():
+                nd = d + w
+                if nd <= limit_m and nd < best.get(v, math.inf):
+                    best[v] = nd
+                    heapq.heappush(heap, (nd, v))
+        return math.inf
+
+    def edges(self) -> NDArray[np.int64]:
+        """Every edge once as (E, 2) int64 node pairs with ``i < j``, sorted."""
+        pairs = [(i, j) for i, nbrs in enumerate(self._nbrs) for j in nbrs if i < j]
+        out = np.asarray(sorted(pairs), dtype=np.int64)
+        return out.reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class NodeTrace:
+    """Nodes and edges laid along the drives by :func:`trace_nodes`.
+
+    Attributes:
+        centres_m: (M, 2) float64 build-time node centres, survey frame, metres.
+        edges: (E, 2) int64 node pairs ``i < j`` driven between directly.
+        node: per chain, (N_i,) int64 node each pose was attached to while tracing.
+        near: per chain, (N_i,) bool, True where the pose was within the merge radius of that node.
+    """
+
+    centres_m: NDArray[np.float64]
+    edges: NDArray[np.int64]
+    node: list[NDArray[np.int64]]
+    near: list[NDArray[np.bool_]]
+
+
+def _exit_fraction(px: float, py: float, x: float, y: float, cx: float, cy: float, radius: float) -> float:
+    """Fraction t of the segment (px, py) -> (x, y) where it leaves the circle about (cx, cy)."""
+    dx, dy, fx, fy = x - px, y - py, px - cx, py - cy
+    a = dx * dx + dy * dy
+    if a == 0.0:
+        return 1.0
+    b = fx * dx + fy * dy
+    disc = max(b * b - a * (fx * fx + fy * fy - radius * radius), 0.0)
+    return min(max((-b + math.sqrt(disc)) / a, 0.0), 1.0)
+
+
+class _Tracer:
+    """State of :func:`trace_nodes`: node centres, a hash grid over them, the growing graph."""
+
+    def __init__(self, spacing_m: float, merge_radius_m: float, wall_detour_m: float) -> None:
+        self.spacing, self.radius, self.wall = spacing_m, merge_radius_m, wall_detour_m
+        self.cell = 2.0 * merge_radius_m  # a disc of the merge radius always lies in 2 x 2 cells
+        self.xs: list[float] = []
+        self.ys: list[float] = []
+        self.grid: dict[int, list[int]] = {}
+        self.graph = GrowingGraph()
+        self.paths: dict[tuple[int, int], tuple[int, float]] = {}
+
+    def new_node(self, x: float, y: float, prev: int) -> int:
+        node = self.graph.add_node()
+        self.xs.append(x)
+        self.ys.append(y)
+        key = (math.floor(x / self.cell) << 32) + math.floor(y / self.cell)
+        self.grid.setdefault(key, []).append(node)
+        if prev >= 0:
+            self.graph.add_edge(prev, node, math.hypot(x - self.xs[prev], y - self.ys[prev]))
+        return node
+
+    def join(self, cur: int, node: int) -> None:
+        self.graph.add_edge(cur, node, math.hypot(self.xs[node] - self.xs[cur], self.ys[node] - self.ys[cur]))
+
+    def plausible(self, cur: int, cand: int, reach_m: float) -> bool:
+        """The wall rule: False if the graph reaches ``cand`` only by a short detour longer than ``reach_m``."""
+        bound = reach_m + self.spacing
+        direct = self.graph.edge_length_m(cur, cand)
+        if direct is not None and direct <= bound:
+            return True
+        cached = self.paths.get((cur, cand))
+        if cached is not None and cached[0] == self.graph.version:
+            path = cached[1]
+        else:
+            path = self.graph.path_length_m(cur, cand, self.wall)
+            self.paths[(cur, cand)] = (self.graph.version, path)
+        return path <= bound or math.isinf(path)
+
+    def nearest(self, x: float, y: float, cur: int, travelled_m: float) -> tuple[int, float]:
+        """Nearest plausible node within the merge radius of (x, y), or (-1, inf)."""
+        fx, fy = x / self.cell, y / self.cell
+        ix, iy = math.floor(fx - 0.5), math.floor(fy - 0.5)
+        found: list[tuple[float, int]] = []
+        for kx in (ix, ix + 1):
+            for ky in (iy, iy + 1):
+                for node in self.grid.get((kx << 32) + ky, ()):
+                    d = math.hypot(x - self.xs[node], y - self.ys[node])
+                    if d <= self.radius:
+                        found.append((d, node))
+        found.sort()
+        for d, node in found:
+            if cur < 0 or node == cur or self.plausible(cur, node, travelled_m + d):
+                return node, d
+        return -1, math.inf
+
+    def run(
+        self, xy_m: NDArray[np.float64], still_m: float, max_step_m: float
+    ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Trace one chain of (N, 2) positions; returns its (N,) nodes and (N,) near flags."""
+        n = xy_m.shape[0]
+        node_of = np.empty(n, dtype=np.int64)
+        near = np.zeros(n, dtype=bool)
+        xl, yl = xy_m[:, 0].tolist(), xy_m[:, 1].tolist()
+        cur, odo, s_ref, d_min, ax, ay, was_near = -1, 0.0, 0.0, 0.0, 0.0, 0.0, False
+        for i in range(n):
+            x, y = xl[i], yl[i]
+            if cur >= 0:
+                step = math.hypot(x - ax, y - ay)
+                if step < still_m:
+                    node_of[i], near[i] = cur, was_near
+                    continue
+                if step > max_step_m:
+                    cur = -1
+                odo += step
+            px, py, ax, ay = ax, ay, x, y
+            cand, d = self.nearest(x, y, cur, odo - s_ref + d_min)
+            if cand >= 0:
+                if cand != cur:
+                    if cur >= 0:
+                        self.join(cur, cand)
+                    cur, d_min, s_ref = cand, d, odo
+                elif d < d_min:
+                    d_min, s_ref = d, odo
+                node_of[i], near[i] = cur, was_near = cand, True
+                continue
+            if cur < 0:
+                cur, d_min, s_ref = self.new_node(x, y, -1), 0.0, odo
+                node_of[i], near[i] = cur, was_near = cur, True
+                continue
+            while math.hypot(x - self.xs[cur], y - self.ys[cur]) >= self.spacing:
+                t = _exit_fraction(px, py, x, y, self.xs[cur], self.ys[cur], self.spacing)
+                px, py = px + t * (x - px), py + t * (y - py)
+                cur, d_min = self.new_node(px, py, cur), 0.0
+                s_ref = odo - math.hypot(x - px, y - py)
+            d = math.hypot(x - self.xs[cur], y - self.ys[cur])
+            if d < d_min:
+                d_min, s_ref = d, odo
+            node_of[i], near[i] = cur, was_near = cur, d <= self.radius
+        return node_of, near
+
+
+def trace_nodes(
+    chains_xy_m: Sequence[NDArray[np.float64]],
+    spacing_m: float,
+    merge_radius_m: float,
+    wall_detour_m: float,
+    stationary_tol_m: float,
+    max_frame_step_m: float,
+) -> NodeTrace:
+    """Lay nodes along the drives and join them into a graph (rules in the module docstring).
+
+    Args:
+        chains_xy_m: per chain, (N_i, 2) float64 positions in time order, survey frame, metres.
+        spacing_m: N, distance between consecutive new nodes, metres.
+        merge_radius_m: a pose this close to a node centre may join it, metres (< spacing_m).
+        wall_detour_m: detours shorter than this (but longer than the drive) mean a wall, metres.
+        stationary_tol_m: moves shorter than this are standing still, metres.
+        max_frame_step_m: longer jumps between consecutive poses split a chain, metres.
+
+    Returns:
+        The nodes, edges and per-pose attachments.
+    """
+    tracer = _Tracer(spacing_m, merge_radius_m, wall_detour_m)
+    nodes, near = [], []
+    for xy in chains_xy_m:
+        chain_nodes, chain_near = tracer.run(
+            np.asarray(xy, dtype=np.float64), stationary_tol_m, max_frame_step_m
+        )
+        nodes.append(chain_nodes)
+        near.append(chain_near)
+    centres = np.stack([np.asarray(tracer.xs), np.asarray(tracer.ys)], axis=1).reshape(-1, 2)
+    return NodeTrace(centres_m=centres, edges=tracer.graph.edges(), node=nodes, near=near)
+
+
+def shortest_paths(
+    n_nodes: int, edges: NDArray[np.int64], lengths_m: NDArray[np.float64], max_m: float
+) -> csr_array:
+    """Sparse matrix A of shortest-path lengths up to ``max_m`` (paper III-A-4).
+
+    Args:
+        n_nodes: number of nodes M.
+        edges: (E, 2) int node pairs of the undirected graph, no self-edges.
+        lengths_m: (E,) float64 positive edge lengths, metres.
+        max_m: longest path length stored, metres.
+
+    Returns:
+        (M, M) float64 csr_array, exactly symmetric, holding A(x, y) for every x != y whose shortest path is
+        at most ``max_m``; the diagonal (zero) and longer paths are not stored.
+    """
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    lengths_m = np.maximum(np.asarray(lengths_m, dtype=np.float64).reshape(-1), MIN_EDGE_M)
+    if lengths_m.shape[0] != edges.shape[0]:
+        raise BadInputError("one length per edge is required", field="lengths_m")
+    if n_nodes == 0:
+        return csr_array((0, 0), dtype=np.float64)
+    graph = csr_array(
+        (
+            np.concatenate([lengths_m, lengths_m]),
+            (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]]),
+        ),
+        shape=(n_nodes, n_nodes),
+    )
+    rows, cols, vals = [], [], []
+    block = max(1, _BLOCK_CELLS // n_nodes)
+    for start in range(0, n_nodes, block):
+        sources = np.arange(start, min(start + block, n_nodes))
+        dist = np.asarray(dijkstra(graph, directed=False, indices=sources, limit=max_m), dtype=np.float64)
+        # Keep the upper triangle only, then mirror: exact symmetry whatever the summation order.
+        r, c = np.nonzero(np.isfinite(dist) & (np.arange(n_nodes)[None, :] > sources[:, None]))
+        rows.append(sources[r])
+        cols.append(c)
+        vals.append(dist[r, c])
+    r_all, c_all, v_all = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    return csr_array(
+        (np.r_[v_all, v_all], (np.r_[r_all, c_all], np.r_[c_all, r_all])), shape=(n_nodes, n_nodes)
+    )
+
+
+def neighbours_within(
+    adjacency_m: csr_array, node: int, a_t_m: float
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Nodes a vehicle at ``node`` can reach in one frame interval: A(node, y) < a_t_m, itself included.
+
+    Args:
+        adjacency_m: (M, M) sparse shortest-path matrix from :func:`shortest_paths`, metres.
+        node: index of the node.
+        a_t_m: A_t of paper eq. 10, metres; must not exceed the maximum distance stored in the matrix.
+
+    Returns:
+        (K,) int64 node indices sorted by distance (``node`` first) and their (K,) float64 distances, metres.
+    """
+    if not 0 <= node < adjacency_m.shape[0]:
+        raise BadInputError(f"node {node} is not in a map of {adjacency_m.shape[0]} nodes", field="node")
+    lo, hi = adjacency_m.indptr[node], adjacency_m.indptr[node + 1]
+    idx = np.asarray(adjacency_m.indices[lo:hi], dtype=np.int64)
+    dist = np.asarray(adjacency_m.data[lo:hi], dtype=np.float64)
+    keep = dist < a_t_m
+    idx = np.r_[np.int64(node), idx[keep]]
+    dist = np.r_[0.0, dist[keep]]
+    order = np.argsort(dist, kind="stable")
+    return idx[order], dist[order]
+
+
+def transition_matrix(adjacency_m: csr_array, a_t_m: float) -> csr_array:
+    """HMM transition matrix pi of paper eq. 9-10 from the sparse shortest-path matrix.
+
+    ``pi[y, x]`` is the probability of moving from node x to node y in one frame interval: uniform over
+    every y with A(x, y) < A_t (x itself always included, A(x, x) = 0), so every column sums to 1.
+
+    Args:
+        adjacency_m: (M, M) sparse shortest-path matrix from :func:`shortest_paths`, metres.
+        a_t_m: A_t, the furthest a vehicle can travel in one frame interval, metres (> 0). It must not
+            exceed the maximum distance stored in ``adjacency_m``, or reachable nodes would be missing.
+
+    Returns:
+        (M, M) float64 csr_array with columns summing to 1.
+    """
+    if not a_t_m > 0:
+        raise BadInputError(f"A_t must be positive, got {a_t_m}", field="a_t_m")
+    n = adjacency_m.shape[0]
+    coo = adjacency_m.tocoo()
+    keep = coo.data < a_t_m
+    rows = np.r_[np.asarray(coo.row, dtype=np.int64)[keep], np.arange(n, dtype=np.int64)]
+    cols = np.r_[np.asarray(coo.col, dtype=np.int64)[keep], np.arange(n, dtype=np.int64)]
+    per_column = np.bincount(cols, minlength=n).astype(np.float64)
+    return csr_array((1.0 / per_column[cols], (rows, cols)), shape=(n, n))
