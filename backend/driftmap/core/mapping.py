@@ -1,0 +1,283 @@
+"""The Semi-Supervised SLAM mapping pipeline (paper 000, III-A): odometry, loops, groundings, graph, map.
+
+One pure function, :func:`build_map`, turns a site's mapping drives into an optimised, compressed map. The
+CLI, the workers and the tests call it the same way; frames arrive through a callable per drive so that
+storage stays outside the core. Poses are ``[x_m, y_m, yaw_rad]`` in the survey frame (x east, y north,
+yaw counter-clockwise from +x, the vehicle heading) of the floor point under the camera.
+
+Stages: (1) ground-plane visual odometry of every drive, each frame also down-sampled and
+patch-normalised for place recognition; (2) keyframes every ``keyframe_spacing_m`` of odometry travel;
+(3) loop closures between keyframes; (4) a GTSAM pose graph of every drive with robust closures and
+grounding factors; (5) the topological map.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core import loops as loop_search
+from driftmap.core import posegraph
+from driftmap.core.camera import CameraModel
+from driftmap.core.images import preprocess
+from driftmap.core.odometry import dead_reckon
+from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ImageParams, OdometryParams
+from driftmap.core.topomap import PAPER as TOPO_PAPER
+from driftmap.core.topomap import TopoMap, TopoMapParams, build_topomap
+
+ProgressFn = Callable[[str, float], None]
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class MappingDrive:
+    """One mapping drive as the pipeline needs it.
+
+    Attributes:
+        name: the drive's name (for reports).
+        camera: its calibrated camera.
+        t_s: (N,) float64 frame times, seconds.
+        frames: returns a fresh iterator over the N gray (H, W) uint8 frames in time order.
+        groundings: (frame position 0..N-1, surveyed x_m, surveyed y_m) of each grounded frame.
+        start_wT: optional known pose of the first frame; used only by variants without groundings.
+    """
+
+    name: str
+    camera: CameraModel
+    t_s: F64
+    frames: Callable[[], Iterable[NDArray[np.uint8]]]
+    groundings: Sequence[tuple[int, float, float]] = ()
+    start_wT: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class MappingParams:
+    """Every knob of a map build; presets below."""
+
+    odometry: OdometryParams = ODOMETRY_DEFAULT  # ground-plane VO (eq. 1, 2)
+    images: ImageParams = IMAGES_DEFAULT  # place-recognition pre-processing (IV-C)
+    loops: loop_search.LoopParams = loop_search.PAPER  # loop-closure search (eq. 3)
+    graph: posegraph.PoseGraphParams = posegraph.ROBUST  # pose-graph back end
+    topomap: TopoMapParams = TOPO_PAPER  # map compression (III-A-4)
+    keyframe_spacing_m: float = 1.0  # odometry travel between keyframes used for loop closure, metres
+    closure_sigmas: tuple[float, float, float] = (1.5, 1.0, 0.15)  # same-place closure [x_m, y_m, rad]
+    grounding_sigma_m: float = 0.5  # surveyor click accuracy, metres
+    use_loop_closures: bool = True  # Table I variants switch these two off
+    use_groundings: bool = True
+
+
+PAPER = MappingParams()
+
+
+@dataclass(frozen=True)
+class ClosureRecord:
+    """A loop closure of a build: keyframes by (drive, frame position), its score and fate."""
+
+    drive_a: int
+    frame_a: int
+    drive_b: int
+    frame_b: int
+    d_score: float
+    accepted: bool
+    chi2: float
+
+
+@dataclass(frozen=True)
+class GroundingResidual:
+    """Optimised minus surveyed position of one grounded frame, metres."""
+
+    drive: int
+    frame: int
+    surveyed_xy_m: tuple[float, float]
+    dx_m: float
+    dy_m: float
+    distance_m: float
+
+
+@dataclass(frozen=True, eq=False)
+class MapBuild:
+    """The result of :func:`build_map`.
+
+    Attributes:
+        wTi: per drive, (N_d, 3) optimised poses.
+        dead_reckoned: per drive, (N_d, 3) odometry-only poses (aligned to groundings or to start_wT).
+        keyframes: per drive, the frame positions used for loop closure.
+        closures: every loop closure found, with whether the optimiser kept it.
+        residuals: one per grounding used.
+        topomap: the compressed map.
+        odometry_confidence: per drive, (N_d,) confidence of the step into each frame (1 for frame 0).
+        stats: figures of the build (counts, errors, seconds per stage).
+    """
+
+    wTi: tuple[F64, ...]
+    dead_reckoned: tuple[F64, ...]
+    keyframes: tuple[NDArray[np.int64], ...]
+    closures: tuple[ClosureRecord, ...]
+    residuals: tuple[GroundingResidual, ...]
+    topomap: TopoMap
+    odometry_confidence: tuple[F64, ...]
+    stats: dict[str, float | int] = field(default_factory=dict)
+
+
+def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
+    """Frame positions at every ``spacing_m`` of travelled path (frame 0 always)."""
+    steps = np.linalg.norm(np.diff(wTi[:, :2], axis=0), axis=1)
+    travelled = np.concatenate([[0.0], np.cumsum(steps)])
+    slot = np.floor(travelled / spacing_m).astype(np.int64)
+    return np.flatnonzero(np.concatenate([[True], slot[1:] != slot[:-1]])).astype(np.int64)
+
+
+class _Tee:
+    """Yields frames to odometry while keeping their place-recognition thumbnails."""
+
+    def __init__(self, frames: Iterable[NDArray[np.uint8]], params: ImageParams) -> None:
+        self._frames = frames
+        self._params = params
+        self.thumbs: list[NDArray[np.float32]] = []
+
+    def __iter__(self) -> Iterator[NDArray[np.uint8]]:
+        for frame in self._frames:
+            self.thumbs.append(preprocess(frame, self._params))
+            yield frame
+
+
+def build_map(
+    drives: Sequence[MappingDrive], params: MappingParams = PAPER, progress: ProgressFn | None = None
+) -> MapBuild:
+    """Build the map of a site from its mapping drives.
+
+    Args:
+        drives: every mapping drive, each with its frames, times and groundings.
+        params: pipeline parameters; ``use_loop_closures``/``use_groundings`` select Table I variants.
+        progress: called with (stage name, fraction 0..1 of that stage).
+
+    Returns:
+        :class:`MapBuild` with optimised poses, closures, residuals and the topological map.
+
+    Raises:
+        ValueError: no drive, a drive without frames, or a drive with neither groundings, a closure
+            path to a grounded drive, nor ``start_wT`` when groundings are off.
+    """
+    if not drives:
+        raise ValueError("build_map needs at least one mapping drive")
+    report = progress or (lambda _stage, _fraction: None)
+    timings: dict[str, float] = {}
+
+    start = time.perf_counter()
+    chains: list[posegraph.OdometryChain] = []
+    raw_poses: list[F64] = []
+    confidence: list[F64] = []
+    thumbs: list[NDArray[np.float32]] = []
+    for k, drive in enumerate(drives):
+        report("odometry", k / len(drives))
+        tee = _Tee(drive.frames(), params.images)
+        reckoning = dead_reckon(tee, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0))
+        if len(tee.thumbs) != drive.t_s.shape[0]:
+            raise ValueError(f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times")
+        steps = reckoning.steps
+        iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
+        sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
+        use_start = drive.start_wT is not None and not (params.use_groundings and drive.groundings)
+        chains.append(posegraph.OdometryChain(iTj, sigmas, wTi_init=reckoning.wTi if use_start else None))
+        raw_poses.append(reckoning.wTi)
+        confidence.append(np.concatenate([[1.0], [s.confidence for s in steps]]))
+        thumbs.append(np.stack(tee.thumbs))
+    report("odometry", 1.0)
+    timings["odometry_s"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
+    found: list[loop_search.Closure] = []
+    if params.use_loop_closures:
+        report("loop closure", 0.0)
+        found = list(loop_search.find_closures([t[k] for t, k in zip(thumbs, keyframes, strict=True)], params.loops).closures)
+    report("loop closure", 1.0)
+    timings["loop_closure_s"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    report("pose graph", 0.0)
+    closures = [
+        posegraph.LoopClosure(
+            a=(c.chain_a, int(keyframes[c.chain_a][c.index_a])),
+            b=(c.chain_b, int(keyframes[c.chain_b][c.index_b])),
+            sigmas=params.closure_sigmas,
+            sad=c.d,
+        )
+        for c in found
+    ]
+    groundings = [
+        posegraph.Grounding(frame=(k, int(i)), xy_m=(float(x), float(y)), sigma_m=params.grounding_sigma_m)
+        for k, drive in enumerate(drives)
+        if params.use_groundings
+        for i, x, y in drive.groundings
+    ]
+    graph = posegraph.optimise_pose_graph(chains, closures, groundings, params.graph)
+    report("pose graph", 1.0)
+    timings["pose_graph_s"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    report("topological map", 0.0)
+    topomap = build_topomap(list(graph.wTi), params=params.topomap)
+    report("topological map", 1.0)
+    timings["topomap_s"] = time.perf_counter() - start
+
+    chi2 = graph.closure_chi2
+    closure_records = tuple(
+        ClosureRecord(c.a[0], c.a[1], c.b[0], c.b[1], float(c.sad), bool(ok), float(x2))
+        for c, ok, x2 in zip(closures, graph.closure_accepted, chi2, strict=True)
+    )
+    residuals = tuple(
+        GroundingResidual(g.frame[0], g.frame[1], g.xy_m, float(r[0]), float(r[1]), float(r[2]))
+        for g, r in zip(groundings, graph.grounding_residual_m, strict=True)
+    )
+    aligned = _aligned_dead_reckoning(raw_poses, graph.wTi, drives, params)
+    stats: dict[str, float | int] = {
+        "drives": len(drives),
+        "frames": int(sum(p.shape[0] for p in raw_poses)),
+        "keyframes": int(sum(k.shape[0] for k in keyframes)),
+        "closures_found": len(closure_records),
+        "closures_accepted": int(sum(c.accepted for c in closure_records)),
+        "groundings": len(residuals),
+        "nodes": topomap.n_nodes,
+        "graph_initial_error": graph.initial_error,
+        "graph_final_error": graph.final_error,
+        **timings,
+    }
+    return MapBuild(
+        wTi=tuple(graph.wTi),
+        dead_reckoned=aligned,
+        keyframes=keyframes,
+        closures=closure_records,
+        residuals=residuals,
+        topomap=topomap,
+        odometry_confidence=tuple(confidence),
+        stats=stats,
+    )
+
+
+def _aligned_dead_reckoning(
+    raw: Sequence[F64], optimised: Sequence[F64], drives: Sequence[MappingDrive], params: MappingParams
+) -> tuple[F64, ...]:
+    """Odometry-only trajectories placed like the optimised ones at their first frame (for reports)."""
+    out = []
+    for poses, opt, drive in zip(raw, optimised, drives, strict=True):
+        if drive.start_wT is not None and not (params.use_groundings and drive.groundings):
+            out.append(poses)
+            continue
+        c0, s0 = np.cos(poses[0, 2]), np.sin(poses[0, 2])
+        rel = poses[:, :2] - poses[0, :2]
+        local = np.stack([c0 * rel[:, 0] + s0 * rel[:, 1], -s0 * rel[:, 0] + c0 * rel[:, 1]], axis=1)
+        c1, s1 = np.cos(opt[0, 2]), np.sin(opt[0, 2])
+        xy = opt[0, :2] + np.stack([c1 * local[:, 0] - s1 * local[:, 1], s1 * local[:, 0] + c1 * local[:, 1]], axis=1)
+        yaw = opt[0, 2] + (poses[:, 2] - poses[0, 2])
+        out.append(np.column_stack([xy, np.arctan2(np.sin(yaw), np.cos(yaw))]))
+    return tuple(out)
+
+
+def variant(params: MappingParams, *, loops: bool, groundings: bool) -> MappingParams:
+    """``params`` with loop closures and groundings switched as the Table I variants need."""
+    return replace(params, use_loop_closures=loops, use_groundings=groundings)
