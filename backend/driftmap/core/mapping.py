@@ -145,28 +145,46 @@ class _Tee:
             yield frame
 
 
-def build_map(
+@dataclass(frozen=True, eq=False)
+class PreparedDrives:
+    """What every Table I variant shares: odometry, thumbnails, keyframes and closure candidates.
+
+    Attributes:
+        chains: per drive, the odometry chain (steps and sigmas) for the pose graph.
+        raw_poses: per drive, (N_d, 3) dead-reckoned poses from ``start_wT`` or the origin.
+        confidence: per drive, (N_d,) odometry confidence of the step into each frame (1 for frame 0).
+        thumbs: per drive, (N_d, h, w) float32 patch-normalised thumbnails.
+        keyframes: per drive, frame positions used for loop closure.
+        closures: closures found between keyframes (empty when loop closure is off).
+        timings: seconds per stage.
+    """
+
+    chains: tuple[posegraph.OdometryChain, ...]
+    raw_poses: tuple[F64, ...]
+    confidence: tuple[F64, ...]
+    thumbs: tuple[NDArray[np.float32], ...]
+    keyframes: tuple[NDArray[np.int64], ...]
+    closures: tuple[loop_search.Closure, ...]
+    timings: dict[str, float]
+
+
+def prepare_drives(
     drives: Sequence[MappingDrive], params: MappingParams = PAPER, progress: ProgressFn | None = None
-) -> MapBuild:
-    """Build the map of a site from its mapping drives.
+) -> PreparedDrives:
+    """Stages 1-3: visual odometry and thumbnails of every frame, keyframes, loop-closure search.
 
     Args:
-        drives: every mapping drive, each with its frames, times and groundings.
-        params: pipeline parameters; ``use_loop_closures``/``use_groundings`` select Table I variants.
+        drives: every mapping drive of the site.
+        params: pipeline parameters (``use_loop_closures`` off skips the search).
         progress: called with (stage name, fraction 0..1 of that stage).
 
-    Returns:
-        :class:`MapBuild` with optimised poses, closures, residuals and the topological map.
-
     Raises:
-        ValueError: no drive, a drive without frames, or a drive with neither groundings, a closure
-            path to a grounded drive, nor ``start_wT`` when groundings are off.
+        ValueError: no drive, or a drive whose frame count disagrees with its times.
     """
     if not drives:
-        raise ValueError("build_map needs at least one mapping drive")
+        raise ValueError("a map build needs at least one mapping drive")
     report = progress or (lambda _stage, _fraction: None)
     timings: dict[str, float] = {}
-
     start = time.perf_counter()
     chains: list[posegraph.OdometryChain] = []
     raw_poses: list[F64] = []
@@ -181,8 +199,7 @@ def build_map(
         steps = reckoning.steps
         iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
         sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
-        use_start = drive.start_wT is not None and not (params.use_groundings and drive.groundings)
-        chains.append(posegraph.OdometryChain(iTj, sigmas, wTi_init=reckoning.wTi if use_start else None))
+        chains.append(posegraph.OdometryChain(iTj, sigmas))
         raw_poses.append(reckoning.wTi)
         confidence.append(np.concatenate([[1.0], [s.confidence for s in steps]]))
         thumbs.append(np.stack(tee.thumbs))
@@ -191,15 +208,38 @@ def build_map(
 
     start = time.perf_counter()
     keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
-    found: list[loop_search.Closure] = []
+    found: tuple[loop_search.Closure, ...] = ()
     if params.use_loop_closures:
         report("loop closure", 0.0)
-        found = list(loop_search.find_closures([t[k] for t, k in zip(thumbs, keyframes, strict=True)], params.loops).closures)
+        key_thumbs = [t[k] for t, k in zip(thumbs, keyframes, strict=True)]
+        found = tuple(loop_search.find_closures(key_thumbs, params.loops).closures)
     report("loop closure", 1.0)
     timings["loop_closure_s"] = time.perf_counter() - start
+    return PreparedDrives(
+        tuple(chains), tuple(raw_poses), tuple(confidence), tuple(thumbs), keyframes, found, timings
+    )
 
+
+def solve_map(
+    prepared: PreparedDrives,
+    drives: Sequence[MappingDrive],
+    params: MappingParams = PAPER,
+    progress: ProgressFn | None = None,
+) -> MapBuild:
+    """Stages 4-5: the pose graph (with the closures and groundings the params allow) and the map.
+
+    Drives that get no grounding (groundings off, or none recorded) start from their ``start_wT``
+    when given; otherwise the pose graph places them through closures or anchors them weakly.
+    """
+    report = progress or (lambda _stage, _fraction: None)
+    timings = dict(prepared.timings)
     start = time.perf_counter()
     report("pose graph", 0.0)
+    chains = []
+    for chain, poses, drive in zip(prepared.chains, prepared.raw_poses, drives, strict=True):
+        free = drive.start_wT is not None and not (params.use_groundings and drive.groundings)
+        chains.append(replace(chain, wTi_init=poses) if free else chain)
+    keyframes = prepared.keyframes
     closures = [
         posegraph.LoopClosure(
             a=(c.chain_a, int(keyframes[c.chain_a][c.index_a])),
@@ -207,7 +247,7 @@ def build_map(
             sigmas=params.closure_sigmas,
             sad=c.d,
         )
-        for c in found
+        for c in (prepared.closures if params.use_loop_closures else ())
     ]
     groundings = [
         posegraph.Grounding(frame=(k, int(i)), xy_m=(float(x), float(y)), sigma_m=params.grounding_sigma_m)
@@ -221,23 +261,21 @@ def build_map(
 
     start = time.perf_counter()
     report("topological map", 0.0)
-    topomap = build_topomap(list(graph.wTi), params=params.topomap)
+    topomap = build_topomap(list(graph.wTi), quality=list(prepared.confidence), params=params.topomap)
     report("topological map", 1.0)
     timings["topomap_s"] = time.perf_counter() - start
 
-    chi2 = graph.closure_chi2
     closure_records = tuple(
         ClosureRecord(c.a[0], c.a[1], c.b[0], c.b[1], float(c.sad), bool(ok), float(x2))
-        for c, ok, x2 in zip(closures, graph.closure_accepted, chi2, strict=True)
+        for c, ok, x2 in zip(closures, graph.closure_accepted, graph.closure_chi2, strict=True)
     )
     residuals = tuple(
         GroundingResidual(g.frame[0], g.frame[1], g.xy_m, float(r[0]), float(r[1]), float(r[2]))
         for g, r in zip(groundings, graph.grounding_residual_m, strict=True)
     )
-    aligned = _aligned_dead_reckoning(raw_poses, graph.wTi, drives, params)
     stats: dict[str, float | int] = {
         "drives": len(drives),
-        "frames": int(sum(p.shape[0] for p in raw_poses)),
+        "frames": int(sum(p.shape[0] for p in prepared.raw_poses)),
         "keyframes": int(sum(k.shape[0] for k in keyframes)),
         "closures_found": len(closure_records),
         "closures_accepted": int(sum(c.accepted for c in closure_records)),
@@ -249,14 +287,30 @@ def build_map(
     }
     return MapBuild(
         wTi=tuple(graph.wTi),
-        dead_reckoned=aligned,
+        dead_reckoned=_aligned_dead_reckoning(prepared.raw_poses, graph.wTi, drives, params),
         keyframes=keyframes,
         closures=closure_records,
         residuals=residuals,
         topomap=topomap,
-        odometry_confidence=tuple(confidence),
+        odometry_confidence=prepared.confidence,
         stats=stats,
     )
+
+
+def build_map(
+    drives: Sequence[MappingDrive], params: MappingParams = PAPER, progress: ProgressFn | None = None
+) -> MapBuild:
+    """Build the map of a site from its mapping drives: :func:`prepare_drives` then :func:`solve_map`.
+
+    Args:
+        drives: every mapping drive, each with its frames, times and groundings.
+        params: pipeline parameters; ``use_loop_closures``/``use_groundings`` select Table I variants.
+        progress: called with (stage name, fraction 0..1 of that stage).
+
+    Returns:
+        :class:`MapBuild` with optimised poses, closures, residuals and the topological map.
+    """
+    return solve_map(prepare_drives(drives, params, progress), drives, params, progress)
 
 
 def _aligned_dead_reckoning(
