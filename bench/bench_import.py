@@ -20,13 +20,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from driftmap.config import Settings  # noqa: E402
-from driftmap.formats.drive_folder import write_drive_folder  # noqa: E402
-from driftmap.formats.records import DriveMeta, FrameRow  # noqa: E402
-from driftmap.services import drives as drive_service  # noqa: E402
-from driftmap.services import sites as site_service  # noqa: E402
-from driftmap.store.storage import Storage  # noqa: E402
-from tests.drive_factory import CAMERA  # noqa: E402
+from tests.drive_factory import CAMERA
+
+from driftmap.config import Settings
+from driftmap.formats.drive_folder import write_drive_folder
+from driftmap.formats.records import DriveMeta, FrameRow
+from driftmap.services import drives as drive_service
+from driftmap.services import sites as site_service
+from driftmap.store.storage import Storage
 
 FRAMES = 1000
 RUNS = 5

@@ -48,7 +48,10 @@ class TestImport:
             assert [f.index for f in frames] == list(range(12))
             assert frames[3].t_s == pytest.approx(0.3)
             assert frames[3].true_x_m == pytest.approx(12000.0 + 0.37 * 3)
-            assert storage.blobs.get(frames[3].blob_sha256) == (tmp_path / "d" / "frames" / "000003.png").read_bytes()
+            assert (
+                storage.blobs.get(frames[3].blob_sha256)
+                == (tmp_path / "d" / "frames" / "000003.png").read_bytes()
+            )
             assert drive.camera["ground_roi"] == [16, 24, 32, 20]
 
     def test_duplicate_name_is_a_conflict_and_writes_nothing(self, storage: Storage, tmp_path: Path) -> None:
@@ -59,23 +62,25 @@ class TestImport:
             _import(storage, write_test_drive(tmp_path / "b", seed=2))
         assert _counts(storage) == before
 
-    def test_truncated_frame_leaves_no_rows_and_no_orphan_blobs(self, storage: Storage, tmp_path: Path) -> None:
+    def test_truncated_frame_leaves_no_rows_and_no_orphan_blobs(
+        self, storage: Storage, tmp_path: Path
+    ) -> None:
         _site(storage)
         _import(storage, write_test_drive(tmp_path / "ok", name="kept", seed=5))
         before = _counts(storage)
         bad = write_test_drive(tmp_path / "bad", name="broken", seed=6, frames=20)
         victim = bad / "frames" / "000015.png"
         victim.write_bytes(victim.read_bytes()[: len(victim.read_bytes()) // 2])
-        with pytest.raises(BadInputError, match="000015.png"):
+        with pytest.raises(BadInputError, match=r"000015\.png"):
             _import(storage, bad)
         assert _counts(storage) == before
 
     def test_frame_of_other_size_names_the_file(self, storage: Storage, tmp_path: Path) -> None:
         _site(storage)
         bad = write_test_drive(tmp_path / "bad", frames=6)
-        ok, data = cv2.imencode(".png", np.zeros((10, 10), np.uint8))
+        _, data = cv2.imencode(".png", np.zeros((10, 10), np.uint8))
         (bad / "frames" / "000004.png").write_bytes(data.tobytes())
-        with pytest.raises(BadInputError, match="000004.png"):
+        with pytest.raises(BadInputError, match=r"000004\.png"):
             _import(storage, bad)
         assert _counts(storage) == (0, 0, 0, 0)
 
@@ -90,7 +95,9 @@ class TestImport:
     def test_video_with_calibration(self, storage: Storage, tmp_path: Path) -> None:
         _site(storage)
         video = tmp_path / "clip.avi"
-        writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5.0, (CAMERA.width_px, CAMERA.height_px))
+        writer = cv2.VideoWriter(
+            str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5.0, (CAMERA.width_px, CAMERA.height_px)
+        )
         rng = np.random.default_rng(3)
         for _ in range(8):
             writer.write(rng.integers(0, 256, (CAMERA.height_px, CAMERA.width_px, 3), dtype=np.uint8))
@@ -121,7 +128,9 @@ class TestExport:
         _import(storage, source, "first")
         out = tmp_path / "exported"
         with storage.db.session() as session:
-            drive_service.export_drive(session, storage.blobs, site_service.get_site(session, "first"), "east-mapping-1", out)
+            drive_service.export_drive(
+                session, storage.blobs, site_service.get_site(session, "first"), "east-mapping-1", out
+            )
         for name in ("drive.json", "frames.csv", "groundings.csv"):
             assert (out / name).read_bytes() == (source / name).read_bytes(), name
         _import(storage, out, "second")
