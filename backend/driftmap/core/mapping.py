@@ -25,7 +25,7 @@ from driftmap.core import posegraph
 from driftmap.core.camera import CameraModel
 from driftmap.core.images import preprocess
 from driftmap.core.odometry import dead_reckon
-from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ImageParams, OdometryParams
+from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
 from driftmap.core.topomap import PAPER as TOPO_PAPER
 from driftmap.core.topomap import TopoMap, TopoMapParams, build_topomap
 
@@ -71,6 +71,7 @@ class MappingParams:
 
 
 PAPER = MappingParams()
+FAST = MappingParams(odometry=ODOMETRY_FAST, loops=loop_search.FAST, keyframe_spacing_m=2.0)
 
 
 @dataclass(frozen=True)
@@ -195,7 +196,9 @@ def prepare_drives(
         tee = _Tee(drive.frames(), params.images)
         reckoning = dead_reckon(tee, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0))
         if len(tee.thumbs) != drive.t_s.shape[0]:
-            raise ValueError(f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times")
+            raise ValueError(
+                f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times"
+            )
         steps = reckoning.steps
         iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
         sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
@@ -326,7 +329,9 @@ def _aligned_dead_reckoning(
         rel = poses[:, :2] - poses[0, :2]
         local = np.stack([c0 * rel[:, 0] + s0 * rel[:, 1], -s0 * rel[:, 0] + c0 * rel[:, 1]], axis=1)
         c1, s1 = np.cos(opt[0, 2]), np.sin(opt[0, 2])
-        xy = opt[0, :2] + np.stack([c1 * local[:, 0] - s1 * local[:, 1], s1 * local[:, 0] + c1 * local[:, 1]], axis=1)
+        xy = opt[0, :2] + np.stack(
+            [c1 * local[:, 0] - s1 * local[:, 1], s1 * local[:, 0] + c1 * local[:, 1]], axis=1
+        )
         yaw = opt[0, 2] + (poses[:, 2] - poses[0, 2])
         out.append(np.column_stack([xy, np.arctan2(np.sin(yaw), np.cos(yaw))]))
     return tuple(out)

@@ -1,73 +1,25 @@
-"""The ``driftmap`` command line: thin typer commands that parse, call a service, and print."""
+"""Commands over the stored data: simulate, sites, drives, the schema."""
 
 from __future__ import annotations
 
-import logging
-import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from driftmap.cli.common import console, open_storage, stage_progress, user_errors
 from driftmap.config import get_settings
-from driftmap.errors import BadInputError, DriftmapError
+from driftmap.errors import BadInputError
 from driftmap.services import drives as drive_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
 
-app = typer.Typer(
-    help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
-)
 site_app = typer.Typer(help="Sites and their survey maps.", no_args_is_help=True)
 drive_app = typer.Typer(help="Recorded drives: import, export, list.", no_args_is_help=True)
 db_app = typer.Typer(help="The database schema.", no_args_is_help=True)
-app.add_typer(site_app, name="site")
-app.add_typer(drive_app, name="drive")
-app.add_typer(db_app, name="db")
-
-console = Console()
-err_console = Console(stderr=True)
 
 
-@contextmanager
-def _user_errors() -> Iterator[None]:
-    """Print a DriftmapError as one clear line and exit 2, without a traceback."""
-    try:
-        yield
-    except DriftmapError as exc:
-        err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
-        raise typer.Exit(2) from None
-
-
-@contextmanager
-def _progress(description: str) -> Iterator[Progress]:
-    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"))
-    with Progress(*columns, TimeElapsedColumn(), console=err_console, transient=False) as progress:
-        yield progress
-
-
-def _storage() -> Storage:
-    return Storage.open(get_settings())
-
-
-@app.callback()
-def main(
-    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
-) -> None:
-    """Configure logging for every command."""
-    logging.basicConfig(
-        level=logging.DEBUG if verbose else logging.WARNING,
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-        stream=sys.stderr,
-    )
-
-
-@app.command()
 def simulate(
     out: Annotated[
         Path, typer.Option("--out", help="Folder to write the site into (must be empty or absent).")
@@ -83,12 +35,7 @@ def simulate(
     """Simulate a synthetic mine: survey.dxf, mapping and localisation drives with ground truth."""
     from driftmap.sim import simulate_site
 
-    with _user_errors(), _progress("simulating") as progress:
-        task = progress.add_task("simulating", total=1.0)
-
-        def report(stage: str, fraction: float) -> None:
-            progress.update(task, description=stage, completed=fraction)
-
+    with user_errors(), stage_progress("simulating") as report:
         summary = simulate_site(out, seed=seed, size=size, obscurants=obscurants, progress=report)
     console.print(summary.describe() if hasattr(summary, "describe") else summary)
 
@@ -97,7 +44,7 @@ def simulate(
 def db_upgrade() -> None:
     """Create or upgrade the database schema to the newest migration."""
     settings = get_settings()
-    with _user_errors():
+    with user_errors():
         storage = Storage.open(settings)
         storage.close()
     console.print(f"schema up to date at {settings.resolved_database_url()}")
@@ -113,8 +60,8 @@ def site_create(
     description: Annotated[str, typer.Option(help="Free text about the site.")] = "",
 ) -> None:
     """Create a site from its survey DXF (and optionally import a folder of drives)."""
-    storage = _storage()
-    with _user_errors():
+    storage = open_storage()
+    with user_errors():
         if not survey.is_file():
             raise BadInputError("no such file", file=survey, field="--survey")
         data = survey.read_bytes()
@@ -137,11 +84,10 @@ def _import_one(
     name: str | None = None,
     kind: str = "mapping",
 ) -> None:
-    with _progress(f"import {path.name}") as progress:
-        task = progress.add_task(f"import {path.name}", total=1.0)
+    with stage_progress(f"import {path.name}") as stage_report:
 
         def report(fraction: float) -> None:
-            progress.update(task, completed=fraction)
+            stage_report(f"import {path.name}", fraction)
 
         with storage.blobs.batch() as batch, storage.db.session() as session:
             site = site_service.get_site(session, site_name)
@@ -172,8 +118,8 @@ def drive_import(
     kind: Annotated[str, typer.Option(help="For a video: mapping or localisation.")] = "mapping",
 ) -> None:
     """Import one drive into a site; a failed import leaves nothing behind."""
-    storage = _storage()
-    with _user_errors():
+    storage = open_storage()
+    with user_errors():
         _import_one(storage, site, path, calibration=calibration, name=name, kind=kind)
 
 
@@ -184,8 +130,8 @@ def drive_export(
     out: Annotated[Path, typer.Argument(help="Folder to write (must not exist or be empty).")],
 ) -> None:
     """Write a stored drive back as a drive folder in the formats.md layout."""
-    storage = _storage()
-    with _user_errors(), storage.db.session() as session:
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
         record = drive_service.export_drive(
             session, storage.blobs, site_service.get_site(session, site), drive, out
         )
@@ -195,8 +141,8 @@ def drive_export(
 @drive_app.command("list")
 def drive_list(site: Annotated[str, typer.Argument(help="Site name.")]) -> None:
     """List the drives of a site."""
-    storage = _storage()
-    with _user_errors(), storage.db.session() as session:
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
         rows = drive_service.list_drives(session, site_service.get_site(session, site))
         table = Table("id", "name", "kind", "frames", "fps", "duration s", "groundings", "truth")
         for row in rows:
@@ -216,8 +162,8 @@ def drive_list(site: Annotated[str, typer.Argument(help="Site name.")]) -> None:
 @site_app.command("list")
 def site_list() -> None:
     """List the sites."""
-    storage = _storage()
-    with _user_errors(), storage.db.session() as session:
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
         table = Table("id", "name", "survey maps", "drives", "created")
         for site in site_service.list_sites(session):
             table.add_row(
@@ -228,7 +174,3 @@ def site_list() -> None:
                 f"{site.created_at:%Y-%m-%d}",
             )
     console.print(table)
-
-
-if __name__ == "__main__":
-    app()

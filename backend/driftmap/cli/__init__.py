@@ -1,0 +1,37 @@
+"""The ``driftmap`` command line: thin typer commands that parse, call a service, and print."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from typing import Annotated
+
+import typer
+
+from driftmap.cli import data, maps
+
+app = typer.Typer(
+    help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
+)
+app.add_typer(data.site_app, name="site")
+app.add_typer(data.drive_app, name="drive")
+app.add_typer(data.db_app, name="db")
+app.add_typer(maps.map_app, name="map")
+app.add_typer(maps.report_app, name="report")
+app.command()(data.simulate)
+app.command()(maps.odometry)
+
+
+@app.callback()
+def main(
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
+) -> None:
+    """Configure logging for every command."""
+    logging.basicConfig(
+        level=logging.DEBUG if verbose else logging.WARNING,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+
+
+__all__ = ["app"]

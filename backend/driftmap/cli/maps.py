@@ -1,0 +1,170 @@
+"""Commands of the mapping pipeline: odometry of one drive, map builds, exports, Table I report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from driftmap.cli.common import console, open_storage, stage_progress, user_errors
+from driftmap.config import get_settings
+from driftmap.core.mapping import FAST, PAPER, MappingParams
+from driftmap.core.odometry import dead_reckon
+from driftmap.core.params import ODOMETRY_DEFAULT
+from driftmap.errors import BadInputError
+from driftmap.formats.csv_exports import PoseRow, write_poses_csv
+from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
+from driftmap.formats.frame_images import decode_gray
+from driftmap.reports.mapping_report import run_mapping_report
+from driftmap.services import maps as map_service
+from driftmap.services import sites as site_service
+
+map_app = typer.Typer(help="Map versions: build, show, export.", no_args_is_help=True)
+report_app = typer.Typer(help="Evaluation reports against ground truth.", no_args_is_help=True)
+
+PRESETS: dict[str, MappingParams] = {"paper": PAPER, "fast": FAST}
+PresetOption = Annotated[str, typer.Option("--preset", help="Parameter preset: paper or fast.")]
+
+
+def _preset(name: str) -> MappingParams:
+    if name not in PRESETS:
+        raise BadInputError(f"unknown preset {name!r}; choose {', '.join(PRESETS)}", field="--preset")
+    return PRESETS[name]
+
+
+def odometry(
+    drive_dir: Annotated[Path, typer.Argument(help="A drive folder (formats.md).")],
+    out: Annotated[Path, typer.Option("--out", help="Poses CSV to write (drive,frame,x,y,yaw).")],
+    model: Annotated[str, typer.Option(help="auto, linear (eq. 1-2) or homography (bird's-eye).")] = "auto",
+) -> None:
+    """Dead-reckon one drive with ground-plane visual odometry (from its first true pose when known)."""
+    from dataclasses import replace
+
+    with user_errors():
+        if model not in ("auto", "linear", "homography"):
+            raise BadInputError(f"unknown model {model!r}", field="--model")
+        folder = read_drive_folder(drive_dir)
+        first = folder.frames[0]
+        start = (first.x_m, first.y_m, first.yaw_rad) if first.has_truth else (0.0, 0.0, 0.0)
+        frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
+        params = replace(ODOMETRY_DEFAULT, model=model)  # type: ignore[arg-type]
+        result = dead_reckon(frames, folder.meta.camera, params, start)  # type: ignore[arg-type]
+        rows = [
+            PoseRow(folder.meta.name, f.frame, float(p[0]), float(p[1]), float(p[2]))
+            for f, p in zip(folder.frames, result.wTi, strict=True)
+        ]
+        write_poses_csv(out, rows)
+    console.print(
+        f"wrote {len(rows)} poses to {out} ({np.median(result.ms_per_step):.1f} ms per step, median)"
+    )
+    if all(f.has_truth for f in folder.frames):
+        truth = np.array([[f.x_m, f.y_m] for f in folder.frames], dtype=np.float64)
+        travelled = float(np.linalg.norm(np.diff(truth, axis=0), axis=1).sum())
+        final = float(np.linalg.norm(result.wTi[-1, :2] - truth[-1]))
+        console.print(
+            f"final position error {final:.2f} m over {travelled:.1f} m ({100 * final / max(travelled, 1e-9):.1f}%)"
+        )
+
+
+@map_app.command("build")
+def map_build(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    preset: PresetOption = "paper",
+) -> None:
+    """Build a new immutable map version from the site's mapping drives and groundings."""
+    storage = open_storage()
+    with user_errors():
+        params = _preset(preset)
+        with storage.blobs.batch() as batch, storage.db.session() as session:
+            record = site_service.get_site(session, site)
+            map_service.ensure_buildable(session, record)
+            with stage_progress("map build") as report:
+                version, build = map_service.build_site_map(
+                    session, storage.blobs, batch, record, params, report
+                )
+            number = version.version
+    console.print(f"map version {number} of {site!r}: {_stats_line(build.stats)}")
+
+
+def _stats_line(stats: dict[str, float | int]) -> str:
+    keys = ("frames", "keyframes", "closures_found", "closures_accepted", "groundings", "nodes")
+    seconds = sum(float(v) for k, v in stats.items() if k.endswith("_s"))
+    return ", ".join(f"{k.replace('_', ' ')} {stats.get(k, 0)}" for k in keys) + f"; {seconds:.1f} s"
+
+
+@map_app.command("export")
+def map_export(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    poses: Annotated[Path, typer.Option("--poses", help="Poses CSV to write (drive,frame,x,y,yaw).")],
+    version: Annotated[int | None, typer.Option(help="Map version (default: latest).")] = None,
+) -> None:
+    """Write the optimised poses of a map version as the formats.md poses CSV."""
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
+        record = map_service.get_map_version(session, site_service.get_site(session, site), version)
+        rows = map_service.pose_rows(session, record)
+        write_poses_csv(poses, rows)
+        console.print(f"wrote {len(rows)} poses of map version {record.version} to {poses}")
+
+
+@map_app.command("show")
+def map_show(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    version: Annotated[int | None, typer.Option(help="Map version (default: latest).")] = None,
+) -> None:
+    """Summarise a map version: build figures and the grounding residuals (largest first)."""
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
+        record = map_service.get_map_version(session, site_service.get_site(session, site), version)
+        console.print(
+            f"map version {record.version} of {site!r}, built {record.created_at:%Y-%m-%d %H:%M} by {record.created_by}"
+        )
+        console.print(_stats_line(record.stats))
+        table = Table("drive", "frame", "surveyed x", "surveyed y", "dx m", "dy m", "distance m")
+        for row in map_service.residual_rows(session, record):
+            table.add_row(
+                row.drive,
+                str(row.frame),
+                f"{row.surveyed_x_m:.2f}",
+                f"{row.surveyed_y_m:.2f}",
+                f"{row.dx_m:+.2f}",
+                f"{row.dy_m:+.2f}",
+                f"{row.distance_m:.2f}",
+            )
+    console.print(table)
+
+
+@report_app.command("mapping")
+def report_mapping(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    truth: Annotated[bool, typer.Option("--truth", help="Score against the drives' ground truth.")] = False,
+    out: Annotated[
+        Path | None, typer.Option(help="Folder for the PNG (default: DATA_DIR/reports/SITE).")
+    ] = None,
+    preset: PresetOption = "paper",
+) -> None:
+    """The paper's Table I (VO, VO+loops, VO+groundings, full) and a Fig. 6-style PNG."""
+    storage = open_storage()
+    with user_errors():
+        if not truth:
+            raise BadInputError("the mapping report needs ground truth: pass --truth", field="--truth")
+        params = _preset(preset)
+        folder = out or get_settings().data_dir / "reports" / site
+        with storage.db.session() as session:
+            record = site_service.get_site(session, site)
+            loaded = map_service.load_site_drives(session, storage.blobs, record)
+            plan = site_service.latest_survey_map(session, record).layers
+        with stage_progress("Table I") as report:
+            result = run_mapping_report(
+                loaded.inputs,
+                loaded.truth,
+                params,
+                plan_layers=plan,
+                figure_path=folder / "mapping.png",
+                progress=report,
+            )
+    console.print(result.table())
+    console.print(f"figure: {result.figure}")

@@ -1,0 +1,1 @@
+"""Evaluation reports: tables and PNG figures against ground truth, like the papers'."""

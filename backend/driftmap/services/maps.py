@@ -1,0 +1,300 @@
+"""Map versions: build a site's map from its stored drives and keep it as an immutable version."""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import func, insert, select
+from sqlalchemy.orm import Session
+
+from driftmap.core.mapping import PAPER, MapBuild, MappingDrive, MappingParams, build_map
+from driftmap.core.topomap import TopoMap
+from driftmap.errors import ConflictError, NotFoundError
+from driftmap.formats.csv_exports import PoseRow
+from driftmap.formats.frame_images import decode_gray
+from driftmap.services.drives import drive_meta, frame_rows
+from driftmap.store.blobs import BlobBatch, BlobStore
+from driftmap.store.models import (
+    Drive,
+    Frame,
+    Grounding,
+    MapGroundingResidual,
+    MapLoopClosure,
+    MapNode,
+    MapNodeFrame,
+    MapPose,
+    MapVersion,
+    Site,
+)
+
+ProgressFn = Callable[[str, float], None]
+
+
+@dataclass(frozen=True, eq=False)
+class SiteDrives:
+    """A site's mapping drives loaded for the pipeline, with the row ids to store results against."""
+
+    drives: list[Drive]
+    inputs: list[MappingDrive]
+    frame_ids: list[NDArray[np.int64]]
+    """Per drive, (N,) ``frames.id`` in frame order."""
+    grounding_ids: list[list[int]]
+    """Per drive, ``groundings.id`` in the order of that drive's ``MappingDrive.groundings``."""
+    truth: list[NDArray[np.float64] | None]
+    """Per drive, (N, 3) ground truth [x_m, y_m, yaw_rad] when every frame has it, else None."""
+
+
+def _frame_source(blobs: BlobStore, shas: list[str]) -> Callable[[], Iterator[NDArray[np.uint8]]]:
+    def frames() -> Iterator[NDArray[np.uint8]]:
+        for sha in shas:
+            yield decode_gray(blobs.get(sha), f"blob {sha}")
+
+    return frames
+
+
+def load_site_drives(session: Session, blobs: BlobStore, site: Site) -> SiteDrives:
+    """The mapping drives of ``site`` with their groundings, frames streamed from the blob store."""
+    drives = list(
+        session.scalars(
+            select(Drive).where(Drive.site_id == site.id, Drive.kind == "mapping").order_by(Drive.id)
+        )
+    )
+    if not drives:
+        raise NotFoundError(f"site {site.name!r} has no mapping drive to build a map from")
+    out = SiteDrives([], [], [], [], [])
+    for drive in drives:
+        frames = frame_rows(session, drive)
+        position = {f.id: k for k, f in enumerate(frames)}
+        marks = list(
+            session.scalars(select(Grounding).where(Grounding.drive_id == drive.id).order_by(Grounding.id))
+        )
+        has_truth = all(
+            f.true_x_m is not None and f.true_y_m is not None and f.true_yaw_rad is not None for f in frames
+        )
+        truth = (
+            np.array([[f.true_x_m, f.true_y_m, f.true_yaw_rad] for f in frames], dtype=np.float64)
+            if has_truth
+            else None
+        )
+        out.drives.append(drive)
+        out.inputs.append(
+            MappingDrive(
+                name=drive.name,
+                camera=drive_meta(drive).camera,
+                t_s=np.array([f.t_s for f in frames], dtype=np.float64),
+                frames=_frame_source(blobs, [f.blob_sha256 for f in frames]),
+                groundings=[(position[g.frame_id], g.x_m, g.y_m) for g in marks],
+            )
+        )
+        out.frame_ids.append(np.array([f.id for f in frames], dtype=np.int64))
+        out.grounding_ids.append([g.id for g in marks])
+        out.truth.append(truth)
+    return out
+
+
+def _params_json(params: MappingParams) -> dict[str, Any]:
+    return json_safe(dataclasses.asdict(params))
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with tuples as lists and numpy scalars as Python numbers, for JSON columns."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def store_map_version(
+    session: Session,
+    batch: BlobBatch,
+    site: Site,
+    loaded: SiteDrives,
+    build: MapBuild,
+    params: MappingParams,
+    created_by: str = "cli",
+) -> MapVersion:
+    """Write ``build`` as the next immutable map version of ``site``."""
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **build.topomap.to_arrays())  # type: ignore[arg-type]
+    latest = session.scalar(select(func.max(MapVersion.version)).where(MapVersion.site_id == site.id)) or 0
+    version = MapVersion(
+        site_id=site.id,
+        version=latest + 1,
+        params=_params_json(params),
+        stats=json_safe(build.stats),
+        topomap_sha256=batch.put(buffer.getvalue()),
+        created_by=created_by,
+    )
+    session.add(version)
+    session.flush()
+    vid = version.id
+    pose_rows = [
+        {
+            "map_version_id": vid,
+            "frame_id": int(fid),
+            "x_m": float(p[0]),
+            "y_m": float(p[1]),
+            "yaw_rad": float(p[2]),
+        }
+        for ids, poses in zip(loaded.frame_ids, build.wTi, strict=True)
+        for fid, p in zip(ids, poses, strict=True)
+    ]
+    session.execute(insert(MapPose), pose_rows)
+    if build.closures:
+        session.execute(
+            insert(MapLoopClosure),
+            [
+                {
+                    "map_version_id": vid,
+                    "frame_a_id": int(loaded.frame_ids[c.drive_a][c.frame_a]),
+                    "frame_b_id": int(loaded.frame_ids[c.drive_b][c.frame_b]),
+                    "d_score": c.d_score,
+                    "accepted": c.accepted,
+                    "chi2": c.chi2,
+                }
+                for c in build.closures
+            ],
+        )
+    grounding_ids = [gid for ids in loaded.grounding_ids for gid in ids]
+    if build.residuals:
+        session.execute(
+            insert(MapGroundingResidual),
+            [
+                {
+                    "map_version_id": vid,
+                    "grounding_id": gid,
+                    "frame_id": int(loaded.frame_ids[r.drive][r.frame]),
+                    "surveyed_x_m": r.surveyed_xy_m[0],
+                    "surveyed_y_m": r.surveyed_xy_m[1],
+                    "dx_m": r.dx_m,
+                    "dy_m": r.dy_m,
+                    "distance_m": r.distance_m,
+                }
+                for gid, r in zip(grounding_ids, build.residuals, strict=True)
+            ],
+        )
+    topo = build.topomap
+    all_ids = np.concatenate(loaded.frame_ids)
+    session.execute(
+        insert(MapNode),
+        [
+            {"map_version_id": vid, "node": n, "x_m": float(c[0]), "y_m": float(c[1])}
+            for n, c in enumerate(topo.centres_m)
+        ],
+    )
+    node_frames = [
+        {"map_version_id": vid, "node": n, "frame_id": int(all_ids[flat]), "rank": rank}
+        for n in range(topo.n_nodes)
+        for rank, flat in enumerate(topo.chosen[topo.chosen_ptr[n] : topo.chosen_ptr[n + 1]])
+    ]
+    if node_frames:
+        session.execute(insert(MapNodeFrame), node_frames)
+    session.flush()
+    return version
+
+
+def build_site_map(
+    session: Session,
+    blobs: BlobStore,
+    batch: BlobBatch,
+    site: Site,
+    params: MappingParams = PAPER,
+    progress: ProgressFn | None = None,
+    created_by: str = "cli",
+) -> tuple[MapVersion, MapBuild]:
+    """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version."""
+    loaded = load_site_drives(session, blobs, site)
+    build = build_map(loaded.inputs, params, progress)
+    return store_map_version(session, batch, site, loaded, build, params, created_by), build
+
+
+def get_map_version(session: Session, site: Site, version: int | None = None) -> MapVersion:
+    """Version ``version`` of ``site``'s map, or the latest when None."""
+    query = select(MapVersion).where(MapVersion.site_id == site.id)
+    query = (
+        query.where(MapVersion.version == version)
+        if version is not None
+        else query.order_by(MapVersion.version.desc())
+    )
+    found = session.scalars(query.limit(1)).first()
+    if found is None:
+        what = f"version {version}" if version is not None else "any map version"
+        raise NotFoundError(f"site {site.name!r} has no {what}; run `driftmap map build {site.name}`")
+    return found
+
+
+def load_topomap(blobs: BlobStore, version: MapVersion) -> TopoMap:
+    """The topological map of a stored version."""
+    with np.load(io.BytesIO(blobs.get(version.topomap_sha256))) as arrays:
+        return TopoMap.from_arrays({k: arrays[k] for k in arrays.files})
+
+
+def pose_rows(session: Session, version: MapVersion) -> list[PoseRow]:
+    """The poses CSV rows of a version: every frame of every mapping drive, drive then frame order."""
+    query = (
+        select(Drive.name, Frame.index, MapPose.x_m, MapPose.y_m, MapPose.yaw_rad)
+        .join(Frame, MapPose.frame_id == Frame.id)
+        .join(Drive, Frame.drive_id == Drive.id)
+        .where(MapPose.map_version_id == version.id)
+        .order_by(Drive.id, Frame.index)
+    )
+    return [
+        PoseRow(drive=d, frame=i, x_m=x, y_m=y, yaw_rad=yaw)
+        for d, i, x, y, yaw in session.execute(query).all()
+    ]
+
+
+def ensure_buildable(session: Session, site: Site) -> None:
+    """Refuse a build for a site with no grounded mapping drive (the map could not be placed)."""
+    grounded = session.scalar(
+        select(func.count())
+        .select_from(Grounding)
+        .join(Drive)
+        .where(Drive.site_id == site.id, Drive.kind == "mapping")
+    )
+    if not grounded:
+        raise ConflictError(
+            f"site {site.name!r} has no grounding on any mapping drive; ground at least two frames first"
+        )
+
+
+@dataclass(frozen=True)
+class ResidualRow:
+    """A grounding residual of a map version, with its drive and frame named."""
+
+    drive: str
+    frame: int
+    surveyed_x_m: float
+    surveyed_y_m: float
+    dx_m: float
+    dy_m: float
+    distance_m: float
+
+
+def residual_rows(session: Session, version: MapVersion) -> list[ResidualRow]:
+    """The grounding residuals of ``version``, largest distance first."""
+    query = (
+        select(
+            Drive.name,
+            Frame.index,
+            MapGroundingResidual.surveyed_x_m,
+            MapGroundingResidual.surveyed_y_m,
+            MapGroundingResidual.dx_m,
+            MapGroundingResidual.dy_m,
+            MapGroundingResidual.distance_m,
+        )
+        .join(Frame, MapGroundingResidual.frame_id == Frame.id)
+        .join(Drive, Frame.drive_id == Drive.id)
+        .where(MapGroundingResidual.map_version_id == version.id)
+        .order_by(MapGroundingResidual.distance_m.desc())
+    )
+    return [ResidualRow(*row) for row in session.execute(query).all()]
