@@ -11,15 +11,17 @@ other passes made (paper III-A-4, Fig. 3). Drives are taken one after the other,
 * **Plausible (the wall rule).** Tunnels behind a thin pillar, or either side of a pillar nose, can come
   closer than the merge radius. Let the drive have travelled ``s`` metres since it was closest to its current
   node. A candidate that the graph already reaches from the current node by a path longer than ``s`` plus
-  both pose-to-centre distances plus one spacing, yet shorter than ``wall_detour_m``, is refused: the vehicle
-  cannot have driven there in that distance, so it lies across a wall. Unreached candidates (a junction with
+  both pose-to-centre distances plus two spacings (slack for a zigzag through a neighbour), yet shorter than
+  ``wall_detour_m``, is refused: the vehicle cannot have driven there in that distance, so it lies across a wall. Unreached candidates (a junction with
   another drive's tunnels) and longer detours (a loop closing) are joined. A refusal costs a few duplicate
   nodes, a wrong join puts a shortcut through rock into the HMM; the detour limit is kept short so that
   genuine loops (pillar perimeters are longer) still close.
 * **Create.** Otherwise, once the pose is ``spacing_m`` or more from the current node's centre, a new node is
-  made exactly ``spacing_m`` from it on the trajectory (several if one step was long) and joined to it. The
-  straight-line trigger equals the travelled distance along tunnels (bend radii >> N), and jitter,
-  reversals and turning manoeuvres inside one node's area make no nodes and no self-edges.
+  made exactly ``spacing_m`` from it on the trajectory (several if one step was long) and joined to it, unless
+  a plausible node lies within ``CREATE_CLEARANCE`` merge radii: that near miss (at corners and junctions,
+  where lanes cut differently) is joined instead of leaving a duplicate beside it. The straight-line trigger
+  equals the travelled distance along tunnels (bend radii >> N), and jitter, reversals and turning
+  manoeuvres inside one node's area make no nodes and no self-edges.
 * **Break.** A jump longer than ``max_frame_step_m`` between consecutive poses (a gap in the data) starts
   afresh without an edge across it.
 
@@ -48,6 +50,9 @@ from driftmap.errors import BadInputError
 #: Shortest edge stored, metres: keeps every edge and path strictly positive so that a stored
 #: distance is never confused with the implicit zero of a sparse matrix.
 MIN_EDGE_M = 1e-6
+
+#: A new node is not made within this many merge radii of a plausible existing node; that node is joined.
+CREATE_CLEARANCE = 1.5
 
 #: Dijkstra runs on blocks of source nodes so that its dense (block, M) output stays below this many cells.
 _BLOCK_CELLS = 1 << 22
@@ -146,7 +151,8 @@ class _Tracer:
 
     def __init__(self, spacing_m: float, merge_radius_m: float, wall_detour_m: float) -> None:
         self.spacing, self.radius, self.wall = spacing_m, merge_radius_m, wall_detour_m
-        self.cell = 2.0 * merge_radius_m  # a disc of the merge radius always lies in 2 x 2 cells
+        self.clearance = CREATE_CLEARANCE * merge_radius_m
+        self.cell = 2.0 * merge_radius_m
         self.xs: list[float] = []
         self.ys: list[float] = []
         self.grid: dict[int, list[int]] = {}
@@ -168,7 +174,7 @@ class _Tracer:
 
     def plausible(self, cur: int, cand: int, reach_m: float) -> bool:
         """The wall rule: False if the graph reaches ``cand`` only by a short detour longer than ``reach_m``."""
-        bound = reach_m + self.spacing
+        bound = reach_m + 2.0 * self.spacing  # slack: the path may zigzag through a neighbour node
         direct = self.graph.edge_length_m(cur, cand)
         if direct is not None and direct <= bound:
             return True
@@ -180,16 +186,30 @@ class _Tracer:
             self.paths[(cur, cand)] = (self.graph.version, path)
         return path <= bound or math.isinf(path)
 
-    def nearest(self, x: float, y: float, cur: int, travelled_m: float) -> tuple[int, float]:
-        """Nearest plausible node within the merge radius of (x, y), or (-1, inf)."""
-        fx, fy = x / self.cell, y / self.cell
-        ix, iy = math.floor(fx - 0.5), math.floor(fy - 0.5)
+    def nearest(
+        self, x: float, y: float, cur: int, travelled_m: float, wide: bool = False
+    ) -> tuple[int, float]:
+        """Nearest plausible node within the merge radius (``wide``: the creation clearance), or (-1, inf)."""
+        if wide:  # 3 x 3 cells of twice the merge radius cover the clearance (< 2 merge radii)
+            radius, ix, iy, span = (
+                self.clearance,
+                math.floor(x / self.cell) - 1,
+                math.floor(y / self.cell) - 1,
+                3,
+            )
+        else:  # a disc of the merge radius always lies in 2 x 2 cells
+            radius, ix, iy, span = (
+                self.radius,
+                math.floor(x / self.cell - 0.5),
+                math.floor(y / self.cell - 0.5),
+                2,
+            )
         found: list[tuple[float, int]] = []
-        for kx in (ix, ix + 1):
-            for ky in (iy, iy + 1):
+        for kx in range(ix, ix + span):
+            for ky in range(iy, iy + span):
                 for node in self.grid.get((kx << 32) + ky, ()):
                     d = math.hypot(x - self.xs[node], y - self.ys[node])
-                    if d <= self.radius:
+                    if d <= radius:
                         found.append((d, node))
         found.sort()
         for d, node in found:
@@ -231,6 +251,13 @@ class _Tracer:
                 cur, d_min, s_ref = self.new_node(x, y, -1), 0.0, odo
                 node_of[i], near[i] = cur, was_near = cur, True
                 continue
+            if math.hypot(x - self.xs[cur], y - self.ys[cur]) >= self.spacing:
+                cand, d = self.nearest(x, y, cur, odo - s_ref + d_min, wide=True)
+                if cand >= 0:  # a near miss of an existing node (corners, junctions): join it
+                    self.join(cur, cand)
+                    cur, d_min, s_ref = cand, d, odo
+                    node_of[i], near[i] = cur, was_near = cand, False
+                    continue
             while math.hypot(x - self.xs[cur], y - self.ys[cur]) >= self.spacing:
                 t = _exit_fraction(px, py, x, y, self.xs[cur], self.ys[cur], self.spacing)
                 px, py = px + t * (x - px), py + t * (y - py)

@@ -7,8 +7,9 @@ sparse shortest-path matrix A that the HMM localiser (III-B) turns into its tran
 
 Nodes and edges come from :func:`driftmap.core.adjacency.trace_nodes`, whose docstring states the stand-still,
 join, wall, create and break rules. Afterwards each node's centre becomes the mean over its visits (a visit:
-one drive passing once) of the pose nearest its build-time centre, so a long stop counts once; poses between
-node areas go to the nearer of the node before and after them; and each node keeps at most
+one drive passing once) of the pose nearest its build-time centre, so a long stop counts once; every pose goes
+to the nearest of its traced node and that node's graph neighbours (so poses between node areas go to the
+nearer of the nodes before and after them, never across a wall); and each node keeps at most
 ``frames_per_node`` frames chosen by a pluggable :data:`FrameSelector` (default: distinct headings first, so
 both travel directions, then distinct drives, then nearest the centre and best quality). SESAME's
 BuildSalientDatabase (paper 001, Algorithm 1) plugs in there: it receives every member frame of a node.
@@ -371,19 +372,21 @@ def _visit_centres(build_m: F64, xy_m: F64, node: I64, near: NDArray[np.bool_], 
     return np.where(count[:, None] > 0, total / np.maximum(count, 1.0)[:, None], build_m)
 
 
-def _settle_between(centres_m: F64, xy_m: F64, node: I64, near: NDArray[np.bool_], chain: I64) -> I64:
-    """Poses outside every node area go to the nearer of their node and the next node their chain reaches."""
-    near_idx = np.nonzero(near)[0]
-    gap = np.nonzero(~near)[0]
-    if near_idx.size == 0 or gap.size == 0:
+def _nearest_of_neighbours(centres_m: F64, edges: I64, xy_m: F64, node: I64) -> I64:
+    """(F,) int64: each pose goes to the nearest of its traced node and that node's graph neighbours."""
+    m = centres_m.shape[0]
+    if edges.size == 0:
         return node
-    nxt = near_idx[np.minimum(np.searchsorted(near_idx, gap), near_idx.size - 1)]
-    alt = np.where((nxt > gap) & (chain[nxt] == chain[gap]), node[nxt], node[gap])
-    d_own = np.linalg.norm(xy_m[gap] - centres_m[node[gap]], axis=1)
-    d_alt = np.linalg.norm(xy_m[gap] - centres_m[alt], axis=1)
-    out = node.copy()
-    out[gap] = np.where(d_alt < d_own, alt, node[gap])
-    return out
+    src = np.r_[edges[:, 0], edges[:, 1]]
+    dst = np.r_[edges[:, 1], edges[:, 0]]
+    order = np.argsort(src, kind="stable")
+    src, dst = src[order], dst[order]
+    slot = np.arange(src.size) - np.searchsorted(src, src)
+    table = np.tile(np.arange(m, dtype=np.int64)[:, None], (1, int(slot.max()) + 2))
+    table[src, slot + 1] = dst  # column 0: the node itself; unused slots repeat it
+    cands = table[node]
+    dist = np.linalg.norm(xy_m[:, None, :] - centres_m[cands], axis=2)
+    return np.asarray(cands[np.arange(node.size), np.argmin(dist, axis=1)], dtype=np.int64)
 
 
 def _heading_sets(node_v: I64, yaw_v: F64, n_nodes: int, tol_rad: float) -> tuple[I64, F64]:
@@ -445,7 +448,7 @@ def build_topomap(
     chain = np.repeat(np.arange(len(poses), dtype=np.int64), counts)
     near = np.concatenate([np.empty(0, dtype=bool), *trace.near])
     centres = _visit_centres(trace.centres_m, xy, np.concatenate([chain[:0], *trace.node]), near, chain)
-    node = _settle_between(centres, xy, np.concatenate([chain[:0], *trace.node]), near, chain)
+    node = _nearest_of_neighbours(centres, trace.edges, xy, np.concatenate([chain[:0], *trace.node]))
     dist = np.linalg.norm(xy - centres[node], axis=1)
     visit = _runs(chain, node)
     m = centres.shape[0]
