@@ -165,7 +165,7 @@ class Anchor:
 
     chain: int
     frame: int
-    wTi: tuple[float, float, float]  # noqa: N815 (frame names, house style)
+    wTi: tuple[float, float, float]
     heading_only: bool
 
 
@@ -239,12 +239,9 @@ def initial_guess(
             for c in range(len(poses)):
                 if placed[c]:
                     continue
-                fwd = (
-                    inter & (closure_frames[:, 2] == c) & np.array([placed[a] for a in closure_frames[:, 0]])
-                )
-                bwd = (
-                    inter & (closure_frames[:, 0] == c) & np.array([placed[b] for b in closure_frames[:, 2]])
-                )
+                done = np.array(placed, dtype=bool)
+                fwd = inter & (closure_frames[:, 2] == c) & done[closure_frames[:, 0]]
+                bwd = inter & (closure_frames[:, 0] == c) & done[closure_frames[:, 2]]
                 if not fwd.any() and not bwd.any():
                     continue
                 src = np.concatenate([poses[c][closure_frames[fwd, 3]], poses[c][closure_frames[bwd, 1]]])

@@ -50,10 +50,10 @@ class OdometryChain:
         wTi_init: optional (N, 3) initial poses already in the survey frame; else dead-reckoned and aligned.
     """
 
-    iTj: FloatArray  # noqa: N815 (frame names, house style)
+    iTj: FloatArray
     sigmas: FloatArray
     information: FloatArray | None = None
-    wTi_init: FloatArray | None = None  # noqa: N815
+    wTi_init: FloatArray | None = None
 
     @property
     def num_frames(self) -> int:
@@ -77,7 +77,7 @@ class LoopClosure:
     a: FrameRef
     b: FrameRef
     sigmas: tuple[float, float, float]
-    aTb: tuple[float, float, float] = (0.0, 0.0, 0.0)  # noqa: N815
+    aTb: tuple[float, float, float] = (0.0, 0.0, 0.0)
     sad: float = math.nan
     information: FloatArray | None = None
 
@@ -148,7 +148,7 @@ class PoseGraphResult:
         solve_time_s: wall time of the optimisation, seconds.
     """
 
-    wTi: tuple[FloatArray, ...]  # noqa: N815
+    wTi: tuple[FloatArray, ...]
     closure_whitened_error: FloatArray
     closure_weight: FloatArray
     closure_accepted: NDArray[np.bool_]
@@ -268,6 +268,7 @@ class PoseGraphSession:
             self._graph.add(factor)
             self._closures.append((factor, base))
         self._groundings: dict[int, Grounding] = {}
+        self._next_id = 0
         for g in groundings:
             self.add_grounding(g)
         self._previous: gtsam.Values | None = None
@@ -290,7 +291,7 @@ class PoseGraphSession:
 
     def add_grounding(self, grounding: Grounding) -> int:
         """Add a grounding and return its id."""
-        gid = max(self._groundings, default=-1) + 1
+        gid, self._next_id = self._next_id, self._next_id + 1  # ids are never reused
         self._set(gid, grounding)
         return gid
 

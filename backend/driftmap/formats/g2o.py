@@ -45,9 +45,9 @@ class G2oGraph:
     """
 
     vertex_ids: NDArray[np.int64]
-    wTi: NDArray[np.float64]  # noqa: N815 (frame names, house style)
+    wTi: NDArray[np.float64]
     edge_ij: NDArray[np.int64]
-    iTj: NDArray[np.float64]  # noqa: N815
+    iTj: NDArray[np.float64]
     information: NDArray[np.float64]
     edge_lines: NDArray[np.int64]
     fixed: NDArray[np.int64]
