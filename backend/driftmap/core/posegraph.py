@@ -129,6 +129,7 @@ class PoseGraphParams:
 POSEGRAPH_DEFAULT = PoseGraphParams()  # DCS on closures: false closures do not bend the map
 POSEGRAPH_PAPER = PoseGraphParams(loop_kernel="none")  # the paper's plain least squares
 POSEGRAPH_INCREMENTAL = PoseGraphParams(solver="isam2")  # escapes local minima that stop batch LM
+ROBUST = POSEGRAPH_DEFAULT  # former name, still used by core.mapping
 
 
 @dataclass(frozen=True, eq=False)
