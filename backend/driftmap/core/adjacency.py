@@ -17,11 +17,14 @@ other passes made (paper III-A-4, Fig. 3). Drives are taken one after the other,
   nodes, a wrong join puts a shortcut through rock into the HMM; the detour limit is kept short so that
   genuine loops (pillar perimeters are longer) still close.
 * **Create.** Otherwise, once the pose is ``spacing_m`` or more from the current node's centre, a new node is
-  made exactly ``spacing_m`` from it on the trajectory (several if one step was long) and joined to it, unless
-  a plausible node lies within ``CREATE_CLEARANCE`` merge radii: that near miss (at corners and junctions,
-  where lanes cut differently) is joined instead of leaving a duplicate beside it. The straight-line trigger
-  equals the travelled distance along tunnels (bend radii >> N), and jitter, reversals and turning
-  manoeuvres inside one node's area make no nodes and no self-edges.
+  made exactly ``spacing_m`` from it on the trajectory (several if one step was long) and joined to it. The
+  straight-line trigger equals the travelled distance along tunnels (bend radii >> N), and jitter, reversals
+  and turning manoeuvres inside one node's area make no nodes and no self-edges.
+* **Near misses.** Where a node would be made, a plausible node within ``CREATE_CLEARANCE`` merge radii is
+  joined instead. Once every drive is traced, the points where a drive starts, ends (or breaks) and turns
+  back are joined by an edge to the nearest plausible other node within ``END_CLEARANCE`` merge radii. Lanes cut corners
+  and junctions differently, and vehicles start, stop and turn round in junctions; without these rules a
+  duplicate node would sit beside an existing one, or a tunnel would stay unconnected to its junction.
 * **Break.** A jump longer than ``max_frame_step_m`` between consecutive poses (a gap in the data) starts
   afresh without an edge across it.
 
@@ -53,6 +56,12 @@ MIN_EDGE_M = 1e-6
 
 #: A new node is not made within this many merge radii of a plausible existing node; that node is joined.
 CREATE_CLEARANCE = 1.5
+
+#: Where a drive starts, ends or turns back, it is joined to a plausible node within this many merge radii.
+END_CLEARANCE = 2.0
+
+#: Metres a drive must come back towards its current node for the furthest point to count as a turn.
+TURN_M = 1.0
 
 #: Dijkstra runs on blocks of source nodes so that its dense (block, M) output stays below this many cells.
 _BLOCK_CELLS = 1 << 22
@@ -151,13 +160,13 @@ class _Tracer:
 
     def __init__(self, spacing_m: float, merge_radius_m: float, wall_detour_m: float) -> None:
         self.spacing, self.radius, self.wall = spacing_m, merge_radius_m, wall_detour_m
-        self.clearance = CREATE_CLEARANCE * merge_radius_m
         self.cell = 2.0 * merge_radius_m
         self.xs: list[float] = []
         self.ys: list[float] = []
         self.grid: dict[int, list[int]] = {}
         self.graph = GrowingGraph()
         self.paths: dict[tuple[int, int], tuple[int, float]] = {}
+        self.ends: list[tuple[float, float, int, float]] = []  # (x, y, node, travelled): starts, ends, turns
 
     def new_node(self, x: float, y: float, prev: int) -> int:
         node = self.graph.add_node()
@@ -187,12 +196,15 @@ class _Tracer:
         return path <= bound or math.isinf(path)
 
     def nearest(
-        self, x: float, y: float, cur: int, travelled_m: float, wide: bool = False
+        self, x: float, y: float, cur: int, travelled_m: float, clearance: float = 0.0, other: bool = False
     ) -> tuple[int, float]:
-        """Nearest plausible node within the merge radius (``wide``: the creation clearance), or (-1, inf)."""
-        if wide:  # 3 x 3 cells of twice the merge radius cover the clearance (< 2 merge radii)
+        """Nearest plausible node (``other``: but ``cur``) within the merge radius of (x, y), or (-1, inf).
+
+        A ``clearance`` (in merge radii, at most 2) searches that far instead of the merge radius.
+        """
+        if clearance:  # 3 x 3 cells of twice the merge radius cover up to two merge radii
             radius, ix, iy, span = (
-                self.clearance,
+                clearance * self.radius,
                 math.floor(x / self.cell) - 1,
                 math.floor(y / self.cell) - 1,
                 3,
@@ -209,13 +221,26 @@ class _Tracer:
             for ky in range(iy, iy + span):
                 for node in self.grid.get((kx << 32) + ky, ()):
                     d = math.hypot(x - self.xs[node], y - self.ys[node])
-                    if d <= radius:
+                    if d <= radius and not (other and node == cur):
                         found.append((d, node))
         found.sort()
         for d, node in found:
             if cur < 0 or node == cur or self.plausible(cur, node, travelled_m + d):
                 return node, d
         return -1, math.inf
+
+    def dist(self, x: float, y: float, node: int) -> float:
+        return math.hypot(x - self.xs[node], y - self.ys[node])
+
+    def stitch(self) -> None:
+        """Join every drive's start, end and turning points to another node within the near-miss clearance.
+
+        Done once all drives are traced, so that it does not depend on the order of the drives.
+        """
+        for x, y, cur, reach_m in self.ends:
+            cand, _ = self.nearest(x, y, cur, reach_m, END_CLEARANCE, other=True)
+            if cand >= 0:
+                self.join(cur, cand)
 
     def run(
         self, xy_m: NDArray[np.float64], still_m: float, max_step_m: float
@@ -225,7 +250,9 @@ class _Tracer:
         node_of = np.empty(n, dtype=np.int64)
         near = np.zeros(n, dtype=bool)
         xl, yl = xy_m[:, 0].tolist(), xy_m[:, 1].tolist()
+        # cur: current node; odo: odometer; s_ref, d_min: odometer and distance at the closest approach to cur
         cur, odo, s_ref, d_min, ax, ay, was_near = -1, 0.0, 0.0, 0.0, 0.0, 0.0, False
+        d_peak, peak_x, peak_y = 0.0, 0.0, 0.0  # furthest from cur since reaching it, and where
         for i in range(n):
             x, y = xl[i], yl[i]
             if cur >= 0:
@@ -233,40 +260,46 @@ class _Tracer:
                 if step < still_m:
                     node_of[i], near[i] = cur, was_near
                     continue
-                if step > max_step_m:
+                if step > max_step_m:  # a gap in the data: end this stretch and start afresh
+                    self.ends.append((ax, ay, cur, odo - s_ref + d_min))
                     cur = -1
                 odo += step
             px, py, ax, ay = ax, ay, x, y
-            cand, d = self.nearest(x, y, cur, odo - s_ref + d_min)
+            reach, fresh = odo - s_ref + d_min, cur < 0
+            cand, d = self.nearest(x, y, cur, reach)
+            if cand < 0 and (cur < 0 or self.dist(x, y, cur) >= self.spacing):
+                cand, d = self.nearest(x, y, cur, reach, CREATE_CLEARANCE)  # a near miss, not a new node
             if cand >= 0:
                 if cand != cur:
                     if cur >= 0:
                         self.join(cur, cand)
-                    cur, d_min, s_ref = cand, d, odo
+                    cur, d_min, s_ref, d_peak = cand, d, odo, 0.0
                 elif d < d_min:
                     d_min, s_ref = d, odo
-                node_of[i], near[i] = cur, was_near = cand, True
-                continue
-            if cur < 0:
-                cur, d_min, s_ref = self.new_node(x, y, -1), 0.0, odo
-                node_of[i], near[i] = cur, was_near = cur, True
-                continue
-            if math.hypot(x - self.xs[cur], y - self.ys[cur]) >= self.spacing:
-                cand, d = self.nearest(x, y, cur, odo - s_ref + d_min, wide=True)
-                if cand >= 0:  # a near miss of an existing node (corners, junctions): join it
-                    self.join(cur, cand)
-                    cur, d_min, s_ref = cand, d, odo
-                    node_of[i], near[i] = cur, was_near = cand, False
-                    continue
-            while math.hypot(x - self.xs[cur], y - self.ys[cur]) >= self.spacing:
-                t = _exit_fraction(px, py, x, y, self.xs[cur], self.ys[cur], self.spacing)
-                px, py = px + t * (x - px), py + t * (y - py)
-                cur, d_min = self.new_node(px, py, cur), 0.0
-                s_ref = odo - math.hypot(x - px, y - py)
-            d = math.hypot(x - self.xs[cur], y - self.ys[cur])
-            if d < d_min:
-                d_min, s_ref = d, odo
-            node_of[i], near[i] = cur, was_near = cur, d <= self.radius
+                was_near = d <= self.radius
+            elif cur < 0:
+                cur, d_min, s_ref, was_near, d_peak = self.new_node(x, y, -1), 0.0, odo, True, 0.0
+            else:
+                while self.dist(x, y, cur) >= self.spacing:
+                    t = _exit_fraction(px, py, x, y, self.xs[cur], self.ys[cur], self.spacing)
+                    px, py = px + t * (x - px), py + t * (y - py)
+                    cur, d_min, d_peak = self.new_node(px, py, cur), 0.0, 0.0
+                    s_ref = odo - math.hypot(x - px, y - py)
+                d = self.dist(x, y, cur)
+                if d < d_min:
+                    d_min, s_ref = d, odo
+                was_near = d <= self.radius
+            node_of[i], near[i] = cur, was_near
+            if fresh:
+                self.ends.append((x, y, cur, 0.0))
+            d = self.dist(x, y, cur)
+            if d > d_peak:
+                d_peak, peak_x, peak_y = d, x, y
+            elif d < d_peak - TURN_M:  # turned back
+                self.ends.append((peak_x, peak_y, cur, reach))
+                d_peak = math.inf
+        if cur >= 0:
+            self.ends.append((ax, ay, cur, odo - s_ref + d_min))
         return node_of, near
 
 
@@ -299,6 +332,7 @@ def trace_nodes(
         )
         nodes.append(chain_nodes)
         near.append(chain_near)
+    tracer.stitch()
     centres = np.stack([np.asarray(tracer.xs), np.asarray(tracer.ys)], axis=1).reshape(-1, 2)
     return NodeTrace(centres_m=centres, edges=tracer.graph.edges(), node=nodes, near=near)
 
