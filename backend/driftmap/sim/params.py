@@ -1,0 +1,130 @@
+"""Parameter sets of the synthetic mine: site sizes, the camera rig, vehicle motion and rendering.
+
+All are frozen dataclasses with one comment per field. Units are in the names (``_m``, ``_s``,
+``_rad``, ``_px``). A site size bundles the layout and the frame budget; :data:`SIZES` names them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = [
+    "RIG_DEFAULT",
+    "SIZES",
+    "VEHICLE_DEFAULT",
+    "CameraRigParams",
+    "LayoutParams",
+    "SiteSize",
+    "VehicleParams",
+    "site_size",
+]
+
+
+@dataclass(frozen=True)
+class LayoutParams:
+    """Shape of a ladder-style extraction level: a perimeter loop, cross-cut production tunnels, spurs."""
+
+    loop_length_m: float  # length of the perimeter loop along its long axis
+    loop_depth_m: float  # length of the loop's short sides (and of each production cross-cut)
+    rungs: int  # production cross-cuts between the two long sides (0: drawpoints sit on the loop)
+    drawpoint_spacing_m: float = 18.0  # spacing of drawpoints along a production tunnel
+    drawpoint_length_m: float = 13.0  # length of a drawpoint side drive, junction to face
+    dump_length_m: float = 14.0  # length of the dump (tip) spur
+    access_length_m: float = 30.0  # length of the access drive spur ending in a ventilation door
+    drive_width_m: float = 5.8  # width of perimeter drives and access
+    production_width_m: float = 5.4  # width of production tunnels
+    drawpoint_width_m: float = 5.0  # width of drawpoints and the dump spur
+    height_m: float = 5.0  # floor-to-roof height everywhere
+    bend_m: float = 1.5  # amplitude of the gentle lateral bends of long tunnels
+
+
+@dataclass(frozen=True)
+class SiteSize:
+    """A named site size: its layout and its total frame budget (mapping + localisation)."""
+
+    name: str  # "tiny", "small", "medium" or "large"
+    layout: LayoutParams  # geometry of the level
+    frame_budget: int  # rendered frames in all drives (obscured copies are extra)
+    localisation_drives: int  # number of localisation drives sharing what the mapping leaves
+    min_localisation_frames: int  # localisation frames guaranteed even if mapping eats the budget
+
+
+SIZES: dict[str, SiteSize] = {
+    "tiny": SiteSize("tiny", LayoutParams(34.0, 18.0, 0, access_length_m=0.0), 700, 1, 150),
+    "small": SiteSize("small", LayoutParams(92.0, 46.0, 1, access_length_m=25.0), 3000, 2, 500),
+    "medium": SiteSize("medium", LayoutParams(330.0, 100.0, 3, access_length_m=90.0), 12000, 4, 2400),
+    "large": SiteSize(
+        "large",
+        LayoutParams(1300.0, 190.0, 9, drawpoint_spacing_m=28.0, access_length_m=150.0),
+        45000,
+        8,
+        9000,
+    ),
+}
+
+
+def site_size(name: str) -> SiteSize:
+    """The :class:`SiteSize` called ``name``.
+
+    Raises:
+        ValueError: an unknown size name.
+    """
+    try:
+        return SIZES[name]
+    except KeyError:
+        raise ValueError(f"unknown site size {name!r}; choose one of {', '.join(SIZES)}") from None
+
+
+@dataclass(frozen=True)
+class CameraRigParams:
+    """The pinhole camera on the vehicle and its mounting (see :mod:`driftmap.sim.rig`)."""
+
+    width_px: int = 320  # frame width
+    height_px: int = 240  # frame height
+    focal_px: float = 150.0  # focal length (square pixels); 320 px wide gives ~94 deg horizontal FOV
+    height_m: float = 2.2  # camera centre above the floor
+    pitch_rad: float = math.radians(20.0)  # optical axis below the horizontal
+    y_c_m: float = 1.0  # camera ahead of the rear axle along the vehicle axis (paper eq. 1)
+    roi_height_px: int = 92  # rows of the ground ROI, ending roi_bottom_margin_px above the bottom
+    roi_bottom_margin_px: int = 4  # rows left out at the bottom of the frame
+    tunnel_width_m: float = 5.0  # narrowest tunnel the ROI must see only floor in
+    max_offset_m: float = 0.5  # lateral offset of the camera from the centreline covered by the ROI
+    max_yaw_dev_rad: float = math.radians(6.0)  # heading deviation from the tunnel axis covered by the ROI
+
+
+RIG_DEFAULT = CameraRigParams()
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Speeds, accelerations and noise of the simulated load-haul-dump vehicle."""
+
+    fps: float = 10.0  # frames per second of every drive
+    mapping_speed_mps: float = 7.0  # cruise speed while mapping
+    empty_speed_mps: float = 7.0  # cruise speed of an empty LHD (dump -> drawpoint)
+    loaded_speed_mps: float = 5.0  # cruise speed of a loaded LHD (drawpoint -> dump)
+    reverse_speed_mps: float = 3.0  # cruise speed when reversing out of a dead end
+    accel_mps2: float = 1.0  # acceleration limit
+    decel_mps2: float = 1.5  # braking limit
+    lateral_accel_mps2: float = 1.5  # limits speed in bends: v <= sqrt(a / curvature)
+    turn_radius_m: float = 5.0  # corners of the rear-axle path are arcs of this radius (less if cramped)
+    path_smoothing_m: float = 1.0  # Gaussian sigma softening the curvature steps of those arcs
+    wander_m: float = 0.3  # amplitude of the lateral wander about the centreline
+    wander_wavelength_m: tuple[float, float] = (18.0, 45.0)  # range of wander wavelengths
+    heading_noise_rad: float = math.radians(0.6)  # amplitude of the smooth heading (crab) noise
+    deadend_standoff_m: float = 5.5  # camera stops this far from a dead-end face
+    reverse_into_m: float = 7.0  # how far the rear swings into the next tunnel when reversing out
+    grounding_sigma_m: float = 0.3  # standard deviation of surveyed grounding positions
+    stop_s: float = 1.2  # dwell at a grounding stop
+    dig_s: tuple[float, float] = (1.0, 1.8)  # range of one bucket-fill pause at a drawpoint
+    dig_strokes: int = 2  # back-and-forth strokes while digging (localisation drives)
+    mapping_dig_strokes: int = 1  # strokes at each drawpoint of a mapping drive
+    dig_stroke_m: float = 0.8  # length of one digging stroke
+    tip_s: float = 5.0  # dwell at the dump
+    wait_probability: float = 0.25  # chance of a traffic wait at a junction during localisation
+    wait_s: tuple[float, float] = (2.0, 5.0)  # range of a traffic wait
+    turn_max_rad: float = math.radians(125.0)  # sharpest heading change allowed at a junction
+
+
+VEHICLE_DEFAULT = VehicleParams()

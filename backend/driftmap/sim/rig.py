@@ -1,0 +1,143 @@
+"""The simulated camera: a pinhole on the vehicle, pitched down, and its honest calibration block.
+
+Frames used here:
+
+* camera ``c``: x right, y down, z along the optical axis (OpenCV).
+* vehicle foot ``f``: x forward, y left, z up, origin on the floor under the camera centre. This is the
+  frame of the ``ground_homography`` in ``drive.json``; the camera centre is at (0, 0, height_m).
+* world ``w``: mine grid, x east, y north, z up. A pose ``(x, y, yaw)`` puts the foot frame's origin at
+  (x, y, 0) and its x axis at angle ``yaw``.
+
+Pixel coordinates ``(u, v)`` are the centre of column u, row v; (0, 0) is the top-left pixel. The
+principal point is the image centre ((W - 1) / 2, (H - 1) / 2). The camera sits ``y_c_m`` ahead of the
+rear axle (paper eq. 1), so a pure rotation of the vehicle about the rear axle moves the floor at the
+ROI centre sideways by (y_c + y_h) tan(theta).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from driftmap.core.camera import CameraModel
+from driftmap.sim.geometry import FloatArray
+from driftmap.sim.params import RIG_DEFAULT, CameraRigParams
+
+__all__ = ["CameraRig"]
+
+
+@dataclass(frozen=True)
+class CameraRig:
+    """The vehicle camera: intrinsics, mounting, per-pixel rays and the drive.json camera block."""
+
+    params: CameraRigParams = RIG_DEFAULT
+
+    @property
+    def size_px(self) -> tuple[int, int]:
+        """(width, height) of a frame."""
+        return self.params.width_px, self.params.height_px
+
+    @cached_property
+    def K(self) -> FloatArray:  # noqa: N802
+        """Intrinsic matrix, (3, 3)."""
+        p = self.params
+        return np.array(
+            [
+                [p.focal_px, 0.0, (p.width_px - 1) / 2],
+                [0.0, p.focal_px, (p.height_px - 1) / 2],
+                [0.0, 0.0, 1.0],
+            ]
+        )
+
+    @cached_property
+    def fRc(self) -> FloatArray:  # noqa: N802
+        """Rotation foot-from-camera, (3, 3): columns are the camera axes in the foot frame."""
+        s, c = math.sin(self.params.pitch_rad), math.cos(self.params.pitch_rad)
+        x_c = [0.0, -1.0, 0.0]
+        y_c = [-s, 0.0, -c]
+        z_c = [c, 0.0, -s]
+        return np.array([x_c, y_c, z_c]).T
+
+    @cached_property
+    def rays_f(self) -> FloatArray:
+        """Unit ray of every pixel in the foot frame, (H, W, 3) float64."""
+        w, h = self.size_px
+        u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+        pix = np.stack([u, v, np.ones_like(u)], axis=-1)
+        d = pix @ np.linalg.inv(self.K).T @ self.fRc.T
+        return np.asarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
+
+    @cached_property
+    def homography(self) -> FloatArray:
+        """Pixel (u, v, 1) -> floor point (x forward, y left, w) in the foot frame, (3, 3); w > 0 on the floor.
+
+        A floor point P = C + t d with C = (0, 0, h) and d = fRc K^-1 (u, v, 1) has (x, y) = h (d_x, d_y)
+        / (-d_z), hence H = diag(h, h, -1) fRc K^-1. Pixels above the horizon give w <= 0.
+        """
+        h = self.params.height_m
+        return np.asarray(np.diag([h, h, -1.0]) @ self.fRc @ np.linalg.inv(self.K))
+
+    def pixel_to_floor(self, u: FloatArray, v: FloatArray) -> FloatArray:
+        """Floor points (x forward, y left) in the foot frame of pixels, (..., 2) metres; NaN above horizon."""
+        q = np.stack([u, v, np.ones_like(u)], axis=-1) @ self.homography.T
+        w = np.where(q[..., 2] > 1e-12, q[..., 2], np.nan)
+        return np.asarray(q[..., :2] / w[..., None])
+
+    def floor_to_pixel(self, xy_f: FloatArray) -> FloatArray:
+        """Pixels (u, v) of floor points (x forward, y left) in the foot frame, (..., 2)."""
+        xy_f = np.asarray(xy_f, dtype=np.float64)
+        q = np.concatenate([xy_f, np.ones((*xy_f.shape[:-1], 1))], axis=-1) @ np.linalg.inv(self.homography).T
+        return np.asarray(q[..., :2] / q[..., 2:3])
+
+    @cached_property
+    def ground_roi_px(self) -> tuple[int, int, int, int]:
+        """(x, y, w, h): the widest bottom-centre rectangle seeing only floor in the narrowest tunnel.
+
+        Every pixel of the ROI must hit the floor inside a tunnel of ``tunnel_width_m`` for a camera
+        up to ``max_offset_m`` off the centreline and a heading up to ``max_yaw_dev_rad`` off its axis.
+        """
+        p = self.params
+        w, h = self.size_px
+        v1 = h - 1 - p.roi_bottom_margin_px
+        v0 = v1 - p.roi_height_px + 1
+        cx = (w - 1) / 2
+        best = 1
+        for half in range(1, w // 2):
+            u0, u1 = math.floor(cx - half + 0.5), math.ceil(cx + half - 0.5)
+            uu, vv = np.meshgrid(
+                np.arange(u0, u1 + 1, dtype=np.float64), np.arange(v0, v1 + 1, dtype=np.float64)
+            )
+            xy = self.pixel_to_floor(uu, vv)
+            if not np.all(np.isfinite(xy)):
+                break
+            dev = p.max_yaw_dev_rad
+            lateral = np.abs(xy[..., 1]) * math.cos(dev) + xy[..., 0] * math.sin(dev) + p.max_offset_m
+            if np.max(lateral) > p.tunnel_width_m / 2:
+                break
+            best = half
+        u0 = math.floor(cx - best + 0.5)
+        return (u0, v0, 2 * best, p.roi_height_px)
+
+    @cached_property
+    def camera_model(self) -> CameraModel:
+        """The drive.json camera block computed from this geometry (k_x, k_y, y_h at the ROI centre)."""
+        x, y, w, h = self.ground_roi_px
+        uc, vc = x + (w - 1) / 2, y + (h - 1) / 2
+        up, down = self.pixel_to_floor(np.array([uc, uc]), np.array([vc - 0.5, vc + 0.5]))
+        left, right = self.pixel_to_floor(np.array([uc - 0.5, uc + 0.5]), np.array([vc, vc]))
+        centre = self.pixel_to_floor(np.array(uc), np.array(vc))
+        H = self.homography
+        return CameraModel(
+            width_px=self.params.width_px,
+            height_px=self.params.height_px,
+            ground_roi_px=self.ground_roi_px,
+            k_x_m_per_px=float(abs(right[1] - left[1])),
+            k_y_m_per_px=float(abs(up[0] - down[0])),
+            y_c_m=float(self.params.y_c_m),
+            y_h_m=float(centre[0]),
+            forward_sign=1,
+            ground_homography=tuple((float(r[0]), float(r[1]), float(r[2])) for r in H),
+        )

@@ -1,0 +1,305 @@
+"""``simulate_site``: generate, render and write a whole synthetic mine site.
+
+Output layout::
+
+    OUT/survey.dxf            the surveyed map (layers WALLS, CENTRELINE, DRAWPOINTS, LABELS)
+    OUT/site.json             summary: seed, size, tunnel length, graph, drives (format driftmap-sim-site/1)
+    OUT/drives/<name>/        drive folders (shared/formats.md) with ground truth
+        map-01, map-02, ...   mapping drives (one per face of the centreline graph), with groundings.csv
+        loc-01, loc-02, ...   localisation drives (LHD duty cycles)
+        loc-01-dust1, ...     obscured copies of each localisation drive (dust1, dust2, water1, water2)
+
+Frames are rendered in chunks on a pool of worker processes (fork); every frame depends only on the
+seed, the drive and the frame number, so the output is byte-identical for a seed whatever the number
+of workers.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import multiprocessing
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from driftmap.core.obscurants import LEVELS, water_centre, water_diameter_px
+from driftmap.errors import BadInputError, ConflictError
+from driftmap.formats.drive_folder import write_drive_folder
+from driftmap.formats.drive_json import camera_to_json
+from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
+from driftmap.sim import frames as frame_worker
+from driftmap.sim.layout import generate_layout
+from driftmap.sim.motion import DrivePlan, plan_localisation, plan_mapping
+from driftmap.sim.params import VEHICLE_DEFAULT, site_size
+from driftmap.sim.rig import CameraRig
+from driftmap.sim.routes import Graph
+from driftmap.sim.survey import write_survey_dxf
+from driftmap.sim.trajectory import FramePoses, sample_frames
+from driftmap.sim.world import build_world
+
+__all__ = ["SITE_FORMAT", "DriveSummary", "SimulationSummary", "simulate_site"]
+
+log = logging.getLogger(__name__)
+
+SITE_FORMAT = "driftmap-sim-site/1"
+OBSCURANT_NAMES: tuple[str, ...] = ("dust1", "dust2", "water1", "water2")
+_CHUNK = 48  # frames per rendering task
+
+
+@dataclass(frozen=True)
+class DriveSummary:
+    """One written drive folder."""
+
+    name: str
+    kind: str  # "mapping" or "localisation"
+    frames: int
+    duration_s: float
+    groundings: int
+    source: str | None = None  # for an obscured copy: the drive it copies
+    obscurant: str | None = None  # "dust1", "dust2", "water1" or "water2"
+
+
+@dataclass(frozen=True)
+class SimulationSummary:
+    """What :func:`simulate_site` wrote."""
+
+    out_dir: Path
+    seed: int
+    size: str
+    tunnel_length_m: float
+    drives: tuple[DriveSummary, ...]
+    frames_rendered: int  # frames ray-cast (obscured copies not counted)
+    frames_written: int  # frame files written, obscured copies included
+    seconds: float  # wall-clock time
+
+
+def _plans(seed: int, size: str) -> tuple[Any, list[DrivePlan], CameraRig]:
+    spec = site_size(size)
+    layout = generate_layout(seed, spec)
+    rig = CameraRig()
+    vp = VEHICLE_DEFAULT
+    graph = Graph(layout, vp.turn_max_rad)
+    plans = plan_mapping(graph, vp, rig.params.y_c_m, seed)
+    used = sum(p.frame_count(vp.fps) for p in plans)
+    loc_total = max(spec.frame_budget - used, spec.min_localisation_frames)
+    share = max(loc_total // spec.localisation_drives, 1)
+    plans += [
+        plan_localisation(graph, vp, rig.params.y_c_m, seed, i, share)
+        for i in range(spec.localisation_drives)
+    ]
+    return layout, plans, rig
+
+
+def _frame_rows(poses: FramePoses) -> list[FrameRow]:
+    return [
+        FrameRow(i, round(float(t), 4), round(float(x), 4), round(float(y), 4), round(float(a), 6))
+        for i, (t, (x, y), a) in enumerate(zip(poses.t, poses.xy, poses.yaw, strict=True))
+    ]
+
+
+def simulate_site(
+    out_dir: Path,
+    *,
+    seed: int,
+    size: str,
+    obscurants: bool = True,
+    progress: Callable[[str, float], None] | None = None,
+    workers: int | None = None,
+) -> SimulationSummary:
+    """Generate the synthetic site ``size`` for ``seed`` and write it to ``out_dir``.
+
+    Args:
+        out_dir: output folder; created if missing, must be empty if it exists.
+        seed: non-negative site seed; the same seed gives byte-identical output.
+        size: "tiny", "small", "medium" or "large".
+        obscurants: also write dust1/dust2/water1/water2 copies of every localisation drive.
+        progress: called with (what is happening, fraction done in [0, 1]).
+        workers: rendering processes (default: up to 2, the CPU count).
+
+    Raises:
+        BadInputError: a bad seed or size.
+        ConflictError: ``out_dir`` exists and is not empty.
+    """
+    started = time.perf_counter()
+    report = progress or (lambda _msg, _frac: None)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise BadInputError(f"seed must be a non-negative integer, got {seed!r}", field="seed")
+    try:
+        site_size(size)
+    except ValueError as exc:
+        raise BadInputError(str(exc), field="size") from None
+    out_dir = Path(out_dir)
+    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
+        raise ConflictError(f"{out_dir} already exists and is not empty")
+    report("planning", 0.0)
+    layout, plans, rig = _plans(seed, size)
+    vp = VEHICLE_DEFAULT
+    poses = [
+        sample_frames(
+            list(p.runs),
+            vp.fps,
+            rig.params.y_c_m,
+            p.start_dwell_s,
+            vp.grounding_sigma_m,
+            np.random.default_rng([seed, 53, i]),
+            p.start_grounding,
+        )
+        for i, p in enumerate(plans)
+    ]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_survey_dxf(layout, out_dir / "survey.dxf")
+    report("building world", 0.02)
+    world = build_world(layout, seed)
+    renderer = frame_worker.make_renderer(world, rig)
+    camera = rig.camera_model
+    total = sum(len(p.t) for p in poses)
+    tasks = list(_tasks(plans, poses, world.origin_xy, seed, obscurants, rig.size_px))
+    summaries: list[DriveSummary] = []
+    pending: dict[int, dict[str, list[bytes]]] = {}
+    done_frames = 0
+    n_workers = workers or min(2, os.cpu_count() or 1)
+    for task, images in _run(tasks, renderer, n_workers):
+        bucket = pending.setdefault(task.drive, {})
+        for variant, data in images.items():
+            bucket.setdefault(variant, []).extend(data)
+        done_frames += len(task.poses)
+        report(f"rendering {plans[task.drive].name}", 0.05 + 0.93 * done_frames / max(total, 1))
+        if task.last:
+            summaries += _write_drive(
+                out_dir, plans[task.drive], poses[task.drive], camera, vp.fps, pending.pop(task.drive)
+            )
+    _write_site_json(out_dir, seed, size, layout, camera, vp.fps, summaries)
+    report("done", 1.0)
+    return SimulationSummary(
+        out_dir=out_dir,
+        seed=seed,
+        size=size,
+        tunnel_length_m=layout.total_length_m,
+        drives=tuple(summaries),
+        frames_rendered=total,
+        frames_written=sum(s.frames for s in summaries),
+        seconds=time.perf_counter() - started,
+    )
+
+
+def _tasks(
+    plans: list[DrivePlan],
+    poses: list[FramePoses],
+    origin: tuple[float, float],
+    seed: int,
+    obscurants: bool,
+    size_px: tuple[int, int],
+) -> Iterator[frame_worker.Chunk]:
+    for i, (plan, p) in enumerate(zip(plans, poses, strict=True)):
+        local = p.xy - np.asarray(origin)
+        exposure = frame_worker.exposure_curve(p.t, np.random.default_rng([seed, 61, i]))
+        variants: list[tuple[str, str, tuple[float, float] | None]] = []
+        if obscurants and plan.kind == "localisation":
+            for name in OBSCURANT_NAMES:
+                level = LEVELS[name]
+                centre = None
+                if level.kind == "water":
+                    d = water_diameter_px(level.water_diameter_paper_px, size_px[0])
+                    centre = water_centre((size_px[1], size_px[0]), d, np.random.default_rng([seed, 67, i]))
+                variants.append((name, name, centre))
+        n = len(p.t)
+        for start in range(0, n, _CHUNK):
+            stop = min(start + _CHUNK, n)
+            yield frame_worker.Chunk(
+                drive=i,
+                start=start,
+                last=stop == n,
+                seed=seed,
+                poses=np.column_stack([local[start:stop], p.yaw[start:stop]]),
+                exposure=exposure[start:stop],
+                variants=tuple(variants),
+            )
+
+
+def _run(
+    tasks: list[frame_worker.Chunk], renderer: Any, n_workers: int
+) -> Iterator[tuple[frame_worker.Chunk, dict[str, list[bytes]]]]:
+    """Render tasks in order, on a fork pool when more than one worker is asked for."""
+    if n_workers <= 1 or len(tasks) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        frame_worker.init_worker(renderer)
+        for task in tasks:
+            yield task, frame_worker.render_chunk(task)
+        return
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(n_workers, initializer=frame_worker.init_worker, initargs=(renderer,)) as pool:
+        yield from zip(tasks, pool.imap(frame_worker.render_chunk, tasks), strict=True)
+
+
+def _write_drive(
+    out_dir: Path, plan: DrivePlan, poses: FramePoses, camera: Any, fps: float, images: dict[str, list[bytes]]
+) -> list[DriveSummary]:
+    rows = _frame_rows(poses)
+    ground = [GroundingRow(f, round(x, 3), round(y, 3)) for f, x, y in poses.groundings]
+    kind = plan.kind
+    out = []
+    for variant, data in images.items():
+        name = plan.name if variant == "" else f"{plan.name}-{variant}"
+        meta = DriveMeta(name=name, kind=kind, fps=fps, camera=camera)
+        g = ground if kind == "mapping" else None
+        write_drive_folder(out_dir / "drives" / name, meta, rows, data, g)
+        out.append(
+            DriveSummary(
+                name,
+                kind,
+                len(rows),
+                round(plan.duration_s, 3),
+                len(g or []),
+                plan.name if variant else None,
+                variant or None,
+            )
+        )
+    log.info("wrote drive %s (%d frames)", plan.name, len(rows))
+    return out
+
+
+def _write_site_json(
+    out_dir: Path, seed: int, size: str, layout: Any, camera: Any, fps: float, drives: list[DriveSummary]
+) -> None:
+    doc = {
+        "format": SITE_FORMAT,
+        "seed": seed,
+        "size": size,
+        "tunnel_length_m": round(layout.total_length_m, 2),
+        "tunnel_height_m": layout.height_m,
+        "fps": fps,
+        "camera": camera_to_json(camera),
+        "nodes": [
+            {"id": n.id, "name": n.name, "kind": n.kind, "x": round(n.xy[0], 3), "y": round(n.xy[1], 3)}
+            for n in layout.nodes
+        ],
+        "edges": [
+            {
+                "id": e.id,
+                "a": e.a,
+                "b": e.b,
+                "kind": e.kind,
+                "width_m": e.width_m,
+                "length_m": round(e.length_m, 2),
+            }
+            for e in layout.edges
+        ],
+        "drives": [
+            {
+                "name": d.name,
+                "kind": d.kind,
+                "frames": d.frames,
+                "duration_s": d.duration_s,
+                "groundings": d.groundings,
+                "source": d.source,
+                "obscurant": d.obscurant,
+            }
+            for d in drives
+        ],
+    }
+    (out_dir / "site.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
