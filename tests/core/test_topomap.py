@@ -227,6 +227,8 @@ class TestFramesAndLookups:
     def test_a_bad_selector_is_reported(self) -> None:
         with pytest.raises(BadInputError, match="select_frames"):
             build_topomap([drive([(0, 0), (10, 0)])], select_frames=lambda c, k: np.arange(k + 1))
+        with pytest.raises(BadInputError, match="select_frames"):
+            build_topomap([drive([(0, 0), (10, 0)])], select_frames=lambda c, k: np.array([-1]))
 
     def test_nearest_node_and_frame_nodes(self) -> None:
         m = straight_both_ways()

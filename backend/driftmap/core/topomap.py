@@ -21,6 +21,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from functools import cached_property, partial
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,9 +44,7 @@ class TopoMapParams:
     spacing_m: float = 5.0  # N: distance along a drive between consecutive new nodes
     merge_radius_m: float = 2.5  # a pose within this of a node centre joins the node instead of making one
     frames_per_node: int = 3  # K: frames kept per node for image comparison (paper eq. 4)
-    max_adjacency_m: float = (
-        50.0  # shortest paths A(x, y) are stored up to this length; longer ones are "far"
-    )
+    max_adjacency_m: float = 50.0  # shortest paths A(x, y) are stored up to this; longer ones are "far"
     wall_detour_m: float = 30.0  # a candidate only reachable by a detour shorter than this is behind a wall
     heading_tolerance_rad: float = math.pi / 4  # frames whose headings differ by less look the same way
     quality_gain_m: float = 1.0  # metres nearer the centre that one unit of frame quality is worth
@@ -127,10 +126,6 @@ def select_frames_by_heading(
         chosen.append(int(rest[pick]))
         rest = np.delete(rest, pick)
     return np.asarray(chosen, dtype=np.int64)
-
-
-def _ragged(ptr: I64, values: NDArray[np.generic], i: int) -> NDArray[np.generic]:
-    return values[ptr[i] : ptr[i + 1]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,35 +281,14 @@ class TopoMap:
             )
         except KeyError as exc:
             raise BadInputError("stored map is missing an array", field=str(exc.args[0])) from exc
-        return cls(
-            params=TopoMapParams(**kwargs),
-            centres_m=g["centres_m"].reshape(-1, 2),
-            chain_ptr=g["chain_ptr"],
-            frame_ids=g["frame_ids"],
-            frame_node=g["frame_node"],
-            frame_dist_m=g["frame_dist_m"],
-            chosen_ptr=g["chosen_ptr"],
-            chosen=g["chosen"],
-            heading_ptr=g["heading_ptr"],
-            headings_rad=g["headings_rad"],
-            edges=g["edges"].reshape(-1, 2),
-            edge_length_m=g["edge_length_m"],
-            adjacency_m=adj,
-        )
+        return cls(params=TopoMapParams(**kwargs), adjacency_m=adj, **g)
 
 
 _ARRAY_FIELDS: dict[str, type[np.generic]] = {
-    "centres_m": np.float64,
-    "chain_ptr": np.int64,
-    "frame_ids": np.int64,
-    "frame_node": np.int64,
-    "frame_dist_m": np.float64,
-    "chosen_ptr": np.int64,
-    "chosen": np.int64,
-    "heading_ptr": np.int64,
-    "headings_rad": np.float64,
-    "edges": np.int64,
-    "edge_length_m": np.float64,
+    **dict.fromkeys(("centres_m", "frame_dist_m", "headings_rad", "edge_length_m"), np.float64),
+    **dict.fromkeys(
+        ("chain_ptr", "frame_ids", "frame_node", "chosen_ptr", "chosen", "heading_ptr", "edges"), np.int64
+    ),
 }
 
 
@@ -397,13 +371,11 @@ def _heading_sets(node_v: I64, yaw_v: F64, n_nodes: int, tol_rad: float) -> tupl
     for i in range(n_nodes):
         groups: list[list[float]] = []
         for yaw in yaw_v[order[ptr[i] : ptr[i + 1]]].tolist():
-            home = next(
-                (g for g in groups if abs((yaw - g[0] + math.pi) % math.tau - math.pi) < tol_rad), None
-            )
-            if home is None:
-                groups.append([yaw])
+            near = [g for g in groups if abs((yaw - g[0] + math.pi) % math.tau - math.pi) < tol_rad]
+            if near:
+                near[0].append(yaw)
             else:
-                home.append(yaw)
+                groups.append([yaw])
         out.extend(math.atan2(np.sin(g).mean(), np.cos(g).mean()) for g in groups)
         out_ptr.append(len(out))
     return np.asarray(out_ptr, dtype=np.int64), np.asarray(out, dtype=np.float64)
@@ -433,59 +405,38 @@ def build_topomap(
     """
     poses, ids, qual = _check_inputs(poses_sTv, frame_ids, quality)
     p = params
-    trace = adjacency.trace_nodes(
-        [pose[:, :2] for pose in poses],
-        p.spacing_m,
-        p.merge_radius_m,
-        p.wall_detour_m,
-        p.stationary_tol_m,
-        p.max_frame_step_m,
-    )
+    limits = (p.spacing_m, p.merge_radius_m, p.wall_detour_m, p.stationary_tol_m, p.max_frame_step_m)
+    trace = adjacency.trace_nodes([pose[:, :2] for pose in poses], *limits)
     counts = [pose.shape[0] for pose in poses]
     chain_ptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
     allp = np.concatenate([np.empty((0, 3)), *poses])
     xy, yaw = allp[:, :2], allp[:, 2]
     chain = np.repeat(np.arange(len(poses), dtype=np.int64), counts)
     near = np.concatenate([np.empty(0, dtype=bool), *trace.near])
-    centres = _visit_centres(trace.centres_m, xy, np.concatenate([chain[:0], *trace.node]), near, chain)
-    node = _nearest_of_neighbours(centres, trace.edges, xy, np.concatenate([chain[:0], *trace.node]))
+    traced = np.concatenate([chain[:0], *trace.node])
+    centres = _visit_centres(trace.centres_m, xy, traced, near, chain)
+    node = _nearest_of_neighbours(centres, trace.edges, xy, traced)
     dist = np.linalg.norm(xy - centres[node], axis=1)
     visit = _runs(chain, node)
     m = centres.shape[0]
 
+    tol, gain = p.heading_tolerance_rad, p.quality_gain_m
     select = select_frames or partial(
-        select_frames_by_heading,
-        heading_tolerance_rad=p.heading_tolerance_rad,
-        quality_gain_m=p.quality_gain_m,
+        select_frames_by_heading, heading_tolerance_rad=tol, quality_gain_m=gain
     )
     qual_all = np.concatenate([np.empty(0), *qual])
     ids_all = np.concatenate([chain[:0], *ids])
     order = np.argsort(node, kind="stable")
     ptr = np.r_[0, np.cumsum(np.bincount(node, minlength=m))].astype(np.int64)
     chosen_ptr, chosen = [0], []
+    row = np.arange(chain.size) - chain_ptr[chain]
+    per_frame: tuple[NDArray[Any], ...] = (chain, row, ids_all, xy, yaw, dist, qual_all, visit)
     for i in range(m):
         rows = order[ptr[i] : ptr[i + 1]]
-        cands = NodeFrames(
-            node=i,
-            centre_m=centres[i],
-            chain=chain[rows],
-            row=rows - chain_ptr[chain[rows]],
-            frame_id=ids_all[rows],
-            xy_m=xy[rows],
-            yaw_rad=yaw[rows],
-            dist_m=dist[rows],
-            quality=qual_all[rows],
-            visit=visit[rows],
-        )
-        pick = np.asarray(select(cands, p.frames_per_node), dtype=np.int64).reshape(-1)
-        if (
-            pick.size > p.frames_per_node
-            or np.unique(pick).size != pick.size
-            or (pick.size and not (pick.min() >= 0 and pick.max() < rows.size))
-        ):
-            raise BadInputError(
-                f"frame selector returned bad rows {pick} for node {i}", field="select_frames"
-            )
+        pick = np.asarray(select(NodeFrames(i, centres[i], *(a[rows] for a in per_frame)), p.frames_per_node))
+        bad = pick.ndim != 1 or pick.size > p.frames_per_node or np.unique(pick).size != pick.size
+        if bad or (pick.size and (pick.min() < 0 or pick.max() >= rows.size)):
+            raise BadInputError(f"frame selector returned {pick} for node {i}", field="select_frames")
         chosen.extend(rows[pick].tolist())
         chosen_ptr.append(len(chosen))
 

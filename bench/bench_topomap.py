@@ -1,0 +1,193 @@
+"""Benchmark: map compression (paper III-A-4) on synthetic sites of 0.4, 1.5 and 6 km of tunnel.
+
+Target (topomap issue): a 6 km site (~1,200 nodes at 5 m, 20 mapping chains of ~2,000 frames) builds in well
+under 5 s. Each site is a grid of drifts and crosscuts (loops, 3- and 4-way junctions) driven by random walks
+that head for the nearest tunnel not yet driven in that direction (so every tunnel is driven both ways), keeping right with lateral offsets in [-1.5, 0.3] m, a slowly
+varying trajectory error of up to ~0.6 m, stops of 50-500 frames and short reversals.
+
+Baseline, run in the same process on the same chains: the naive quadratic version of the same compression,
+i.e. every pose compared with every node made so far (no spatial index, no wall rule), every frame assigned by
+a dense frames x nodes distance matrix, and the dense all-pairs shortest-path matrix A of the paper (no
+distance limit). Prints medians over several runs and the ratio naive/driftmap. With --real, also the M3500
+ground-truth trajectory from shared/data/posegraphs (a 2-D "Manhattan" grid world) as one more site.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import dijkstra
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "backend"))
+
+from driftmap.core.topomap import PAPER, TopoMapParams, build_topomap  # noqa: E402
+
+F64 = NDArray[np.float64]
+SIZES_KM = (0.4, 1.5, 6.0)
+RUNS = 5
+M3500 = Path(__file__).resolve().parents[2] / "shared" / "data" / "posegraphs" / "M3500_olson_groundtruth_nodes.dat"
+
+
+def grid_network(length_m: float) -> tuple[F64, list[tuple[int, int]]]:
+    """Junctions (J, 2) and tunnels (pairs of junctions) of an n x n grid about ``length_m`` long in total."""
+    n = 2
+    while 2 * (n + 1) * n * 40.0 < length_m:  # pillars of at least ~40 m between drifts
+        n += 1
+    spacing = length_m / (2 * n * (n - 1))
+    ij = np.array([(i, j) for i in range(n) for j in range(n)], dtype=np.float64)
+    tunnels = [(a, b) for a in range(n * n) for b in range(a + 1, n * n) if np.abs(ij[a] - ij[b]).sum() == 1]
+    return ij * spacing, tunnels
+
+
+def route(junctions: F64, tunnels: list[tuple[int, int]], budget_m: float, driven: set, rng) -> list[int]:
+    """A walk over junctions that drives the nearest tunnel not yet driven in that direction, then at random."""
+    nbrs: dict[int, list[int]] = {}
+    for a, b in tunnels:
+        nbrs.setdefault(a, []).append(b)
+        nbrs.setdefault(b, []).append(a)
+    walk = [int(rng.integers(len(junctions)))]
+    length = 0.0
+    while length < budget_m:
+        path = _to_undriven(walk[-1], nbrs, driven)
+        if not path:  # everything driven: wander without turning back
+            here = walk[-1]
+            path = [int(rng.choice([v for v in nbrs[here] if len(walk) < 2 or v != walk[-2]] or nbrs[here]))]
+        for nxt in path:
+            driven.add((walk[-1], nxt))
+            length += float(np.linalg.norm(junctions[nxt] - junctions[walk[-1]]))
+            walk.append(nxt)
+    return walk
+
+
+def _to_undriven(start: int, nbrs: dict[int, list[int]], driven: set) -> list[int]:
+    """Junctions from ``start`` (excluded) through the first tunnel not yet driven that way (breadth first)."""
+    parent = {start: start}
+    queue = [start]
+    for here in queue:
+        for v in nbrs[here]:
+            if (here, v) not in driven:
+                path = [v, here]
+                while path[-1] != start:
+                    path.append(parent[path[-1]])
+                return path[-2::-1]
+            if v not in parent:
+                parent[v] = here
+                queue.append(v)
+    return []
+
+
+def drive_route(points: F64, rng) -> F64:
+    """(N, 3) poses along a centre-line polyline: lanes, trajectory error, stops and reversals."""
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    s_line = np.r_[0.0, np.cumsum(seg)]
+    dense_s = np.arange(0.0, s_line[-1], 0.1)
+    xy = np.column_stack([np.interp(dense_s, s_line, points[:, k]) for k in (0, 1)])
+    box = np.ones(31) / 31  # smooth the corners over ~3 m so that lanes turn like a vehicle
+    xy_s = np.column_stack([np.convolve(np.pad(xy[:, k], 15, mode="edge"), box, "valid") for k in (0, 1)])
+    tangent = np.gradient(xy_s, axis=0)
+    yaw = np.arctan2(tangent[:, 1], tangent[:, 0])
+    normal = np.column_stack([-np.sin(yaw), np.cos(yaw)])
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    # keep right of the centre line (-0.6 m) and wander: lanes in [-1.5, 0.3] m, opposite passes ~1-2 m apart
+    lane = -0.6 + 0.7 * np.sin(dense_s / 37.0 + phase[0]) + 0.2 * np.sin(dense_s / 7.0 + phase[1])
+    error = 0.4 * np.column_stack([np.sin(dense_s / 90.0 + phase[2]), np.cos(dense_s / 110.0 + phase[0])])
+    xy_v = xy_s + lane[:, None] * normal + error
+    s, out = 0.0, []
+    while s < dense_s[-1]:
+        r = rng.random()
+        if r < 0.0006:  # a stop of 50-500 frames
+            out.extend([s] * int(rng.integers(50, 500)))
+        elif r < 0.0012:  # a short reversal
+            back = float(rng.uniform(3.0, 8.0))
+            out.extend(np.linspace(s, max(s - back, 0.0), int(back / 0.2)).tolist())
+            out.extend(np.linspace(max(s - back, 0.0), s, int(back / 0.2)).tolist())
+        s += float(rng.uniform(0.2, 0.5))
+        out.append(s)
+    idx = np.clip(np.searchsorted(dense_s, np.asarray(out)), 0, dense_s.size - 1)
+    poses = np.column_stack([xy_v[idx], yaw[idx]])
+    poses[:, :2] += rng.normal(0.0, 0.01, (idx.size, 2))  # jitter, also while standing still
+    return poses
+
+
+def synthetic_site(length_km: float, seed: int = 0) -> list[F64]:
+    """Mapping chains over a grid site of ``length_km`` km: ~20 chains of ~2,000 frames per 6 km."""
+    rng = np.random.default_rng(seed)
+    junctions, tunnels = grid_network(1000.0 * length_km)
+    n_chains = max(2, round(20 * length_km / 6.0))
+    driven: set = set()
+    chains = []
+    for _ in range(n_chains):
+        walk = route(junctions, tunnels, 2.2 * 1000.0 * length_km / n_chains, driven, rng)
+        chains.append(drive_route(junctions[walk], rng))
+    return chains
+
+
+def naive_build(chains: list[F64], params: TopoMapParams) -> tuple[int, F64]:
+    """The quadratic baseline: every pose against every node, dense frame assignment, dense all-pairs A."""
+    cap = sum(len(c) for c in chains)
+    centres = np.empty((cap, 2))
+    m, edges = 0, set()
+    for chain in chains:
+        cur = -1
+        for x, y in chain[:, :2]:
+            d = np.hypot(centres[:m, 0] - x, centres[:m, 1] - y)
+            near = int(np.argmin(d)) if m else -1
+            if near >= 0 and d[near] <= params.merge_radius_m:
+                if cur >= 0 and near != cur:
+                    edges.add((min(cur, near), max(cur, near)))
+                cur = near
+            elif cur < 0 or d[cur] >= params.spacing_m:
+                centres[m] = (x, y)
+                if cur >= 0:
+                    edges.add((cur, m))
+                cur, m = m, m + 1
+    centres = centres[:m]
+    xy = np.concatenate(chains)[:, :2]
+    frame_node = np.concatenate(
+        [np.argmin(np.linalg.norm(xy[i : i + 4096, None] - centres[None], axis=2), axis=1) for i in range(0, len(xy), 4096)]
+    )
+    e = np.asarray(sorted(edges)).reshape(-1, 2)
+    w = np.linalg.norm(centres[e[:, 0]] - centres[e[:, 1]], axis=1)
+    a = dijkstra(csr_array((w, (e[:, 0], e[:, 1])), shape=(m, m)), directed=False)
+    return m, np.asarray(a)
+
+
+def timed(fn, runs: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(runs):
+        start = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=RUNS)
+    parser.add_argument("--real", action="store_true", help="also the M3500 ground-truth grid world")
+    args = parser.parse_args()
+    sites = [(f"{km:g} km grid", synthetic_site(km, seed=1)) for km in SIZES_KM]
+    if args.real and M3500.exists():
+        sites.append(("M3500 ground truth", [np.loadtxt(M3500)]))
+    print(f"{'site':>20} {'chains':>6} {'frames':>7} {'nodes':>6} {'edges':>6} {'junct':>5} {'A nnz':>8} "
+          f"{'build s':>8} {'naive s':>8} {'naive/ours':>10}")
+    for name, chains in sites:
+        ours_s, topo = timed(lambda c=chains: build_topomap(c, params=PAPER), args.runs)
+        naive_s, _ = timed(lambda c=chains: naive_build(c, PAPER), max(1, args.runs // 2))
+        frames = sum(len(c) for c in chains)
+        print(f"{name:>20} {len(chains):>6} {frames:>7} {topo.n_nodes:>6} {len(topo.edges):>6} "
+              f"{int((topo.degree() >= 3).sum()):>5} {topo.adjacency_m.nnz:>8} {ours_s:>8.3f} {naive_s:>8.3f} "
+              f"{naive_s / ours_s:>10.1f}")
+    print(f"(median of {args.runs} runs; naive median of {max(1, args.runs // 2)}; target: 6 km well under 5 s)")
+
+
+if __name__ == "__main__":
+    main()
