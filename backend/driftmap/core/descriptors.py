@@ -1,0 +1,361 @@
+"""Coarse global image descriptors and the all-pairs candidate search of loop closure.
+
+The full shifted SAD of :mod:`driftmap.core.sad` costs about 35 us per pair of 64x32 images, far too
+much for every pair of a site's keyframes. Loop closure (:mod:`driftmap.core.loops`) therefore first
+ranks all earlier keyframes of each query with a cheap descriptor and keeps only a few candidates:
+
+1. **Thumbnail**: the patch-normalised frame blurred by a Gaussian of about the SAD's shift range
+   (patch-normalised texture is mostly fine detail, which a shift of a few pixels decorrelates;
+   what survives the blur is alike in views a few pixels apart), then area-averaged to 16x8 pixels.
+2. **Centring and projection**: the site's mean thumbnail is subtracted (every tunnel view shares
+   the same floor/walls/roof layout; what remains is what tells places apart), optionally followed
+   by a PCA projection to a few dozen dimensions, then each vector is scaled to unit length.
+3. **Sequence-filtered cosine similarity**: query block x all earlier frames by one matrix product,
+   averaged along the diagonal over ``seq_len`` consecutive frames of both chains (SeqSLAM on
+   thumbnails; the reference axis is max-filtered by +-1 frame so that uneven keyframe spacing
+   does not break the diagonal), then non-maximum suppression along the reference axis (so that the
+   ``top_k`` candidates are distinct places, not neighbouring frames of one place) and top-k.
+
+The search is O(N^2 D) multiply-adds on D-element vectors, a few seconds for N = 16,000; the
+memory is bounded by the query block.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core.params import SAD_DEFAULT, SadParams
+from driftmap.core.sad import SadResult
+
+__all__ = ["CoarseCandidates", "PairCache", "coarse_candidates", "describe", "sad_pairs", "thumbnails"]
+
+_NEG = np.float32(-1e30)  # "not eligible": below any cosine similarity, safe in OpenCV filters
+
+
+def thumbnails(frames: NDArray, size_px: tuple[int, int], blur_px: float = 0.0) -> NDArray[np.float32]:
+    """Blur frames, area-average them to thumbnails and flatten them.
+
+    Args:
+        frames: ``(N, H, W)`` patch-normalised float32 frames (any real dtype is converted).
+        size_px: thumbnail ``(width, height)`` in pixels; clipped to the frame size.
+        blur_px: Gaussian sigma applied first, frame pixels (0: none). About the SAD shift range
+            makes thumbnails of views a few pixels apart alike.
+
+    Returns:
+        ``(N, h * w)`` float32, row-major thumbnails.
+
+    Raises:
+        ValueError: ``frames`` is not 3-D or the size is not positive.
+    """
+    f = np.asarray(frames, dtype=np.float32)
+    if f.ndim != 3:
+        raise ValueError(f"frames must be (N, H, W), got shape {f.shape}")
+    if min(size_px) <= 0:
+        raise ValueError(f"size_px must be positive, got {size_px}")
+    w, h = min(size_px[0], f.shape[2]), min(size_px[1], f.shape[1])
+    out = np.empty((f.shape[0], h * w), dtype=np.float32)
+    for i, im in enumerate(f):
+        if blur_px > 0:
+            im = cv2.GaussianBlur(im, (0, 0), blur_px, borderType=cv2.BORDER_REFLECT_101)
+        out[i] = cv2.resize(im, (w, h), interpolation=cv2.INTER_AREA).ravel()
+    return out
+
+
+def describe(thumbs: NDArray, dims: int) -> NDArray[np.float32]:
+    """Centre thumbnails on their mean, project onto the leading principal axes, L2-normalise.
+
+    Args:
+        thumbs: ``(N, D)`` float32 thumbnails of all frames of a site (:func:`thumbnails`).
+        dims: number of principal axes kept; 0 (or >= D) keeps the centred thumbnail.
+
+    Returns:
+        ``(N, d)`` float32 unit vectors (zero vectors stay zero), ``d = dims`` or ``D``; the dot
+        product of two rows is their cosine similarity in [-1, 1].
+    """
+    x = np.asarray(thumbs, dtype=np.float32)
+    if x.ndim != 2:
+        raise ValueError(f"thumbs must be (N, D), got shape {x.shape}")
+    if x.shape[0] == 0:
+        return x.copy()
+    x = x - x.mean(axis=0, dtype=np.float64).astype(np.float32)
+    if 0 < dims < min(x.shape):
+        # Principal axes from the D x D covariance: cheap for any N.
+        cov = (x.T.astype(np.float64) @ x.astype(np.float64)) / max(1, x.shape[0] - 1)
+        _, vecs = np.linalg.eigh(cov)
+        x = x @ vecs[:, ::-1][:, :dims].astype(np.float32)
+    norm = np.linalg.norm(x, axis=1, keepdims=True)
+    return np.asarray(x / np.maximum(norm, np.float32(1e-12)), dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class CoarseCandidates:
+    """Top-k earlier frames of every query by sequence-filtered descriptor similarity.
+
+    Attributes:
+        index: ``(N, k)`` int64 global frame indices of the candidates, best first; -1 pads rows
+            with fewer eligible local maxima.
+        similarity: ``(N, k)`` float32 their sequence-filtered cosine similarity (-inf for pads).
+        n_compared: descriptor dot products computed (including the sequence context rows).
+    """
+
+    index: NDArray[np.int64]
+    similarity: NDArray[np.float32]
+    n_compared: int
+
+
+def _hfilter_max(a: NDArray[np.float32], radius: int) -> NDArray[np.float32]:
+    """Running maximum along axis 1 over ``2 radius + 1`` columns (borders do not count)."""
+    if radius <= 0 or a.size == 0:
+        return a
+    kernel = np.ones((1, 2 * radius + 1), dtype=np.uint8)
+    return np.asarray(cv2.dilate(a, kernel, borderType=cv2.BORDER_REPLICATE), dtype=np.float32)
+
+
+def coarse_candidates(
+    desc: NDArray,
+    limit: NDArray,
+    pos: NDArray,
+    *,
+    top_k: int,
+    seq_len: int = 1,
+    jitter: int = 1,
+    nms_radius: int = 2,
+    min_similarity: float = -1.0,
+    block: int = 256,
+) -> CoarseCandidates:
+    """Rank, for every query frame, the earlier frames it may close a loop with.
+
+    Frames are in one global order (chain after chain). Query ``g`` may match the frames
+    ``0 .. limit[g] - 1`` (earlier chains entirely, its own chain outside the recent window), so
+    only a lower-left part of the similarity matrix is ever computed.
+
+    Args:
+        desc: ``(N, D)`` float32 unit descriptors in global frame order (:func:`describe`).
+        limit: ``(N,)`` int, exclusive end of the eligible reference prefix per query; must be
+            non-decreasing and ``limit[g] <= g``.
+        pos: ``(N,)`` int, index of each frame within its chain (0 at a chain's first frame); the
+            diagonal average never crosses a chain start.
+        top_k: candidates kept per query, >= 1.
+        seq_len: frames averaged along the diagonal (1 = single-frame similarity).
+        jitter: reference frames either side over which each earlier diagonal term is maximised.
+        nms_radius: a candidate must be the maximum within this many reference frames either side.
+        min_similarity: candidates below this sequence-filtered cosine similarity are dropped.
+        block: queries per matrix product (memory ~ ``(block + seq_len) x N`` float32 x 4).
+
+    Returns:
+        :class:`CoarseCandidates`.
+
+    Raises:
+        ValueError: shapes disagree or ``limit`` is not a non-decreasing prefix bound.
+    """
+    d = np.ascontiguousarray(desc, dtype=np.float32)
+    lim = np.asarray(limit, dtype=np.int64)
+    p = np.asarray(pos, dtype=np.int64)
+    n = d.shape[0] if d.ndim == 2 else -1
+    if n < 0 or lim.shape != (n,) or p.shape != (n,):
+        raise ValueError(f"desc (N, D), limit (N,), pos (N,) disagree: {d.shape}, {lim.shape}, {p.shape}")
+    if top_k < 1 or seq_len < 1 or block < 1:
+        raise ValueError("top_k, seq_len and block must be >= 1")
+    if n and (np.any(np.diff(lim) < 0) or np.any(lim > np.arange(n)) or np.any(lim < 0)):
+        raise ValueError("limit must be non-decreasing with 0 <= limit[g] <= g")
+    index = np.full((n, top_k), -1, dtype=np.int64)
+    sim = np.full((n, top_k), -np.inf, dtype=np.float32)
+    n_compared = 0
+    first = int(np.searchsorted(lim, 1))  # queries before this have no eligible reference
+    for b0 in range(first, n, block):
+        b1 = min(n, b0 + block)
+        r = int(lim[b1 - 1])
+        e0 = max(0, b0 - seq_len + 1)
+        s = d[e0:b1] @ d[:r].T  # (b1 - e0, r) cosine similarities
+        n_compared += s.size
+        c = _sequence_filter(s, b0 - e0, p[b0:b1], p[:r], seq_len, jitter)
+        for i in np.flatnonzero(lim[b0:b1] < r).tolist():  # the recent window of the block's queries
+            c[i, lim[b0 + i] :] = _NEG
+        suppress = c < _hfilter_max(c, nms_radius)
+        if min_similarity > -1.0:
+            suppress |= c < np.float32(min_similarity)
+        np.copyto(c, _NEG, where=suppress)
+        top, top_sim = _top_k_rows(c, min(top_k, r))
+        k = top.shape[1]
+        keep = top_sim > _NEG
+        index[b0:b1, :k] = np.where(keep, top, -1)
+        sim[b0:b1, :k] = np.where(keep, top_sim, -np.inf)
+    return CoarseCandidates(index=index, similarity=sim, n_compared=n_compared)
+
+
+def _top_k_rows(
+    c: NDArray[np.float32], k: int, group: int = 64
+) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
+    """Column indices and values of the ``k`` largest entries of each row, largest first.
+
+    The ``k`` largest entries lie in the ``k`` column groups with the largest maxima, so a full
+    partition runs only over a row's group maxima and then over ``k`` groups.
+    """
+    rows, cols = c.shape
+    if cols > 4 * k * group:
+        n_groups = cols // group
+        g_max = c[:, : n_groups * group].reshape(rows, n_groups, group).max(axis=2)
+        if n_groups * group < cols:  # the ragged tail is one more group
+            g_max = np.concatenate([g_max, c[:, n_groups * group :].max(axis=1, keepdims=True)], axis=1)
+        best = np.argpartition(-g_max, k - 1, axis=1)[:, :k]
+        sub = (best[:, :, None] * group + np.arange(group)[None, None, :]).reshape(rows, -1)
+        over = sub >= cols  # past the end of the shorter tail group
+        sub = np.minimum(sub, cols - 1)
+        vals = np.take_along_axis(c, sub, axis=1)
+        vals[over] = _NEG
+    else:
+        sub = np.broadcast_to(np.arange(cols), (rows, cols))
+        vals = c
+    part = np.argpartition(-vals, k - 1, axis=1)[:, :k] if k < vals.shape[1] else np.argsort(-vals, axis=1)
+    idx = np.take_along_axis(sub, part, axis=1)
+    top = np.take_along_axis(vals, part, axis=1)
+    order = np.argsort(-top, axis=1, kind="stable")
+    return np.take_along_axis(idx, order, axis=1).astype(np.int64), np.take_along_axis(top, order, axis=1)
+
+
+def _sequence_filter(
+    s: NDArray[np.float32],
+    q0: int,
+    q_pos: NDArray[np.int64],
+    r_pos: NDArray[np.int64],
+    seq_len: int,
+    jitter: int,
+) -> NDArray[np.float32]:
+    """Mean of ``s`` over the diagonal ending at each (query, reference) entry.
+
+    ``s`` rows ``q0 ..`` are the queries; the ``q0`` rows above them are their predecessors. The
+    term ``l`` steps back pairs query ``i - l`` with reference ``j - l`` (max over ``+-jitter``
+    references); terms that would cross either chain's start are left out of the mean. Such
+    entries are few (the first ``seq_len - 1`` frames of a chain), so every term is added to the
+    whole matrix and the crossing ones are taken out again row by row and column by column.
+    """
+    out = np.array(s[q0:], dtype=np.float32)
+    if seq_len == 1:
+        return out
+    s_wide = _hfilter_max(s, jitter)
+    rows, cols = out.shape
+    for lag in range(1, min(seq_len, cols)):
+        first = max(0, lag - q0)  # rows above this have no predecessor ``lag`` back in ``s`` (nor in a chain)
+        if first >= rows:
+            continue
+        term = s_wide[q0 + first - lag : q0 + rows - lag, : cols - lag]
+        block = out[first:, lag:]
+        block += term
+        undo_q = np.flatnonzero(q_pos[first:] < lag)  # queries whose predecessor is in another chain
+        bad_r = np.flatnonzero(r_pos[lag:] < lag)  # references whose ``j - lag`` is in another chain
+        if undo_q.size:
+            block[undo_q] -= term[undo_q]
+        if bad_r.size:
+            keep = np.setdiff1d(np.arange(rows - first), undo_q, assume_unique=True)
+            block[np.ix_(keep, bad_r)] -= term[np.ix_(keep, bad_r)]
+    # Terms per entry: min(q_pos, r_pos, seq_len - 1) + 1; seq_len except near chain starts.
+    out *= np.float32(1.0 / seq_len)
+    short_q = np.flatnonzero(q_pos < seq_len - 1)
+    short_r = np.flatnonzero(r_pos < seq_len - 1)
+    r_count = np.minimum(r_pos, seq_len - 1) + 1
+    for i in short_q.tolist():
+        out[i] *= seq_len / np.minimum(r_count, q_pos[i] + 1).astype(np.float32)
+    if short_r.size:
+        full_q = np.setdiff1d(np.arange(rows), short_q, assume_unique=True)
+        out[np.ix_(full_q, short_r)] *= (seq_len / r_count[short_r].astype(np.float32))[None, :]
+    return out
+
+
+def sad_pairs(
+    frames: NDArray,
+    qi: NDArray,
+    rj: NDArray,
+    params: SadParams = SAD_DEFAULT,
+) -> SadResult:
+    """Eq. 3 for arbitrary pairs: shift-minimised, overlap-normalised SAD of ``frames[qi[p]]``
+    against ``frames[rj[p]]``, with the conventions of :func:`driftmap.core.sad.sad_one_to_many`.
+
+    Pairs are gathered in chunks of about ``params.chunk_bytes`` and laid out as two tall images, so
+    each shift costs one ``cv2.absdiff`` and one row-sum per chunk whatever the pairs are.
+
+    Args:
+        frames: ``(N, H, W)`` float32 patch-normalised frames.
+        qi: ``(P,)`` int query frame indices.
+        rj: ``(P,)`` int reference frame indices.
+        params: shift ranges ``+-max_shift_x_px``, ``+-max_shift_y_px`` and the chunk memory bound.
+
+    Returns:
+        :class:`~driftmap.core.sad.SadResult` with ``d`` ``(P,)`` and ``shift_px`` ``(P, 2)``:
+        query pixel ``(x, y)`` matches reference pixel ``(x + dx, y + dy)``.
+
+    Raises:
+        ValueError: bad shapes or indices, or a shift range leaving no overlap.
+    """
+    f = np.ascontiguousarray(frames, dtype=np.float32)
+    qi = np.asarray(qi, dtype=np.int64)
+    rj = np.asarray(rj, dtype=np.int64)
+    if f.ndim != 3 or qi.ndim != 1 or qi.shape != rj.shape:
+        raise ValueError(
+            f"frames (N, H, W), qi (P,), rj (P,) expected, got {f.shape}, {qi.shape}, {rj.shape}"
+        )
+    n, height, width = f.shape
+    if qi.size and (min(qi.min(), rj.min()) < 0 or max(qi.max(), rj.max()) >= n):
+        raise ValueError(f"pair indices must lie in 0 .. {n - 1}")
+    mx, my = params.max_shift_x_px, params.max_shift_y_px
+    if mx >= width or my >= height:
+        raise ValueError(f"shifts +-{mx}, +-{my} leave no overlap in a {width}x{height} image")
+    shifts = [(dx, dy) for dy in range(-my, my + 1) for dx in range(-mx, mx + 1)]
+    best = np.full(qi.size, np.inf, dtype=np.float32)
+    best_k = np.zeros(qi.size, dtype=np.int64)
+    chunk = max(1, params.chunk_bytes // (height * width * 4))
+    ones = np.ones(width, dtype=np.float32)
+    rows = np.empty(chunk * height, dtype=np.float32)
+    for c0 in range(0, qi.size, chunk):
+        c1 = min(qi.size, c0 + chunk)
+        m = c1 - c0
+        a = f[qi[c0:c1]].reshape(m * height, width)
+        b = f[rj[c0:c1]].reshape(m * height, width)
+        for k, (dx, dy) in enumerate(shifts):
+            qy = slice(max(0, -dy), height - max(0, dy))
+            qx = slice(max(0, -dx), width - max(0, dx))
+            rx = slice(qx.start + dx, qx.stop + dx)
+            k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
+            diff = cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx])
+            np.matmul(diff, ones[: qx.stop - qx.start], out=rows[k0:k1])
+            score = rows[: m * height].reshape(m, height)[:, qy].sum(axis=1)
+            score *= np.float32(1.0 / ((qy.stop - qy.start) * (qx.stop - qx.start)))
+            better = score < best[c0:c1]
+            best[c0:c1][better] = score[better]
+            best_k[c0:c1][better] = k
+    shift_arr = np.asarray(shifts, dtype=np.int16).reshape(-1, 2)
+    return SadResult(d=best, shift_px=shift_arr[best_k])
+
+
+class PairCache:
+    """Eq. 3 scores of frame pairs, computed in batches on demand and kept.
+
+    Args:
+        frames: ``(N, H, W)`` float32 patch-normalised frames, addressed by global index.
+        params: the SAD shift ranges.
+    """
+
+    def __init__(self, frames: NDArray[np.float32], params: SadParams = SAD_DEFAULT) -> None:
+        self.frames, self.params = frames, params
+        self.n = frames.shape[0]
+        self.entries: dict[int, tuple[float, int, int]] = {}  # i * n + j -> (d, dx, dy)
+        self.n_computed = 0  # full SAD comparisons made so far
+
+    def fetch(self, qi: NDArray[np.int64], rj: NDArray[np.int64]) -> NDArray[np.float32]:
+        """d of each pair ``(qi[p], rj[p])`` (any shape), computing the missing ones in one batch."""
+        keys = (np.asarray(qi, dtype=np.int64) * self.n + np.asarray(rj, dtype=np.int64)).ravel()
+        missing = np.array(sorted({k for k in keys.tolist() if k not in self.entries}), dtype=np.int64)
+        if missing.size:
+            res = sad_pairs(self.frames, missing // self.n, missing % self.n, self.params)
+            self.n_computed += missing.size
+            for k, d, (dx, dy) in zip(missing.tolist(), res.d.tolist(), res.shift_px.tolist(), strict=True):
+                self.entries[k] = (d, dx, dy)
+        out = np.array([self.entries[k][0] for k in keys.tolist()], dtype=np.float32)
+        return out.reshape(np.shape(qi))
+
+    def get(self, i: int, j: int) -> tuple[float, int, int]:
+        """``(d, dx, dy)`` of a pair already fetched."""
+        return self.entries[i * self.n + j]

@@ -1,0 +1,451 @@
+"""Appearance-only loop closure between keyframes of mapping drives (paper 000, section III-A-2).
+
+The paper compares each new frame with every earlier frame by the shifted SAD of eq. 3 (images
+pre-processed as in IV-C) and adds a constraint when ``d(i, j) < d_t``. In a mine that single-frame
+rule is fooled by long, visually aliased stretches of tunnel, and comparing every pair costs
+O(N^2) full comparisons. :func:`detect_loops` keeps eq. 3 and d_t but
+
+1. finds candidates cheaply: a 16x8 thumbnail descriptor, centred on the site mean and PCA
+   projected, compared for all pairs by matrix products and averaged along short diagonals; only
+   the ``top_k`` distinct places per query go on (:mod:`driftmap.core.descriptors`);
+2. computes the full shifted SAD (eq. 3, overlap-normalised) on those candidates only;
+3. accepts ``(i, j)`` only when a *sequence* of ``seq_len`` query frames ``i - l`` matches reference
+   frames ``j - round(v l)`` for one of a few forward speed ratios ``v`` (SeqSLAM's diagonal on the
+   local confusion sub-matrix): mean d below d_t and at least ``seq_min_hits`` frames below d_t.
+   Only forward slopes are tried, so passes in opposite directions (a forward camera sees another
+   view) never close a loop;
+4. requires the match to be *distinctive*: its sequence score divided by the best score of any
+   candidate that is a different place must be at most ``uniqueness_ratio``. Frames within
+   ``same_place_frames`` of each other in one chain, or linked by an earlier accepted closure, count
+   as one place, so a third pass matching two earlier passes is not self-ambiguous. A candidate
+   that continues the previous query frame's accepted closure (one to two frames further on) is
+   exempt (tracking through an aliased stretch entered at a distinctive place), unless another place
+   is clearly better.
+
+Threshold: d_t is absolute. Patch-normalised frames have unit local variance, so d is dimensionless
+and stable across sites and lighting: identical views give ~0 plus noise, the same place seen again
+0.3-0.7, unrelated views ~0.9-1.1 (two independent unit normals differ by 2/sqrt(pi) ~ 1.13 on
+average, a little less after minimising over shifts). A relative threshold from the score
+distribution would adapt to a site but also accept the best of nothing; the uniqueness ratio is the
+relative part of the test.
+
+Pose of a closure: appearance alone gives no metric relative pose. Emit a constraint with relative
+pose ~ identity (same place, same heading: the sequence check only accepts same-direction passes)
+and the suggested ``sigma_xy_m`` of a few metres (keyframe spacing, the +-1 frame uncertainty of the
+match and the camera's lateral position in the tunnel) and ``sigma_theta_rad``. The SAD shift
+``shift_px`` (query pixel ``(x, y)`` matches reference pixel ``(x + dx, y + dy)``) hints at a yaw
+and lateral offset for callers that know the camera model.
+
+Frames are addressed by ``(chain, index)``; the global order is chain 0's frames, then chain 1's,
+and so on (pass chains in recording order). Decisions are causal except for the descriptor mean and
+PCA axes, which are fitted on all frames.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core.descriptors import PairCache, coarse_candidates, describe, thumbnails
+from driftmap.core.params import SAD_DEFAULT, SAD_FAST, SadParams
+
+__all__ = [
+    "LOOPS_DEFAULT",
+    "LOOPS_FAST",
+    "LOOPS_PAPER",
+    "LoopClosure",
+    "LoopParams",
+    "LoopResult",
+    "LoopStats",
+    "detect_loops",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LoopParams:
+    """Loop closure by shifted SAD (paper 000 III-A-2, eq. 3) with candidates and sequence checks."""
+
+    d_t: float = 0.75  # eq. 3 threshold on the overlap-normalised SAD of patch-normalised frames
+    sad: SadParams = SAD_DEFAULT  # shift search +-x_max, +-y_max of eq. 3, pixels of the frames
+    recent_frames: int = 20  # same-chain frames i-1 .. i-recent_frames are never compared with i
+    recent_s: float = 0.0  # also exclude same-chain frames less than this many seconds older
+    coarse_size_px: tuple[int, int] = (16, 8)  # (width, height) of the coarse thumbnail descriptor
+    coarse_blur_px: float = 3.0  # Gaussian sigma before thumbnailing, frame pixels (shift tolerance)
+    coarse_dims: int = 64  # PCA dimensions of the centred thumbnail; 0 keeps all
+    coarse_seq_len: int = 5  # frames averaged along the diagonal of the coarse similarity
+    coarse_min_similarity: float = -1.0  # drop coarse candidates below this cosine similarity
+    top_k: int = 8  # distinct-place candidates per query given the full SAD
+    nms_radius: int = 2  # a coarse candidate is the best within this many frames of its chain
+    seq_len: int = 5  # query frames i-seq_len+1 .. i that must match a diagonal; 1 = single frame
+    seq_min_hits: int = 4  # of those, frames that must individually have d < d_t
+    seq_slopes: tuple[float, ...] = (0.67, 1.0, 1.5)  # reference frames per query frame tried
+    seq_gate: float = 1.25  # candidates with d < d_t * seq_gate get a sequence check
+    max_seq_checks: int = 4  # at most this many per query (lowest d first)
+    uniqueness_ratio: float = 0.9  # accept when score / best other place's score <= this; 1 = off
+    same_place_frames: int = 4  # same-chain frames this close (or linked by a closure) are one place
+    track: bool = True  # continuing the previous frame's closure needs no uniqueness test
+    max_closures_per_query: int = 2  # closures emitted per query frame (to distinct chains/places)
+    sigma_xy_m: float = 2.0  # suggested position sigma of a confident closure, metres
+    sigma_xy_max_m: float = 6.0  # ... of a closure at the limits of the tests, metres
+    sigma_theta_rad: float = 0.2  # suggested heading sigma (same-direction passes), radians
+
+    def __post_init__(self) -> None:
+        if not self.d_t > 0:
+            raise ValueError(f"LoopParams.d_t must be > 0, got {self.d_t}")
+        ints = {
+            "recent_frames": self.recent_frames,
+            "coarse_dims": self.coarse_dims,
+            "nms_radius": self.nms_radius,
+            "same_place_frames": self.same_place_frames,
+        }
+        for name, value in ints.items():
+            if value < 0:
+                raise ValueError(f"LoopParams.{name} must be >= 0, got {value}")
+        for name, value in {
+            "top_k": self.top_k,
+            "seq_len": self.seq_len,
+            "coarse_seq_len": self.coarse_seq_len,
+            "max_seq_checks": self.max_seq_checks,
+            "max_closures_per_query": self.max_closures_per_query,
+        }.items():
+            if value < 1:
+                raise ValueError(f"LoopParams.{name} must be >= 1, got {value}")
+        if not 1 <= self.seq_min_hits <= self.seq_len:
+            raise ValueError("LoopParams.seq_min_hits must be in 1 .. seq_len")
+        if not self.seq_slopes or min(self.seq_slopes) <= 0:
+            raise ValueError("LoopParams.seq_slopes must be non-empty and positive (forward passes)")
+        if not 0 < self.uniqueness_ratio <= 1 or self.seq_gate < 1 or self.recent_s < 0:
+            raise ValueError("LoopParams: 0 < uniqueness_ratio <= 1, seq_gate >= 1, recent_s >= 0")
+        if min(self.coarse_size_px) <= 0 or not 0 < self.sigma_xy_m <= self.sigma_xy_max_m:
+            raise ValueError("LoopParams: coarse_size_px > 0 and 0 < sigma_xy_m <= sigma_xy_max_m")
+
+
+LOOPS_DEFAULT = LoopParams()
+# The paper's rule: best earlier frame with d < d_t, no sequence or uniqueness test (aliasing-prone).
+LOOPS_PAPER = LoopParams(
+    coarse_seq_len=1,
+    top_k=16,
+    seq_len=1,
+    seq_min_hits=1,
+    uniqueness_ratio=1.0,
+    track=False,
+    max_closures_per_query=1,
+)
+LOOPS_FAST = LoopParams(sad=SAD_FAST, coarse_dims=32, top_k=4, max_seq_checks=2, seq_slopes=(0.75, 1.0, 1.33))
+
+
+@dataclass(frozen=True, slots=True)
+class LoopClosure:
+    """One accepted closure: query frame ``(chain_a, idx_a)`` shows the place of ``(chain_b, idx_b)``.
+
+    The reference is earlier in the global order. Relative pose: ~ identity (see module docstring).
+
+    Attributes:
+        chain_a: chain of the query frame.
+        idx_a: index of the query frame in its chain.
+        chain_b: chain of the matched reference frame.
+        idx_b: index of the reference frame in its chain.
+        d: eq. 3 score of the pair (mean absolute difference of patch-normalised pixels).
+        seq_d: mean d along the accepted diagonal of ``seq_len`` frame pairs.
+        uniqueness: ``seq_d`` / best score of another place (0 when there was none; lower is better).
+        shift_px: ``(dx, dy)`` best SAD shift of the pair, pixels of the compared frames.
+        confidence: in [0, 1], from the margins below d_t and the uniqueness ratio.
+        sigma_xy_m: suggested position sigma of the constraint, metres.
+        sigma_theta_rad: suggested heading sigma, radians.
+        tracked: accepted as the continuation of the previous query frame's closure.
+    """
+
+    chain_a: int
+    idx_a: int
+    chain_b: int
+    idx_b: int
+    d: float
+    seq_d: float
+    uniqueness: float
+    shift_px: tuple[int, int]
+    confidence: float
+    sigma_xy_m: float
+    sigma_theta_rad: float
+    tracked: bool
+
+
+@dataclass(frozen=True)
+class LoopStats:
+    """Work done by :func:`detect_loops`, for benchmarks.
+
+    Attributes:
+        n_frames: frames of all chains.
+        n_eligible_pairs: (query, earlier frame) pairs outside the recent window: the full search.
+        n_coarse: descriptor similarities computed.
+        n_full_candidates: full SAD comparisons of queries against their coarse candidates.
+        n_full_sequence: further full SAD comparisons made by the sequence checks.
+        n_sequence_checks: diagonals evaluated.
+        time_s: seconds per stage: ``descriptors``, ``coarse``, ``full``, ``sequence``.
+    """
+
+    n_frames: int = 0
+    n_eligible_pairs: int = 0
+    n_coarse: int = 0
+    n_full_candidates: int = 0
+    n_full_sequence: int = 0
+    n_sequence_checks: int = 0
+    time_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_full(self) -> int:
+        """All full shifted-SAD comparisons."""
+        return self.n_full_candidates + self.n_full_sequence
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    """Closures in query order, plus work statistics."""
+
+    closures: list[LoopClosure]
+    stats: LoopStats
+
+    def pairs(self) -> NDArray[np.int64]:
+        """``(K, 4)`` int64 rows ``(chain_a, idx_a, chain_b, idx_b)``."""
+        rows = [(c.chain_a, c.idx_a, c.chain_b, c.idx_b) for c in self.closures]
+        return np.asarray(rows, dtype=np.int64).reshape(-1, 4)
+
+
+def _stack(
+    chains: Sequence[NDArray], timestamps_s: Sequence[NDArray] | None, params: LoopParams
+) -> tuple[NDArray[np.float32], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Validate the input; return frames ``(G, H, W)``, chain ``(G,)``, pos ``(G,)``, limit ``(G,)``."""
+    arrays = [np.asarray(c) for c in chains]
+    shapes = {a.shape[1:] for a in arrays if a.ndim == 3}
+    if any(a.ndim != 3 for a in arrays) or len(shapes) > 1:
+        raise ValueError(f"chains must be (N_i, H, W) arrays of one H, W; got {[a.shape for a in arrays]}")
+    if timestamps_s is not None and len(timestamps_s) != len(arrays):
+        raise ValueError(f"timestamps_s has {len(timestamps_s)} entries for {len(arrays)} chains")
+    sizes = [a.shape[0] for a in arrays]
+    frames = (
+        np.concatenate([a.astype(np.float32, copy=False) for a in arrays]) if arrays else np.zeros((0, 1, 1))
+    )
+    chain = np.repeat(np.arange(len(arrays), dtype=np.int64), sizes)
+    starts = np.concatenate([[0], np.cumsum(sizes)])[:-1].astype(np.int64)
+    pos = np.arange(chain.size, dtype=np.int64) - (starts[chain] if chain.size else 0)
+    limit = starts[chain] + np.maximum(0, pos - params.recent_frames) if chain.size else pos.copy()
+    if timestamps_s is not None:
+        for c, t in enumerate(timestamps_s):
+            t = np.asarray(t, dtype=np.float64)
+            if t.shape != (sizes[c],) or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
+                raise ValueError(f"timestamps_s[{c}] must be ({sizes[c]},) finite and non-decreasing")
+            n_old = np.searchsorted(t, t - params.recent_s, side="right")
+            sl = slice(starts[c], starts[c] + sizes[c])
+            limit[sl] = np.minimum(limit[sl], starts[c] + n_old)
+    return np.asarray(frames, dtype=np.float32), chain, pos, limit.astype(np.int64)
+
+
+class _Matcher:
+    """Sequence scores and the place relation of one :func:`detect_loops` call."""
+
+    def __init__(
+        self, cache: PairCache, chain: NDArray[np.int64], pos: NDArray[np.int64], params: LoopParams
+    ):
+        self.cache, self.chain, self.pos, self.p = cache, chain, pos, params
+        self.n = chain.size
+        self.links: dict[int, list[int]] = {}
+        lags = np.arange(params.seq_len)
+        self.offsets = np.unique(np.rint(np.outer(params.seq_slopes, lags)).astype(np.int64), axis=0)
+
+    def seq_scores(
+        self, qi: NDArray[np.int64], rj: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        """Best mean d along a forward diagonal ending at each ``(qi, rj)``, and its hits below d_t.
+
+        Returns ``(M,)`` scores (inf when no diagonal fits inside both chains) and ``(M,)`` hits.
+        """
+        lags = np.arange(self.p.seq_len)
+        q = qi[:, None, None] - lags[None, None, :]  # (M, 1, L)
+        r = rj[:, None, None] - self.offsets[None, :, :]  # (M, S, L)
+        ok = (self.pos[qi] >= self.p.seq_len - 1)[:, None] & (
+            self.pos[rj][:, None] >= self.offsets[None, :, -1]
+        )
+        q, r = np.broadcast_arrays(q, r)
+        d = np.full(r.shape, np.inf, dtype=np.float32)
+        d[ok] = self.cache.fetch(q[ok], r[ok])
+        mean = d.mean(axis=2)
+        best = np.argmin(mean, axis=1)
+        take = np.arange(qi.size)
+        hits = (d[take, best] < self.p.d_t).sum(axis=1)
+        return mean[take, best].astype(np.float32), hits.astype(np.int64)
+
+    def same_place(self, a: int, b: int) -> bool:
+        """One chain within ``same_place_frames``, or linked through an accepted closure."""
+        rad, ch = self.p.same_place_frames, self.chain
+        if ch[a] == ch[b] and abs(a - b) <= rad:
+            return True
+        for x in range(max(0, a - rad), min(self.n, a + rad + 1)):
+            if ch[x] == ch[a]:
+                for y in self.links.get(x, ()):
+                    if ch[y] == ch[b] and abs(y - b) <= rad:
+                        return True
+        return False
+
+    def link(self, a: int, b: int) -> None:
+        self.links.setdefault(a, []).append(b)
+        self.links.setdefault(b, []).append(a)
+
+
+def detect_loops(
+    chains: Sequence[NDArray],
+    params: LoopParams = LOOPS_DEFAULT,
+    timestamps_s: Sequence[NDArray] | None = None,
+) -> LoopResult:
+    """Find loop closures among the keyframes of a site's mapping drives (see module docstring).
+
+    Every keyframe is compared with every earlier keyframe in the global order (all frames of
+    earlier chains; its own chain outside the recent window), through the coarse candidate search.
+
+    Args:
+        chains: one ``(N_i, H, W)`` float32 stack of pre-processed keyframes per drive
+            (:func:`driftmap.core.images.preprocess`), in recording order; ``N_i`` may be 0.
+        params: thresholds and search sizes.
+        timestamps_s: optional ``(N_i,)`` non-decreasing seconds per chain, for ``recent_s``.
+
+    Returns:
+        :class:`LoopResult`: closures ordered by query frame, and work statistics.
+
+    Raises:
+        ValueError: chains of different image sizes or not 3-D, timestamps of the wrong shape,
+            or a SAD shift range leaving no overlap.
+    """
+    frames, chain, pos, limit = _stack(chains, timestamps_s, params)
+    n = frames.shape[0]
+    times: dict[str, float] = {}
+    if n == 0 or limit[-1] == 0:
+        return LoopResult([], LoopStats(n_frames=n, time_s=times))
+    p = params
+    t0 = time.perf_counter()
+    desc = describe(thumbnails(frames, p.coarse_size_px, p.coarse_blur_px), p.coarse_dims)
+    t1 = time.perf_counter()
+    cand = coarse_candidates(
+        desc,
+        limit,
+        pos,
+        top_k=p.top_k,
+        seq_len=p.coarse_seq_len,
+        nms_radius=p.nms_radius,
+        min_similarity=p.coarse_min_similarity,
+    )
+    t2 = time.perf_counter()
+    cache = PairCache(frames, p.sad)
+    m = _Matcher(cache, chain, pos, p)
+    valid = cand.index >= 0
+    qi = np.broadcast_to(np.arange(n)[:, None], cand.index.shape)
+    d_cand = np.full(cand.index.shape, np.inf, dtype=np.float32)
+    d_cand[valid] = cache.fetch(qi[valid], cand.index[valid])
+    n_full_candidates = cache.n_computed
+    t3 = time.perf_counter()
+    # Sequence checks for the lowest-d candidates under the gate, all diagonals in one batch.
+    order = np.argsort(d_cand, axis=1, kind="stable")
+    d_sorted = np.take_along_axis(d_cand, order, axis=1)
+    idx_sorted = np.take_along_axis(cand.index, order, axis=1)
+    checked = (d_sorted < p.d_t * p.seq_gate) & (np.arange(p.top_k) < p.max_seq_checks)[None, :]
+    seq = np.full(d_cand.shape, np.inf, dtype=np.float32)
+    hits = np.zeros(d_cand.shape, dtype=np.int64)
+    seq[checked], hits[checked] = m.seq_scores(qi[checked], idx_sorted[checked])
+    n_checks = int(checked.sum())
+    closures: list[LoopClosure] = []
+    accepted: dict[int, list[int]] = {}
+    for g in np.flatnonzero(checked.any(axis=1) | (p.track & (pos > 0))).tolist():
+        # Evaluated places of query g: (reference, score, hits, d, tracked).
+        places = [
+            (
+                int(idx_sorted[g, k]),
+                float(seq[g, k] if checked[g, k] else d_sorted[g, k]),
+                int(hits[g, k]),
+                bool(checked[g, k]),
+                False,
+            )
+            for k in range(p.top_k)
+            if idx_sorted[g, k] >= 0
+        ]
+        if p.track and pos[g] > 0:
+            for r in accepted.get(g - 1, []):
+                nxt = np.array(
+                    [x for x in (r, r + 1, r + 2) if x < limit[g] and chain[x] == chain[r]], dtype=np.int64
+                )
+                if not nxt.size:
+                    continue
+                j = int(nxt[np.argmin(cache.fetch(np.full(nxt.size, g), nxt))])
+                known = [x for x in places if x[0] == j and x[3]]
+                if known:
+                    places.append((j, known[0][1], known[0][2], True, True))
+                    continue
+                s, h = m.seq_scores(np.array([g]), np.array([j]))
+                n_checks += 1
+                places.append((j, float(s[0]), int(h[0]), True, True))
+        emitted = _decide(g, places, m, closures)
+        if emitted:
+            accepted[g] = emitted
+    t4 = time.perf_counter()
+    times.update(descriptors=t1 - t0, coarse=t2 - t1, full=t3 - t2, sequence=t4 - t3)
+    stats = LoopStats(
+        n_frames=n,
+        n_eligible_pairs=int(limit.sum()),
+        n_coarse=cand.n_compared,
+        n_full_candidates=n_full_candidates,
+        n_full_sequence=cache.n_computed - n_full_candidates,
+        n_sequence_checks=n_checks,
+        time_s=times,
+    )
+    log.debug("loop closure: %d frames, %d closures, %s", n, len(closures), stats)
+    return LoopResult(closures, stats)
+
+
+def _decide(
+    g: int, places: list[tuple[int, float, int, bool, bool]], m: _Matcher, out: list[LoopClosure]
+) -> list[int]:
+    """Accept the distinctive, sequence-consistent places of query ``g``; append closures to ``out``."""
+    p = m.p
+    emitted: list[int] = []
+    for r, score, n_hits, seq_checked, tracked in sorted(places, key=lambda x: x[1]):
+        if len(emitted) >= p.max_closures_per_query:
+            break
+        if not (seq_checked and score < p.d_t and n_hits >= p.seq_min_hits):
+            continue
+        if any(m.chain[e] == m.chain[r] and abs(e - r) <= p.same_place_frames for e in emitted):
+            continue
+        others = [s for x, s, _, _, _ in places if not m.same_place(r, x)]
+        best_other = min(others, default=np.inf)
+        ratio = score / best_other if np.isfinite(best_other) and best_other > 0 else 0.0
+        if ratio > (1.0 / p.uniqueness_ratio if tracked else p.uniqueness_ratio):
+            continue
+        d, dx, dy = m.cache.get(g, r)
+        margin_d = min(1.0, max(0.0, 2.0 * (1.0 - score / p.d_t)))
+        margin_u = (
+            0.5
+            if tracked or p.uniqueness_ratio >= 1
+            else min(1.0, max(0.0, (1.0 - ratio) / (1.0 - p.uniqueness_ratio)))
+        )
+        conf = margin_d * margin_u
+        out.append(
+            LoopClosure(
+                chain_a=int(m.chain[g]),
+                idx_a=int(m.pos[g]),
+                chain_b=int(m.chain[r]),
+                idx_b=int(m.pos[r]),
+                d=float(d),
+                seq_d=score,
+                uniqueness=float(ratio),
+                shift_px=(int(dx), int(dy)),
+                confidence=conf,
+                sigma_xy_m=p.sigma_xy_m + (p.sigma_xy_max_m - p.sigma_xy_m) * (1.0 - conf),
+                sigma_theta_rad=p.sigma_theta_rad,
+                tracked=tracked,
+            )
+        )
+        m.link(g, r)
+        emitted.append(r)
+    return emitted
