@@ -8,32 +8,41 @@ varying trajectory error of up to ~0.6 m, stops of 50-500 frames and short rever
 Baseline, run in the same process on the same chains: the naive quadratic version of the same compression,
 i.e. every pose compared with every node made so far (no spatial index, no wall rule), every frame assigned by
 a dense frames x nodes distance matrix, and the dense all-pairs shortest-path matrix A of the paper (no
-distance limit). Prints medians over several runs and the ratio naive/driftmap. With --real, also the M3500
-ground-truth trajectory from shared/data/posegraphs (a 2-D "Manhattan" grid world) as one more site.
+distance limit). Prints medians over several runs and the ratio naive/driftmap, then checks each synthetic
+map against the true network: stored A(x, y) against the along-tunnel distance. With --real, also times the
+M3500 ground-truth trajectory from shared/data/posegraphs (a 2-D "Manhattan" world whose blocks are a few
+metres across, finer than N: a timing row, not a tunnel map).
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import statistics
-import sys
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "backend"))
-
-from driftmap.core.topomap import PAPER, TopoMapParams, build_topomap  # noqa: E402
+from driftmap.core.topomap import PAPER, TopoMap, TopoMapParams, build_topomap
 
 F64 = NDArray[np.float64]
+T = TypeVar("T")
 SIZES_KM = (0.4, 1.5, 6.0)
 RUNS = 5
-M3500 = Path(__file__).resolve().parents[2] / "shared" / "data" / "posegraphs" / "M3500_olson_groundtruth_nodes.dat"
+M3500 = (
+    Path(__file__).resolve().parents[2]
+    / "shared"
+    / "data"
+    / "posegraphs"
+    / "M3500_olson_groundtruth_nodes.dat"
+)
 
 
 def grid_network(length_m: float) -> tuple[F64, list[tuple[int, int]]]:
@@ -47,7 +56,13 @@ def grid_network(length_m: float) -> tuple[F64, list[tuple[int, int]]]:
     return ij * spacing, tunnels
 
 
-def route(junctions: F64, tunnels: list[tuple[int, int]], budget_m: float, driven: set, rng) -> list[int]:
+def route(
+    junctions: F64,
+    tunnels: list[tuple[int, int]],
+    budget_m: float,
+    driven: set[tuple[int, int]],
+    rng: np.random.Generator,
+) -> list[int]:
     """A walk over junctions that drives the nearest tunnel not yet driven in that direction, then at random."""
     nbrs: dict[int, list[int]] = {}
     for a, b in tunnels:
@@ -67,7 +82,7 @@ def route(junctions: F64, tunnels: list[tuple[int, int]], budget_m: float, drive
     return walk
 
 
-def _to_undriven(start: int, nbrs: dict[int, list[int]], driven: set) -> list[int]:
+def _to_undriven(start: int, nbrs: dict[int, list[int]], driven: set[tuple[int, int]]) -> list[int]:
     """Junctions from ``start`` (excluded) through the first tunnel not yet driven that way (breadth first)."""
     parent = {start: start}
     queue = [start]
@@ -84,7 +99,7 @@ def _to_undriven(start: int, nbrs: dict[int, list[int]], driven: set) -> list[in
     return []
 
 
-def drive_route(points: F64, rng) -> F64:
+def drive_route(points: F64, rng: np.random.Generator) -> F64:
     """(N, 3) poses along a centre-line polyline: lanes, trajectory error, stops and reversals."""
     seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
     s_line = np.r_[0.0, np.cumsum(seg)]
@@ -122,7 +137,7 @@ def synthetic_site(length_km: float, seed: int = 0) -> list[F64]:
     rng = np.random.default_rng(seed)
     junctions, tunnels = grid_network(1000.0 * length_km)
     n_chains = max(2, round(20 * length_km / 6.0))
-    driven: set = set()
+    driven: set[tuple[int, int]] = set()
     chains = []
     for _ in range(n_chains):
         walk = route(junctions, tunnels, 2.2 * 1000.0 * length_km / n_chains, driven, rng)
@@ -130,11 +145,11 @@ def synthetic_site(length_km: float, seed: int = 0) -> list[F64]:
     return chains
 
 
-def naive_build(chains: list[F64], params: TopoMapParams) -> tuple[int, F64]:
+def naive_build(chains: list[F64], params: TopoMapParams) -> tuple[F64, NDArray[np.intp], F64]:
     """The quadratic baseline: every pose against every node, dense frame assignment, dense all-pairs A."""
     cap = sum(len(c) for c in chains)
     centres = np.empty((cap, 2))
-    m, edges = 0, set()
+    m, edges = 0, set[tuple[int, int]]()
     for chain in chains:
         cur = -1
         for x, y in chain[:, :2]:
@@ -151,17 +166,51 @@ def naive_build(chains: list[F64], params: TopoMapParams) -> tuple[int, F64]:
                 cur, m = m, m + 1
     centres = centres[:m]
     xy = np.concatenate(chains)[:, :2]
-    frame_node = np.concatenate(
-        [np.argmin(np.linalg.norm(xy[i : i + 4096, None] - centres[None], axis=2), axis=1) for i in range(0, len(xy), 4096)]
+    frame_node = np.concatenate(  # every frame's node: dense frames x nodes distances
+        [
+            np.argmin(np.linalg.norm(xy[i : i + 4096, None] - centres[None], axis=2), axis=1)
+            for i in range(0, len(xy), 4096)
+        ]
     )
     e = np.asarray(sorted(edges)).reshape(-1, 2)
     w = np.linalg.norm(centres[e[:, 0]] - centres[e[:, 1]], axis=1)
     a = dijkstra(csr_array((w, (e[:, 0], e[:, 1])), shape=(m, m)), directed=False)
-    return m, np.asarray(a)
+    return centres, frame_node, np.asarray(a)  # A: dense (M, M), as in the paper
 
 
-def timed(fn, runs: int) -> tuple[float, object]:
-    times, out = [], None
+def path_check(topo: TopoMap, junctions: F64, tunnels: list[tuple[int, int]]) -> tuple[float, int, int]:
+    """Stored A against true along-tunnel distances for node pairs under 40 m apart by tunnel.
+
+    Returns the median |A - true| in metres, the pairs whose A is > 6 m shorter (shortcuts through rock)
+    and the pairs whose A is > 10 m longer or missing (broken or detoured connections).
+    """
+    pts, rows, cols, lengths = [*junctions], [], [], []
+    for a, b in tunnels:  # the true network, sampled every ~0.5 m
+        k = max(1, int(np.linalg.norm(junctions[b] - junctions[a]) / 0.5))
+        ids = [a]
+        for i in range(1, k):
+            pts.append(junctions[a] + (junctions[b] - junctions[a]) * i / k)
+            ids.append(len(pts) - 1)
+        ids.append(b)
+        step = float(np.linalg.norm(junctions[b] - junctions[a])) / k
+        rows += ids[:-1]
+        cols += ids[1:]
+        lengths += [step] * k
+    net = csr_array((lengths, (rows, cols)), shape=(len(pts), len(pts)))
+    _, proj = cKDTree(np.asarray(pts)).query(topo.centres_m)
+    true = dijkstra(net, directed=False, indices=proj, limit=60.0)[:, proj]
+    stored = topo.adjacency_m.toarray()
+    stored[stored == 0] = np.inf
+    np.fill_diagonal(stored, 0.0)
+    close = true < 40.0
+    found = close & np.isfinite(stored)
+    err = float(np.median(np.abs(stored[found] - true[found])))
+    return err, int((close & (stored < true - 6.0)).sum()), int((close & (stored > true + 10.0)).sum())
+
+
+def timed(fn: Callable[[], T], runs: int) -> tuple[float, T]:
+    """Median wall time of ``runs`` calls, seconds, and the last result."""
+    times = []
     for _ in range(runs):
         start = time.perf_counter()
         out = fn()
@@ -174,19 +223,31 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=RUNS)
     parser.add_argument("--real", action="store_true", help="also the M3500 ground-truth grid world")
     args = parser.parse_args()
-    sites = [(f"{km:g} km grid", synthetic_site(km, seed=1)) for km in SIZES_KM]
+    sites = [(f"{km:g} km grid", synthetic_site(km, seed=1), km) for km in SIZES_KM]
     if args.real and M3500.exists():
-        sites.append(("M3500 ground truth", [np.loadtxt(M3500)]))
-    print(f"{'site':>20} {'chains':>6} {'frames':>7} {'nodes':>6} {'edges':>6} {'junct':>5} {'A nnz':>8} "
-          f"{'build s':>8} {'naive s':>8} {'naive/ours':>10}")
-    for name, chains in sites:
-        ours_s, topo = timed(lambda c=chains: build_topomap(c, params=PAPER), args.runs)
-        naive_s, _ = timed(lambda c=chains: naive_build(c, PAPER), max(1, args.runs // 2))
+        sites.append(("M3500 ground truth", [np.loadtxt(M3500)], 0.0))
+    print(
+        f"{'site':>20} {'chains':>6} {'frames':>7} {'nodes':>6} {'edges':>6} {'junct':>5} {'A nnz':>8} "
+        f"{'build s':>8} {'naive s':>8} {'naive/ours':>10}"
+    )
+    checks = []
+    for name, chains, km in sites:
+        ours_s, topo = timed(partial(build_topomap, chains, params=PAPER), args.runs)
+        naive_s, _ = timed(partial(naive_build, chains, PAPER), max(1, args.runs // 2))
         frames = sum(len(c) for c in chains)
-        print(f"{name:>20} {len(chains):>6} {frames:>7} {topo.n_nodes:>6} {len(topo.edges):>6} "
-              f"{int((topo.degree() >= 3).sum()):>5} {topo.adjacency_m.nnz:>8} {ours_s:>8.3f} {naive_s:>8.3f} "
-              f"{naive_s / ours_s:>10.1f}")
-    print(f"(median of {args.runs} runs; naive median of {max(1, args.runs // 2)}; target: 6 km well under 5 s)")
+        print(
+            f"{name:>20} {len(chains):>6} {frames:>7} {topo.n_nodes:>6} {len(topo.edges):>6} "
+            f"{int((topo.degree() >= 3).sum()):>5} {topo.adjacency_m.nnz:>8} {ours_s:>8.3f} {naive_s:>8.3f} "
+            f"{naive_s / ours_s:>10.1f}"
+        )
+        if km:
+            checks.append((name, *path_check(topo, *grid_network(1000.0 * km))))
+    print(
+        f"(median of {args.runs} runs; naive median of {max(1, args.runs // 2)}; target: 6 km well under 5 s)"
+    )
+    print("\nstored A vs true along-tunnel distance, node pairs < 40 m apart:")
+    for name, err, short, broken in checks:
+        print(f"{name:>20}  median |A - true| {err:.2f} m, shortcuts {short}, broken/detoured {broken}")
 
 
 if __name__ == "__main__":

@@ -252,7 +252,8 @@ class _Tracer:
         xl, yl = xy_m[:, 0].tolist(), xy_m[:, 1].tolist()
         # cur: current node; odo: odometer; s_ref, d_min: odometer and distance at the closest approach to cur
         cur, odo, s_ref, d_min, ax, ay, was_near = -1, 0.0, 0.0, 0.0, 0.0, 0.0, False
-        d_peak, peak_x, peak_y = 0.0, 0.0, 0.0  # furthest from cur since reaching it, and where
+        # turn detection: the extreme distance from cur while moving away (out) or back (not out), and where
+        out, d_ext, ext_x, ext_y = True, 0.0, 0.0, 0.0
         for i in range(n):
             x, y = xl[i], yl[i]
             if cur >= 0:
@@ -273,17 +274,18 @@ class _Tracer:
                 if cand != cur:
                     if cur >= 0:
                         self.join(cur, cand)
-                    cur, d_min, s_ref, d_peak = cand, d, odo, 0.0
+                    cur, d_min, s_ref, out, d_ext = cand, d, odo, True, 0.0
                 elif d < d_min:
                     d_min, s_ref = d, odo
                 was_near = d <= self.radius
             elif cur < 0:
-                cur, d_min, s_ref, was_near, d_peak = self.new_node(x, y, -1), 0.0, odo, True, 0.0
+                cur, d_min, s_ref, was_near = self.new_node(x, y, -1), 0.0, odo, True
+                out, d_ext = True, 0.0
             else:
                 while self.dist(x, y, cur) >= self.spacing:
                     t = _exit_fraction(px, py, x, y, self.xs[cur], self.ys[cur], self.spacing)
                     px, py = px + t * (x - px), py + t * (y - py)
-                    cur, d_min, d_peak = self.new_node(px, py, cur), 0.0, 0.0
+                    cur, d_min, out, d_ext = self.new_node(px, py, cur), 0.0, True, 0.0
                     s_ref = odo - math.hypot(x - px, y - py)
                 d = self.dist(x, y, cur)
                 if d < d_min:
@@ -293,11 +295,13 @@ class _Tracer:
             if fresh:
                 self.ends.append((x, y, cur, 0.0))
             d = self.dist(x, y, cur)
-            if d > d_peak:
-                d_peak, peak_x, peak_y = d, x, y
-            elif d < d_peak - TURN_M:  # turned back
-                self.ends.append((peak_x, peak_y, cur, reach))
-                d_peak = math.inf
+            if out and d > d_ext:
+                d_ext, ext_x, ext_y = d, x, y
+            elif out and d < d_ext - TURN_M:  # turned back at (ext_x, ext_y)
+                self.ends.append((ext_x, ext_y, cur, reach))
+                out, d_ext = False, d
+            elif not out:
+                out, d_ext = (True, d) if d > d_ext + TURN_M else (False, min(d, d_ext))
         if cur >= 0:
             self.ends.append((ax, ay, cur, odo - s_ref + d_min))
         return node_of, near

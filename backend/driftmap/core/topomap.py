@@ -121,7 +121,7 @@ def select_frames_by_heading(
     rest = rest[1:]
     while len(chosen) < k and rest.size:
         gap = np.abs(wrap_rad(cands.yaw_rad[rest][:, None] - cands.yaw_rad[chosen][None, :])).min(axis=1)
-        same_chain = np.isin(cands.chain[rest], cands.chain[chosen])
+        same_chain = (cands.chain[rest][:, None] == cands.chain[chosen][None, :]).any(axis=1)
         pick = np.lexsort((cost[rest], same_chain, gap < heading_tolerance_rad))[0]
         chosen.append(int(rest[pick]))
         rest = np.delete(rest, pick)
@@ -376,7 +376,7 @@ def _heading_sets(node_v: I64, yaw_v: F64, n_nodes: int, tol_rad: float) -> tupl
                 near[0].append(yaw)
             else:
                 groups.append([yaw])
-        out.extend(math.atan2(np.sin(g).mean(), np.cos(g).mean()) for g in groups)
+        out.extend(math.atan2(sum(map(math.sin, g)), sum(map(math.cos, g))) for g in groups)
         out_ptr.append(len(out))
     return np.asarray(out_ptr, dtype=np.int64), np.asarray(out, dtype=np.float64)
 
