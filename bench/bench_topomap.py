@@ -1,9 +1,10 @@
 """Benchmark: map compression (paper III-A-4) on synthetic sites of 0.4, 1.5 and 6 km of tunnel.
 
 Target (topomap issue): a 6 km site (~1,200 nodes at 5 m, 20 mapping chains of ~2,000 frames) builds in well
-under 5 s. Each site is a grid of drifts and crosscuts (loops, 3- and 4-way junctions) driven by random walks
-that head for the nearest tunnel not yet driven in that direction (so every tunnel is driven both ways), keeping right with lateral offsets in [-1.5, 0.3] m, a slowly
-varying trajectory error of up to ~0.6 m, stops of 50-500 frames and short reversals.
+under 5 s. Each site is a grid of drifts and crosscuts (loops, 3- and 4-way junctions) driven by walks that
+head for the nearest tunnel not yet driven in that direction (so every tunnel is driven both ways), keeping
+right with lateral offsets in [-1.5, 0.3] m, a slowly varying trajectory error of up to ~0.6 m, stops of
+50-500 frames and short reversals.
 
 Baseline, run in the same process on the same chains: the naive quadratic version of the same compression,
 i.e. every pose compared with every node made so far (no spatial index, no wall rule), every frame assigned by
@@ -63,7 +64,7 @@ def route(
     driven: set[tuple[int, int]],
     rng: np.random.Generator,
 ) -> list[int]:
-    """A walk over junctions that drives the nearest tunnel not yet driven in that direction, then at random."""
+    """A walk over junctions: to the nearest tunnel not yet driven in that direction, then at random."""
     nbrs: dict[int, list[int]] = {}
     for a, b in tunnels:
         nbrs.setdefault(a, []).append(b)
@@ -83,7 +84,7 @@ def route(
 
 
 def _to_undriven(start: int, nbrs: dict[int, list[int]], driven: set[tuple[int, int]]) -> list[int]:
-    """Junctions from ``start`` (excluded) through the first tunnel not yet driven that way (breadth first)."""
+    """Junctions from ``start`` (excluded) through the nearest tunnel not yet driven that way."""
     parent = {start: start}
     queue = [start]
     for here in queue:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 from typing import ClassVar
@@ -85,7 +86,8 @@ class TestStraightTunnel:
     def test_nodes_hold_both_directions(self) -> None:
         m = straight_both_ways()
         for node in range(m.n_nodes):
-            assert set(m.members(node)[:, 0]) == {0, 1}
+            refs, dist = m.members(node)
+            assert set(refs[:, 0]) == {0, 1} and dist.max() < PAPER.spacing_m
             chosen = m.chosen_frames(node)
             assert set(chosen[:, 0]) == {0, 1} and len(chosen) <= PAPER.frames_per_node
             heads = np.sort(np.abs(m.headings(node)))
@@ -252,6 +254,15 @@ class TestSerialisation:
         np.testing.assert_array_equal(
             back.transition_matrix(7.0).toarray(), m.transition_matrix(7.0).toarray()
         )
+
+    def test_through_an_npz_blob(self) -> None:
+        m = straight_both_ways()
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **m.to_arrays())  # type: ignore[arg-type]
+        with np.load(io.BytesIO(buffer.getvalue())) as stored:
+            back = TopoMap.from_arrays({k: stored[k] for k in stored.files})
+        assert back.params == m.params and back.n_nodes == m.n_nodes
+        np.testing.assert_array_equal(back.chosen_frames(3), m.chosen_frames(3))
 
     def test_missing_array_names_the_field(self) -> None:
         arrays = straight_both_ways().to_arrays()

@@ -1,7 +1,7 @@
-"""Connectivity of the stored map: nodes traced along the drives, the graph, sparse distances A, HMM transitions.
+"""Connectivity of the stored map: nodes traced along drives, the graph, sparse distances A, HMM transitions.
 
-:func:`trace_nodes` walks the optimised drives once and lays nodes every N metres of tunnel, reusing nodes that
-other passes made (paper III-A-4, Fig. 3). Drives are taken one after the other, each pose by pose:
+:func:`trace_nodes` walks the optimised drives once and lays nodes every N metres of tunnel, reusing nodes
+that other passes made (paper III-A-4, Fig. 3). Drives are taken one after the other, each pose by pose:
 
 * **Stand still.** A pose less than ``stationary_tol_m`` from the last moving pose is standing still: it
   belongs to the same node and adds no travel, so stops of any length make no nodes.
@@ -12,19 +12,19 @@ other passes made (paper III-A-4, Fig. 3). Drives are taken one after the other,
   closer than the merge radius. Let the drive have travelled ``s`` metres since it was closest to its current
   node. A candidate that the graph already reaches from the current node by a path longer than ``s`` plus
   both pose-to-centre distances plus two spacings (slack for a zigzag through a neighbour), yet shorter than
-  ``wall_detour_m``, is refused: the vehicle cannot have driven there in that distance, so it lies across a wall. Unreached candidates (a junction with
-  another drive's tunnels) and longer detours (a loop closing) are joined. A refusal costs a few duplicate
-  nodes, a wrong join puts a shortcut through rock into the HMM; the detour limit is kept short so that
-  genuine loops (pillar perimeters are longer) still close.
+  ``wall_detour_m``, is refused: the vehicle cannot have driven there in that distance, so it lies across a
+  wall. Unreached candidates (a junction with another drive's tunnels) and longer detours (a loop closing)
+  are joined. A refusal costs a few duplicate nodes, a wrong join puts a shortcut through rock into the HMM;
+  the detour limit is kept short so that genuine loops (pillar perimeters are longer) still close.
 * **Create.** Otherwise, once the pose is ``spacing_m`` or more from the current node's centre, a new node is
   made exactly ``spacing_m`` from it on the trajectory (several if one step was long) and joined to it. The
   straight-line trigger equals the travelled distance along tunnels (bend radii >> N), and jitter, reversals
   and turning manoeuvres inside one node's area make no nodes and no self-edges.
 * **Near misses.** Where a node would be made, a plausible node within ``CREATE_CLEARANCE`` merge radii is
   joined instead. Once every drive is traced, the points where a drive starts, ends (or breaks) and turns
-  back are joined by an edge to the nearest plausible other node within ``END_CLEARANCE`` merge radii. Lanes cut corners
-  and junctions differently, and vehicles start, stop and turn round in junctions; without these rules a
-  duplicate node would sit beside an existing one, or a tunnel would stay unconnected to its junction.
+  back are joined by an edge to the nearest plausible other node within ``END_CLEARANCE`` merge radii. Lanes
+  cut corners and junctions differently, and vehicles start, stop and turn round in junctions; without these
+  rules a duplicate node would sit beside an existing one, or a tunnel would stay unconnected to its junction.
 * **Break.** A jump longer than ``max_frame_step_m`` between consecutive poses (a gap in the data) starts
   afresh without an edge across it.
 
@@ -77,11 +77,6 @@ class GrowingGraph:
     def __init__(self) -> None:
         self._nbrs: list[dict[int, float]] = []
         self.version = 0
-
-    @property
-    def n_nodes(self) -> int:
-        """Number of nodes added so far."""
-        return len(self._nbrs)
 
     def add_node(self) -> int:
         """Add an isolated node and return its index."""
@@ -182,7 +177,7 @@ class _Tracer:
         self.graph.add_edge(cur, node, math.hypot(self.xs[node] - self.xs[cur], self.ys[node] - self.ys[cur]))
 
     def plausible(self, cur: int, cand: int, reach_m: float) -> bool:
-        """The wall rule: False if the graph reaches ``cand`` only by a short detour longer than ``reach_m``."""
+        """The wall rule: False if the graph reaches ``cand`` only by a short detour beyond ``reach_m``."""
         bound = reach_m + 2.0 * self.spacing  # slack: the path may zigzag through a neighbour node
         direct = self.graph.edge_length_m(cur, cand)
         if direct is not None and direct <= bound:
@@ -202,20 +197,10 @@ class _Tracer:
 
         A ``clearance`` (in merge radii, at most 2) searches that far instead of the merge radius.
         """
-        if clearance:  # 3 x 3 cells of twice the merge radius cover up to two merge radii
-            radius, ix, iy, span = (
-                clearance * self.radius,
-                math.floor(x / self.cell) - 1,
-                math.floor(y / self.cell) - 1,
-                3,
-            )
-        else:  # a disc of the merge radius always lies in 2 x 2 cells
-            radius, ix, iy, span = (
-                self.radius,
-                math.floor(x / self.cell - 0.5),
-                math.floor(y / self.cell - 0.5),
-                2,
-            )
+        radius = (clearance or 1.0) * self.radius
+        # a disc of the merge radius lies in 2 x 2 cells of twice that size; one of two merge radii in 3 x 3
+        shift, span = (1.0, 3) if clearance else (0.5, 2)
+        ix, iy = math.floor(x / self.cell - shift), math.floor(y / self.cell - shift)
         found: list[tuple[float, int]] = []
         for kx in range(ix, ix + span):
             for ky in range(iy, iy + span):

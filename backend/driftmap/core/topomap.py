@@ -185,10 +185,11 @@ class TopoMap:
         ptr = np.r_[0, np.cumsum(np.bincount(self.frame_node, minlength=self.n_nodes))].astype(np.int64)
         return order, ptr
 
-    def members(self, node: int) -> I64:
-        """(n, 3) int64 rows [chain, row, frame_id] of every frame assigned to ``node``."""
+    def members(self, node: int) -> tuple[I64, F64]:
+        """Frames of ``node``: (n, 3) int64 rows [chain, row, frame_id] and (n,) float64 distances, metres."""
         order, ptr = self._members
-        return self.frame_refs(order[ptr[node] : ptr[node + 1]])
+        flat = order[ptr[node] : ptr[node + 1]]
+        return self.frame_refs(flat), self.frame_dist_m[flat]
 
     def chosen_frames(self, node: int) -> I64:
         """(<= K, 3) int64 rows [chain, row, frame_id] of the frames stored for image comparison."""
