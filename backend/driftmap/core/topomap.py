@@ -5,14 +5,16 @@ frame (x east, y north, yaw counter-clockwise from +x: the way the vehicle faces
 with a node every N metres of tunnel, each holding the frames that saw it, the connectivity graph and the
 sparse shortest-path matrix A that the HMM localiser (III-B) turns into its transition matrix.
 
-Nodes and edges come from :func:`driftmap.core.adjacency.trace_nodes`, whose docstring states the stand-still,
-join, wall, create and break rules. Afterwards each node's centre becomes the mean over its visits (a visit:
-one drive passing once) of the pose nearest its build-time centre, so a long stop counts once; every pose goes
-to the nearest of its traced node and that node's graph neighbours (so poses between node areas go to the
-nearer of the nodes before and after them, never across a wall); and each node keeps at most
-``frames_per_node`` frames chosen by a pluggable :data:`FrameSelector` (default: distinct headings first, so
-both travel directions, then distinct drives, then nearest the centre and best quality). SESAME's
-BuildSalientDatabase (paper 001, Algorithm 1) plugs in there: it receives every member frame of a node.
+Nodes and edges come from :func:`driftmap.core.adjacency.trace_nodes`, whose docstring states the rules
+(stand still, join, the wall rule, create, near misses, break). Afterwards each node's centre becomes the
+mean over its visits (a visit: one drive passing once) of the pose nearest its build-time centre, so a long
+stop counts once; every pose outside its traced node's area goes to the nearest of that node and its graph
+neighbours (so poses between node areas go to the nearer of the nodes before and after them, never across a
+wall); and each node keeps at most ``frames_per_node`` frames chosen by a pluggable :data:`FrameSelector`
+(default: distinct headings first, so both travel directions, then distinct drives, then nearest the centre
+and best quality). SESAME's BuildSalientDatabase (paper 001, Algorithm 1) plugs in there: it receives every
+member frame of a node with positions, headings, distances and qualities. A node that a drive stepped over
+(a frame step longer than N) holds no frame; it still carries the connectivity.
 """
 
 from __future__ import annotations
@@ -416,7 +418,7 @@ def build_topomap(
     near = np.concatenate([np.empty(0, dtype=bool), *trace.near])
     traced = np.concatenate([chain[:0], *trace.node])
     centres = _visit_centres(trace.centres_m, xy, traced, near, chain)
-    node = _nearest_of_neighbours(centres, trace.edges, xy, traced)
+    node = np.where(near, traced, _nearest_of_neighbours(centres, trace.edges, xy, traced))
     dist = np.linalg.norm(xy - centres[node], axis=1)
     visit = _runs(chain, node)
     m = centres.shape[0]
@@ -429,13 +431,17 @@ def build_topomap(
     ids_all = np.concatenate([chain[:0], *ids])
     order = np.argsort(node, kind="stable")
     ptr = np.r_[0, np.cumsum(np.bincount(node, minlength=m))].astype(np.int64)
-    chosen_ptr, chosen = [0], []
+    chosen_ptr, chosen = [0], list[int]()
     row = np.arange(chain.size) - chain_ptr[chain]
     per_frame: tuple[NDArray[Any], ...] = (chain, row, ids_all, xy, yaw, dist, qual_all, visit)
     for i in range(m):
         rows = order[ptr[i] : ptr[i + 1]]
+        if rows.size == 0:  # a drive stepped over the node (frame step > spacing): no frame saw it
+            chosen_ptr.append(len(chosen))
+            continue
         pick = np.asarray(select(NodeFrames(i, centres[i], *(a[rows] for a in per_frame)), p.frames_per_node))
         bad = pick.ndim != 1 or pick.size > p.frames_per_node or np.unique(pick).size != pick.size
+        bad = bad or (pick.size > 0 and pick.dtype.kind not in "iu")
         if bad or (pick.size and (pick.min() < 0 or pick.max() >= rows.size)):
             raise BadInputError(f"frame selector returned {pick} for node {i}", field="select_frames")
         chosen.extend(rows[pick].tolist())
