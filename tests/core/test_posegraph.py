@@ -106,6 +106,16 @@ class TestAlignment:
         np.testing.assert_allclose(result.wTi[0][:, 1], 200.0 + 1.2 * np.arange(11), atol=1e-3)
         np.testing.assert_allclose(result.wTi[0][:, 2], np.pi / 2, atol=1e-6)
 
+    def test_groundings_close_together_only_translate(self) -> None:
+        dead = dead_reckon(np.tile([1.0, 0.0, 0.0], (100, 1)))  # 100 m along x
+        frames = np.array([[0, 0], [0, 1]])
+        xy = np.array([[10.0, 20.0], [10.5, 20.9]])  # 1 m apart, 60 degrees off: too short to trust
+        none = (np.zeros((0, 4), np.int64), np.zeros((0, 3)))
+        (guess,), anchors = initial_guess([dead], [False], *none, frames, xy, 5.0, min_baseline_m=5.0)
+        np.testing.assert_allclose(guess[:, 2], 0.0)
+        np.testing.assert_allclose(guess[:2, :2].mean(axis=0), xy.mean(axis=0), atol=1e-12)
+        assert anchors == []  # the optimiser still gets the rotation from both groundings
+
     def test_ungrounded_drive_is_placed_by_its_closures(self) -> None:
         truth, chain, closures = loop_world()
         # a second drive over the first lap, dead-reckoned from its own origin, joined by closures only

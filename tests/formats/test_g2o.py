@@ -103,7 +103,7 @@ class TestFiles:
         assert read_g2o(path).edge_ij.shape == (3, 2)
         table = tmp_path / "gt.dat"
         table.write_text("0 0 0\n1.0 0.5 0.1\n\n", encoding="utf-8")
-        np.testing.assert_allclose(read_pose_table(table), [[0, 0, 0], [1.0, 0.5, 0.1]])
+        np.testing.assert_allclose(read_pose_table(table), np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 0.1]]))
         table.write_text("0 0 0\n1.0 0.5\n", encoding="utf-8")
         with pytest.raises(BadInputError) as caught:
             read_pose_table(table)

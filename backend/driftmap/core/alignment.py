@@ -198,8 +198,13 @@ def initial_guess(
     grounding_frames: IntArray,
     grounding_xy_m: FloatArray,
     inlier_m: float,
+    min_baseline_m: float = 5.0,
 ) -> tuple[list[FloatArray], list[Anchor]]:
     """Place every drive in the survey frame and choose the gauge anchors.
+
+    A drive whose groundings span at least ``min_baseline_m`` is rotated and moved onto them; one reached
+    by closures from placed drives is moved by a consensus of those closures; one with groundings too close
+    together to fix a rotation is only translated onto them; the rest keep their dead-reckoned pose.
 
     Args:
         chain_wTi: per drive c, (N_c, 3) dead-reckoned (or given) poses.
@@ -209,6 +214,7 @@ def initial_guess(
         grounding_frames: (G, 2) int rows [chain, frame] of groundings.
         grounding_xy_m: (G, 2) surveyed positions, survey frame, metres.
         inlier_m: agreement distance for placing drives by closures, metres.
+        min_baseline_m: groundings closer together than this do not rotate a drive, metres.
 
     Returns:
         (poses, anchors): per drive (N_c, 3) initial poses in the survey frame, and the anchors.
@@ -220,14 +226,14 @@ def initial_guess(
     poses = [np.array(p, dtype=np.float64) for p in chain_wTi]
     placed = list(given)
 
-    def rotation_fixed(rows: NDArray[np.bool_]) -> bool:
+    def rotation_fixed(rows: NDArray[np.bool_], baseline_m: float = _DEGENERATE_SPREAD_M) -> bool:
         frames = {tuple(f) for f in grounding_frames[rows].tolist()}
         xy = grounding_xy_m[rows]
-        return len(frames) >= 2 and float(np.ptp(xy, axis=0).max()) > _DEGENERATE_SPREAD_M
+        return len(frames) >= 2 and float(np.linalg.norm(np.ptp(xy, axis=0))) > baseline_m
 
     for c in range(len(poses)):
         rows = grounding_frames[:, 0] == c
-        if not placed[c] and rotation_fixed(rows):
+        if not placed[c] and rotation_fixed(rows, max(min_baseline_m, _DEGENERATE_SPREAD_M)):
             R, t, _ = umeyama_2d(poses[c][grounding_frames[rows, 1], :2], grounding_xy_m[rows])
             poses[c], placed[c] = transform_poses(poses[c], R, t), True
 
@@ -258,8 +264,8 @@ def initial_guess(
         grounded = [c for c in rest if (grounding_frames[:, 0] == c).any()]
         c = grounded[0] if grounded else rest[0]
         rows = grounding_frames[:, 0] == c
-        if grounded:  # one grounding (or several at one spot): translate onto it
-            _, t, _ = umeyama_2d(poses[c][grounding_frames[rows, 1], :2], grounding_xy_m[rows])
+        if grounded:  # one grounding, or several too close together to fix a rotation: translate
+            t = grounding_xy_m[rows].mean(axis=0) - poses[c][grounding_frames[rows, 1], :2].mean(axis=0)
             poses[c] = transform_poses(poses[c], np.eye(2), t)
         placed[c] = True
 

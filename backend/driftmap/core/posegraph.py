@@ -110,6 +110,7 @@ class PoseGraphParams:
     anchor_sigma_m: float = 1.0  # weak prior on a group of drives nothing ties to the survey, metres
     anchor_sigma_rad: float = 0.1  # its heading sigma, also for groundings that fix no rotation, radians
     placement_inlier_m: float = 5.0  # closures agreeing within this place a drive before optimising, m
+    align_min_baseline_m: float = 5.0  # groundings spanning less do not rotate a drive before optimising, m
     solver: Literal["lm", "isam2"] = "lm"  # batch Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame
     max_iterations: int = 100  # LM iterations; iSAM2: relinearisation rounds after the feed
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
@@ -322,7 +323,7 @@ class PoseGraphSession:
         g_xy = np.array([self._groundings[i].xy_m for i in ids], dtype=np.float64).reshape(-1, 2)
         poses, anchors = initial_guess(
             self._chain_init, self._given, self._closure_frames, self._closure_aTb, g_frames, g_xy,
-            p.placement_inlier_m,
+            p.placement_inlier_m, p.align_min_baseline_m,
         )  # fmt: skip
         graph = gtsam.NonlinearFactorGraph(self._graph)
         for a in anchors:
