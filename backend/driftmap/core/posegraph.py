@@ -197,10 +197,7 @@ def _noise_models(
     scaled = floor[:, None] * info * floor[None, :]  # information in units of the floor
     w, V = np.linalg.eigh(0.5 * (scaled + scaled.transpose(0, 2, 1)))
     if np.any(w <= 0):
-        raise _fail(
-            f"information matrix {int(np.flatnonzero((w <= 0).any(axis=1))[0])} is not positive definite",
-            field,
-        )
+        raise _fail(f"matrix {int(np.flatnonzero((w <= 0).any(axis=1))[0])} is not positive definite", field)
     clamped = np.einsum("kij,kj,klj->kil", V, np.minimum(w, 1.0), V) / floor[:, None] / floor[None, :]
     return [_NM.Gaussian.Information(m) for m in clamped]
 
@@ -225,6 +222,8 @@ class PoseGraphSession:
         groundings: Sequence[Grounding] = (),
         params: PoseGraphParams = POSEGRAPH_DEFAULT,
     ) -> None:
+        if not chains:
+            raise _fail("a pose graph needs at least one odometry chain", "chains")
         self.params = params
         self._sizes = [c.num_frames for c in chains]
         self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).astype(np.int64)
@@ -237,11 +236,10 @@ class PoseGraphSession:
                 raise _fail("iTj must be (N-1, 3) and finite", f"chains[{c}].iTj")
             sigmas = _sigmas(chain.sigmas, steps.shape[0], f"chains[{c}].sigmas")
             models = _noise_models(sigmas, chain.information, params, f"chains[{c}].information")
+            first = self.key((c, 0))
             for i, model in enumerate(models):
                 self._graph.add(
-                    gtsam.BetweenFactorPose2(
-                        self.key((c, i)), self.key((c, i + 1)), gtsam.Pose2(*steps[i]), model
-                    )
+                    gtsam.BetweenFactorPose2(first + i, first + i + 1, gtsam.Pose2(*steps[i]), model)
                 )
             init = chain.wTi_init
             if init is not None and (np.shape(init) != (len(steps) + 1, 3) or not np.all(np.isfinite(init))):
@@ -255,18 +253,14 @@ class PoseGraphSession:
         self._closures: list[tuple[gtsam.BetweenFactorPose2, gtsam.noiseModel.Base]] = []  # Gaussian part
         for k, lc in enumerate(closures):
             field = f"closures[{k}]"
-            self._closure_frames[k] = (
-                *self._check_ref(lc.a, field + ".a"),
-                *self._check_ref(lc.b, field + ".b"),
-            )
-            self._closure_aTb[k] = lc.aTb
+            a, b = self._check_ref(lc.a, field + ".a"), self._check_ref(lc.b, field + ".b")
+            self._closure_frames[k], self._closure_aTb[k] = (*a, *b), lc.aTb
             info = None if lc.information is None else np.asarray(lc.information)[None]
-            base = _noise_models(
-                _sigmas(lc.sigmas, 1, field + ".sigmas"), info, params, field + ".information"
-            )[0]
+            sigmas = _sigmas(lc.sigmas, 1, field + ".sigmas")
+            base = _noise_models(sigmas, info, params, field + ".information")[0]
             kernel = _ESTIMATORS.get(params.loop_kernel)
             model = base if kernel is None else _NM.Robust.Create(kernel(params.kernel_width), base)
-            factor = gtsam.BetweenFactorPose2(self.key(lc.a), self.key(lc.b), gtsam.Pose2(*lc.aTb), model)
+            factor = gtsam.BetweenFactorPose2(self.key(a), self.key(b), gtsam.Pose2(*lc.aTb), model)
             self._graph.add(factor)
             self._closures.append((factor, base))
         self._groundings: dict[int, Grounding] = {}
@@ -384,11 +378,8 @@ class PoseGraphSession:
         gnc_optimizer = gtsam.GncLMOptimizer(graph, start, gnc)
         gnc_optimizer.setInlierCostThresholds(p.gnc_inlier_cost)
         values = gnc_optimizer.optimize()
-        return (
-            values,
-            0,
-            np.asarray(gnc_optimizer.getWeights(), dtype=np.float64)[closures.start : closures.stop],
-        )
+        weights = np.asarray(gnc_optimizer.getWeights(), dtype=np.float64)
+        return values, 0, weights[closures.start : closures.stop]
 
     def _isam2(
         self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, anchors: list[Anchor]
