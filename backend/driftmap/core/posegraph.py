@@ -5,8 +5,12 @@ under a robust kernel (false closures from look-alike tunnels must not bend the 
 frames to surveyed positions (position only, no heading). Frames are addressed by ``(chain, frame)``.
 Poses are [x_m, y_m, yaw_rad] rows; ``wTi`` is frame i in the survey (world) frame, ``aTb`` frame b in
 frame a. Before optimising, every drive is moved rigidly into the survey frame (:mod:`alignment`), then
-Levenberg-Marquardt (or iSAM2 fed frame by frame) solves the graph. :class:`PoseGraphSession` keeps the
-graph and re-solves warm-started from its last solution when only groundings change.
+Levenberg-Marquardt solves the graph (optionally after iSAM2 fed frame by frame, which escapes local
+minima that stop batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information
+makes LM take zero steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
+last solution when only groundings change. The default kernel, DCS with Phi = 1, keeps M3500 within
+0.005 m of its outlier-free map with 20 % or 50 % random false closures, where plain least squares,
+Huber and Cauchy end 20-30 m off (``bench/bench_posegraph.py``).
 """
 
 from __future__ import annotations
@@ -112,7 +116,7 @@ class PoseGraphParams:
     placement_inlier_m: float = 5.0  # closures agreeing within this place a drive before optimising, m
     align_min_baseline_m: float = 5.0  # groundings spanning less do not rotate a drive before optimising, m
     solver: Literal["lm", "isam2"] = "lm"  # batch Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame
-    max_iterations: int = 100  # LM iterations; iSAM2: relinearisation rounds after the feed
+    max_iterations: int = 100  # Levenberg-Marquardt iterations (also of the polish after iSAM2)
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
     absolute_error_tol: float = 1e-5  # or by less than this
 
@@ -146,7 +150,7 @@ class PoseGraphResult:
         grounding_residual_m: (G, 3) [dx, dy, distance], optimised position minus surveyed, metres.
         initial_error: graph error (sum of factor costs) at the initial guess.
         final_error: graph error at the solution.
-        iterations: LM iterations, or iSAM2 updates; 0 for GNC (not reported by GTSAM).
+        iterations: LM iterations (after the feed for solver isam2); 0 for GNC (GTSAM does not say).
         solve_time_s: wall time of the optimisation, seconds.
     """
 
