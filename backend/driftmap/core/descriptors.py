@@ -93,12 +93,12 @@ def describe(thumbs: NDArray, dims: int) -> NDArray[np.float32]:
 
 @dataclass(frozen=True)
 class CoarseCandidates:
-    """Top-k earlier frames of every query by sequence-filtered descriptor similarity.
+    """Earlier frames of every query most similar by their descriptors.
 
     Attributes:
-        index: ``(N, k)`` int64 global frame indices of the candidates, best first; -1 pads rows
-            with fewer eligible local maxima.
-        similarity: ``(N, k)`` float32 their sequence-filtered cosine similarity (-inf for pads).
+        index: ``(N, k)`` int64 global frame indices of the candidates: the sequence-filtered top
+            ``top_k`` best first, then the single-frame ones; -1 pads missing ones.
+        similarity: ``(N, k)`` float32 cosine similarity of the list each came from (-inf: pad).
         n_compared: descriptor dot products computed (including the sequence context rows).
     """
 
@@ -121,6 +121,7 @@ def coarse_candidates(
     pos: NDArray,
     *,
     top_k: int,
+    top_k_single: int = 0,
     seq_len: int = 1,
     jitter: int = 1,
     nms_radius: int = 2,
@@ -139,7 +140,10 @@ def coarse_candidates(
             non-decreasing and ``limit[g] <= g``.
         pos: ``(N,)`` int, index of each frame within its chain (0 at a chain's first frame); the
             diagonal average never crosses a chain start.
-        top_k: candidates kept per query, >= 1.
+        top_k: candidates kept per query by the sequence-filtered similarity, >= 1.
+        top_k_single: further candidates by the single-frame similarity (when ``seq_len > 1``),
+            except those within ``nms_radius`` of a sequence candidate: a revisit's first frames,
+            whose predecessors lie elsewhere, and sharp turns, where the diagonal breaks.
         seq_len: frames averaged along the diagonal (1 = single-frame similarity).
         jitter: reference frames either side over which each earlier diagonal term is maximised.
         nms_radius: a candidate must be the maximum within this many reference frames either side.
@@ -162,8 +166,9 @@ def coarse_candidates(
         raise ValueError("top_k, seq_len and block must be >= 1")
     if n and (np.any(np.diff(lim) < 0) or np.any(lim > np.arange(n)) or np.any(lim < 0)):
         raise ValueError("limit must be non-decreasing with 0 <= limit[g] <= g")
-    index = np.full((n, top_k), -1, dtype=np.int64)
-    sim = np.full((n, top_k), -np.inf, dtype=np.float32)
+    width = top_k + top_k_single
+    index = np.full((n, width), -1, dtype=np.int64)
+    sim = np.full((n, width), -np.inf, dtype=np.float32)
     n_compared = 0
     first = int(np.searchsorted(lim, 1))  # queries before this have no eligible reference
     for b0 in range(first, n, block):
@@ -173,18 +178,32 @@ def coarse_candidates(
         s = d[e0:b1] @ d[:r].T  # (b1 - e0, r) cosine similarities
         n_compared += s.size
         c = _sequence_filter(s, b0 - e0, p[b0:b1], p[:r], seq_len, jitter)
-        for i in np.flatnonzero(lim[b0:b1] < r).tolist():  # the recent window of the block's queries
-            c[i, lim[b0 + i] :] = _NEG
-        suppress = c < _hfilter_max(c, nms_radius)
-        if min_similarity > -1.0:
-            suppress |= c < np.float32(min_similarity)
-        np.copyto(c, _NEG, where=suppress)
-        top, top_sim = _top_k_rows(c, min(top_k, r))
-        k = top.shape[1]
-        keep = top_sim > _NEG
-        index[b0:b1, :k] = np.where(keep, top, -1)
-        sim[b0:b1, :k] = np.where(keep, top_sim, -np.inf)
+        idx, val = _select(c, lim[b0:b1], top_k, nms_radius, min_similarity)
+        if top_k_single and seq_len > 1:
+            idx1, val1 = _select(np.array(s[b0 - e0 :]), lim[b0:b1], top_k_single, nms_radius, min_similarity)
+            near = (np.abs(idx1[:, :, None] - idx[:, None, :]) <= nms_radius) & (idx[:, None, :] >= 0)
+            idx1[near.any(axis=2)] = -1
+            idx, val = np.concatenate([idx, idx1], axis=1), np.concatenate([val, val1], axis=1)
+        index[b0:b1, : idx.shape[1]] = idx
+        sim[b0:b1, : idx.shape[1]] = np.where(idx >= 0, val, -np.inf)
     return CoarseCandidates(index=index, similarity=sim, n_compared=n_compared)
+
+
+def _select(
+    c: NDArray[np.float32], lim: NDArray[np.int64], k: int, nms_radius: int, min_similarity: float
+) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
+    """Top-``k`` eligible local maxima per row of ``c`` (overwritten); -1 pads missing ones."""
+    for i in np.flatnonzero(lim < c.shape[1]).tolist():  # the recent window of the block's queries
+        c[i, lim[i] :] = _NEG
+    suppress = c < _hfilter_max(c, nms_radius)
+    if min_similarity > -1.0:
+        suppress |= c < np.float32(min_similarity)
+    np.copyto(c, _NEG, where=suppress)
+    top, top_sim = _top_k_rows(c, min(k, c.shape[1]))
+    keep = top_sim > _NEG
+    pad = k - top.shape[1]
+    top = np.pad(np.where(keep, top, -1), ((0, 0), (0, pad)), constant_values=-1)
+    return top, np.pad(top_sim, ((0, 0), (0, pad)), constant_values=-np.inf)
 
 
 def _top_k_rows(

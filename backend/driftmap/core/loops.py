@@ -1,44 +1,46 @@
 """Appearance-only loop closure between keyframes of mapping drives (paper 000, section III-A-2).
 
-The paper compares each new frame with every earlier frame by the shifted SAD of eq. 3 (images
+The paper compares each new frame with every earlier frame by the shifted SAD of eq. 3 (frames
 pre-processed as in IV-C) and adds a constraint when ``d(i, j) < d_t``. In a mine that single-frame
-rule is fooled by long, visually aliased stretches of tunnel, and comparing every pair costs
-O(N^2) full comparisons. :func:`detect_loops` keeps eq. 3 and d_t but
+rule is fooled by long, visually aliased tunnels, and comparing every pair costs O(N^2) full
+comparisons. :func:`detect_loops` keeps eq. 3 and a threshold d_t but
 
-1. finds candidates cheaply: a 16x8 thumbnail descriptor, centred on the site mean and PCA
-   projected, compared for all pairs by matrix products and averaged along short diagonals; only
-   the ``top_k`` distinct places per query go on (:mod:`driftmap.core.descriptors`);
+1. finds candidates cheaply: blurred 16x8 thumbnails, centred on the site mean and PCA projected,
+   compared for all pairs by matrix products and averaged along short diagonals; only the
+   ``top_k`` distinct places per query go on (:mod:`driftmap.core.descriptors`);
 2. computes the full shifted SAD (eq. 3, overlap-normalised) on those candidates only;
 3. accepts ``(i, j)`` only when a *sequence* of ``seq_len`` query frames ``i - l`` matches reference
-   frames ``j - round(v l)`` for one of a few forward speed ratios ``v`` (SeqSLAM's diagonal on the
-   local confusion sub-matrix): mean d below d_t and at least ``seq_min_hits`` frames below d_t.
-   Only forward slopes are tried, so passes in opposite directions (a forward camera sees another
-   view) never close a loop;
-4. requires the match to be *distinctive*: its sequence score divided by the best score of any
-   candidate that is a different place must be at most ``uniqueness_ratio``. Frames within
-   ``same_place_frames`` of each other in one chain, or linked by an earlier accepted closure, count
-   as one place, so a third pass matching two earlier passes is not self-ambiguous. A candidate
-   that continues the previous query frame's accepted closure (one to two frames further on) is
-   exempt (tracking through an aliased stretch entered at a distinctive place), unless another place
-   is clearly better.
+   frames ``j - round(v l)`` for one of a few forward speed ratios ``v`` (SeqSLAM's diagonal in the
+   local confusion sub-matrix): mean d below d_t, and at least ``seq_min_hits`` of the frames below
+   the per-frame threshold d_hit. Only forward slopes are tried, so passes in opposite directions (a
+   forward camera sees another view) never close a loop;
+4. requires the match to be *distinctive* against the other sequence-checked places of the query:
+   how far the best other place's score lies below the background median, over how far the
+   match's score does, must be at most ``uniqueness_ratio``. Frames within ``same_place_frames`` in
+   one chain, or linked by an accepted closure, are one place, so a third pass matching two earlier
+   passes is not self-ambiguous. A candidate continuing the previous query frame's closure (0-2
+   frames further on) needs no uniqueness (tracking through an aliased stretch entered at a
+   distinctive place) unless another place is clearly better.
 
-Threshold: d_t is absolute. Patch-normalised frames have unit local variance, so d is dimensionless
-and stable across sites and lighting: identical views give ~0 plus noise, the same place seen again
-0.3-0.7, unrelated views ~0.9-1.1 (two independent unit normals differ by 2/sqrt(pi) ~ 1.13 on
-average, a little less after minimising over shifts). A relative threshold from the score
-distribution would adapt to a site but also accept the best of nothing; the uniqueness ratio is the
-relative part of the test.
+Threshold. d is dimensionless (patch-normalised pixels have unit local variance) but the score of
+*unrelated* views depends on the site: two random textures give ~1.0 (2/sqrt(pi) less the shift
+minimum), views of one mine's tunnels share their layout and give ~0.73 with a spread of ~0.05, and
+a true revisit lies anywhere from 0.3 to 0.7. A fixed d_t right for one is useless for the other,
+so by default d_t is relative: ``background_pairs`` random eligible pairs (revisits are a small
+fraction of them) give the background median m and robust sigma s (1.4826 MAD), and
+``d_t = m - d_t_sigmas s``, ``d_hit = m - hit_sigmas s``. An absolute ``d_t`` (the paper's rule)
+can be given instead; then ``d_hit = d_t``. The values used are in :class:`LoopStats`.
 
-Pose of a closure: appearance alone gives no metric relative pose. Emit a constraint with relative
-pose ~ identity (same place, same heading: the sequence check only accepts same-direction passes)
-and the suggested ``sigma_xy_m`` of a few metres (keyframe spacing, the +-1 frame uncertainty of the
-match and the camera's lateral position in the tunnel) and ``sigma_theta_rad``. The SAD shift
-``shift_px`` (query pixel ``(x, y)`` matches reference pixel ``(x + dx, y + dy)``) hints at a yaw
-and lateral offset for callers that know the camera model.
+Pose of a closure: appearance alone gives no metric relative pose. Add the constraint with relative
+pose ~ identity (same place, same heading: only same-direction passes are accepted) and the
+suggested ``sigma_xy_m`` (a few metres: keyframe spacing, the +-1 frame uncertainty of the match,
+the vehicle's lateral position in the tunnel) and ``sigma_theta_rad``. ``shift_px`` (query pixel
+``(x, y)`` matches reference pixel ``(x + dx, y + dy)``) hints at a yaw and lateral offset for
+callers that know the camera.
 
 Frames are addressed by ``(chain, index)``; the global order is chain 0's frames, then chain 1's,
-and so on (pass chains in recording order). Decisions are causal except for the descriptor mean and
-PCA axes, which are fitted on all frames.
+... (pass chains in recording order). Decisions are causal except for the descriptor mean, the PCA
+axes and the background score, which use all frames.
 """
 
 from __future__ import annotations
@@ -72,7 +74,11 @@ log = logging.getLogger(__name__)
 class LoopParams:
     """Loop closure by shifted SAD (paper 000 III-A-2, eq. 3) with candidates and sequence checks."""
 
-    d_t: float = 0.75  # eq. 3 threshold on the overlap-normalised SAD of patch-normalised frames
+    d_t: float | None = None  # absolute eq. 3 threshold on a sequence's mean d; None: from the background
+    d_t_sigmas: float = 4.5  # relative d_t = background median - this x background sigma
+    hit_sigmas: float = 3.0  # relative d_hit (a matching frame of a sequence), same form
+    sigma_floor: float = 0.05  # background sigma used is at least this fraction of its median
+    background_pairs: int = 2000  # random eligible pairs scored for the background median and sigma
     sad: SadParams = SAD_DEFAULT  # shift search +-x_max, +-y_max of eq. 3, pixels of the frames
     recent_frames: int = 20  # same-chain frames i-1 .. i-recent_frames are never compared with i
     recent_s: float = 0.0  # also exclude same-chain frames less than this many seconds older
@@ -81,71 +87,77 @@ class LoopParams:
     coarse_dims: int = 64  # PCA dimensions of the centred thumbnail; 0 keeps all
     coarse_seq_len: int = 5  # frames averaged along the diagonal of the coarse similarity
     coarse_min_similarity: float = -1.0  # drop coarse candidates below this cosine similarity
-    top_k: int = 8  # distinct-place candidates per query given the full SAD
+    top_k: int = 4  # distinct-place candidates per query by sequence-filtered descriptors, full SAD
+    top_k_single: int = 4  # plus this many by single-frame descriptors (revisit starts, turns)
     nms_radius: int = 2  # a coarse candidate is the best within this many frames of its chain
     seq_len: int = 5  # query frames i-seq_len+1 .. i that must match a diagonal; 1 = single frame
-    seq_min_hits: int = 4  # of those, frames that must individually have d < d_t
-    seq_slopes: tuple[float, ...] = (0.67, 1.0, 1.5)  # reference frames per query frame tried
-    seq_gate: float = 1.25  # candidates with d < d_t * seq_gate get a sequence check
-    max_seq_checks: int = 4  # at most this many per query (lowest d first)
-    uniqueness_ratio: float = 0.9  # accept when score / best other place's score <= this; 1 = off
+    seq_min_hits: int = 4  # of those, frames that must have d < d_hit
+    seq_slopes: tuple[float, ...] = (
+        -1.5,
+        -1.0,
+        -0.67,
+        0.67,
+        1.0,
+        1.5,
+    )  # ref. frames per query frame; <0: reversing
+    max_seq_checks: int = 3  # candidates per query checked (lowest d; d < median - 1 sigma)
+    uniqueness_ratio: float = 0.7  # accept when other place's margin / this margin <= this; 1 = off
     same_place_frames: int = 4  # same-chain frames this close (or linked by a closure) are one place
     track: bool = True  # continuing the previous frame's closure needs no uniqueness test
-    max_closures_per_query: int = 2  # closures emitted per query frame (to distinct chains/places)
+    max_closures_per_query: int = 2  # closures emitted per query frame (to distinct places)
     sigma_xy_m: float = 2.0  # suggested position sigma of a confident closure, metres
     sigma_xy_max_m: float = 6.0  # ... of a closure at the limits of the tests, metres
     sigma_theta_rad: float = 0.2  # suggested heading sigma (same-direction passes), radians
+    seed: int = 0  # of the background pair sample
 
     def __post_init__(self) -> None:
-        if not self.d_t > 0:
-            raise ValueError(f"LoopParams.d_t must be > 0, got {self.d_t}")
-        ints = {
-            "recent_frames": self.recent_frames,
-            "coarse_dims": self.coarse_dims,
-            "nms_radius": self.nms_radius,
-            "same_place_frames": self.same_place_frames,
-        }
-        for name, value in ints.items():
-            if value < 0:
-                raise ValueError(f"LoopParams.{name} must be >= 0, got {value}")
-        for name, value in {
-            "top_k": self.top_k,
-            "seq_len": self.seq_len,
-            "coarse_seq_len": self.coarse_seq_len,
-            "max_seq_checks": self.max_seq_checks,
-            "max_closures_per_query": self.max_closures_per_query,
-        }.items():
-            if value < 1:
-                raise ValueError(f"LoopParams.{name} must be >= 1, got {value}")
+        if self.d_t is not None and not self.d_t > 0:
+            raise ValueError(f"LoopParams.d_t must be > 0 or None, got {self.d_t}")
+        for name in (
+            "recent_frames",
+            "coarse_dims",
+            "nms_radius",
+            "same_place_frames",
+            "recent_s",
+            "top_k_single",
+        ):
+            if getattr(self, name) < 0:
+                raise ValueError(f"LoopParams.{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("top_k", "seq_len", "coarse_seq_len", "max_seq_checks", "max_closures_per_query"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"LoopParams.{name} must be >= 1, got {getattr(self, name)}")
         if not 1 <= self.seq_min_hits <= self.seq_len:
             raise ValueError("LoopParams.seq_min_hits must be in 1 .. seq_len")
-        if not self.seq_slopes or min(self.seq_slopes) <= 0:
-            raise ValueError("LoopParams.seq_slopes must be non-empty and positive (forward passes)")
-        if not 0 < self.uniqueness_ratio <= 1 or self.seq_gate < 1 or self.recent_s < 0:
-            raise ValueError("LoopParams: 0 < uniqueness_ratio <= 1, seq_gate >= 1, recent_s >= 0")
+        if not self.seq_slopes or 0 in self.seq_slopes:
+            raise ValueError("LoopParams.seq_slopes must be non-empty and non-zero")
+        if not 0 < self.uniqueness_ratio <= 1 or self.background_pairs < 10:
+            raise ValueError("LoopParams: 0 < uniqueness_ratio <= 1 and background_pairs >= 10")
         if min(self.coarse_size_px) <= 0 or not 0 < self.sigma_xy_m <= self.sigma_xy_max_m:
             raise ValueError("LoopParams: coarse_size_px > 0 and 0 < sigma_xy_m <= sigma_xy_max_m")
 
 
 LOOPS_DEFAULT = LoopParams()
-# The paper's rule: best earlier frame with d < d_t, no sequence or uniqueness test (aliasing-prone).
+# The paper's rule: the best earlier frame with d < d_t, no sequence or uniqueness test (aliasing-prone).
 LOOPS_PAPER = LoopParams(
     coarse_seq_len=1,
-    top_k=16,
+    top_k=8,
+    top_k_single=0,
     seq_len=1,
     seq_min_hits=1,
     uniqueness_ratio=1.0,
     track=False,
     max_closures_per_query=1,
 )
-LOOPS_FAST = LoopParams(sad=SAD_FAST, coarse_dims=32, top_k=4, max_seq_checks=2, seq_slopes=(0.75, 1.0, 1.33))
+LOOPS_FAST = LoopParams(
+    sad=SAD_FAST, coarse_dims=32, top_k=3, top_k_single=2, max_seq_checks=2, background_pairs=500
+)
 
 
 @dataclass(frozen=True, slots=True)
 class LoopClosure:
-    """One accepted closure: query frame ``(chain_a, idx_a)`` shows the place of ``(chain_b, idx_b)``.
+    """Query frame ``(chain_a, idx_a)`` shows the place of the earlier ``(chain_b, idx_b)``.
 
-    The reference is earlier in the global order. Relative pose: ~ identity (see module docstring).
+    Relative pose: ~ identity with the suggested sigmas (see the module docstring).
 
     Attributes:
         chain_a: chain of the query frame.
@@ -154,9 +166,9 @@ class LoopClosure:
         idx_b: index of the reference frame in its chain.
         d: eq. 3 score of the pair (mean absolute difference of patch-normalised pixels).
         seq_d: mean d along the accepted diagonal of ``seq_len`` frame pairs.
-        uniqueness: ``seq_d`` / best score of another place (0 when there was none; lower is better).
+        uniqueness: best other place's margin below the background / this one's (0: no rival).
         shift_px: ``(dx, dy)`` best SAD shift of the pair, pixels of the compared frames.
-        confidence: in [0, 1], from the margins below d_t and the uniqueness ratio.
+        confidence: in [0, 1], from the margins below d_t and of the uniqueness test.
         sigma_xy_m: suggested position sigma of the constraint, metres.
         sigma_theta_rad: suggested heading sigma, radians.
         tracked: accepted as the continuation of the previous query frame's closure.
@@ -178,35 +190,45 @@ class LoopClosure:
 
 @dataclass(frozen=True)
 class LoopStats:
-    """Work done by :func:`detect_loops`, for benchmarks.
+    """Thresholds used and work done by :func:`detect_loops`.
 
     Attributes:
         n_frames: frames of all chains.
         n_eligible_pairs: (query, earlier frame) pairs outside the recent window: the full search.
         n_coarse: descriptor similarities computed.
+        n_full_background: full SAD comparisons of the background sample.
         n_full_candidates: full SAD comparisons of queries against their coarse candidates.
         n_full_sequence: further full SAD comparisons made by the sequence checks.
         n_sequence_checks: diagonals evaluated.
+        background_median: median d of random eligible pairs.
+        background_sigma: their robust standard deviation (1.4826 MAD), at least ``sigma_floor`` x median.
+        d_t: threshold on a sequence's mean d that was applied.
+        d_hit: per-frame threshold that was applied.
         time_s: seconds per stage: ``descriptors``, ``coarse``, ``full``, ``sequence``.
     """
 
     n_frames: int = 0
     n_eligible_pairs: int = 0
     n_coarse: int = 0
+    n_full_background: int = 0
     n_full_candidates: int = 0
     n_full_sequence: int = 0
     n_sequence_checks: int = 0
+    background_median: float = float("nan")
+    background_sigma: float = float("nan")
+    d_t: float = float("nan")
+    d_hit: float = float("nan")
     time_s: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_full(self) -> int:
         """All full shifted-SAD comparisons."""
-        return self.n_full_candidates + self.n_full_sequence
+        return self.n_full_background + self.n_full_candidates + self.n_full_sequence
 
 
 @dataclass(frozen=True)
 class LoopResult:
-    """Closures in query order, plus work statistics."""
+    """Closures in query order, plus thresholds and work statistics."""
 
     closures: list[LoopClosure]
     stats: LoopStats
@@ -246,38 +268,53 @@ def _stack(
     return np.asarray(frames, dtype=np.float32), chain, pos, limit.astype(np.int64)
 
 
+def _background(cache: PairCache, limit: NDArray[np.int64], p: LoopParams) -> tuple[float, float]:
+    """Median and robust sigma of d over random eligible pairs (uniform over all such pairs)."""
+    q = np.flatnonzero(limit > 0)
+    rng = np.random.default_rng(p.seed)
+    m = int(min(p.background_pairs, limit.sum()))
+    gq = rng.choice(q, size=m, p=limit[q] / limit[q].sum())
+    rj = np.minimum((rng.random(m) * limit[gq]).astype(np.int64), limit[gq] - 1)
+    d = cache.fetch(gq, rj)
+    median = float(np.median(d))
+    sigma = 1.4826 * float(np.median(np.abs(d - median)))
+    return median, max(sigma, p.sigma_floor * median, 1e-3)
+
+
 class _Matcher:
     """Sequence scores and the place relation of one :func:`detect_loops` call."""
 
     def __init__(
-        self, cache: PairCache, chain: NDArray[np.int64], pos: NDArray[np.int64], params: LoopParams
+        self, cache: PairCache, frames_index: tuple[NDArray[np.int64], ...], p: LoopParams, d_hit: float
     ):
-        self.cache, self.chain, self.pos, self.p = cache, chain, pos, params
-        self.n = chain.size
+        self.cache, self.p, self.d_hit = cache, p, d_hit
+        self.chain, self.pos, self.limit = frames_index
+        self.n = self.chain.size
         self.links: dict[int, list[int]] = {}
-        lags = np.arange(params.seq_len)
-        self.offsets = np.unique(np.rint(np.outer(params.seq_slopes, lags)).astype(np.int64), axis=0)
+        lags = np.arange(p.seq_len)
+        self.offsets = np.unique(np.rint(np.outer(p.seq_slopes, lags)).astype(np.int64), axis=0)
 
     def seq_scores(
         self, qi: NDArray[np.int64], rj: NDArray[np.int64]
     ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
-        """Best mean d along a forward diagonal ending at each ``(qi, rj)``, and its hits below d_t.
+        """Best mean d along a diagonal ending at each ``(qi, rj)``, and its frames below d_hit.
 
-        Returns ``(M,)`` scores (inf when no diagonal fits inside both chains) and ``(M,)`` hits.
+        Query frame ``qi - l`` pairs with reference ``rj - round(v l)`` for each slope ``v``; every
+        pair must lie in the two chains and be eligible. Returns ``(M,)`` scores (inf when no
+        diagonal fits) and ``(M,)`` hits.
         """
         lags = np.arange(self.p.seq_len)
-        q = qi[:, None, None] - lags[None, None, :]  # (M, 1, L)
-        r = rj[:, None, None] - self.offsets[None, :, :]  # (M, S, L)
-        ok = (self.pos[qi] >= self.p.seq_len - 1)[:, None] & (
-            self.pos[rj][:, None] >= self.offsets[None, :, -1]
-        )
-        q, r = np.broadcast_arrays(q, r)
+        q, r = np.broadcast_arrays(qi[:, None, None] - lags, rj[:, None, None] - self.offsets)  # (M, S, L)
+        r_in = np.clip(r, 0, self.n - 1)
+        q_in = np.clip(q, 0, self.n - 1)
+        fits = (r >= 0) & (r < self.limit[q_in]) & (self.chain[r_in] == self.chain[rj][:, None, None])
+        ok = (self.pos[qi] >= self.p.seq_len - 1)[:, None] & fits.all(axis=2)
         d = np.full(r.shape, np.inf, dtype=np.float32)
         d[ok] = self.cache.fetch(q[ok], r[ok])
         mean = d.mean(axis=2)
         best = np.argmin(mean, axis=1)
         take = np.arange(qi.size)
-        hits = (d[take, best] < self.p.d_t).sum(axis=1)
+        hits = (d[take, best] < self.d_hit).sum(axis=1)
         return mean[take, best].astype(np.float32), hits.astype(np.int64)
 
     def same_place(self, a: int, b: int) -> bool:
@@ -302,10 +339,10 @@ def detect_loops(
     params: LoopParams = LOOPS_DEFAULT,
     timestamps_s: Sequence[NDArray] | None = None,
 ) -> LoopResult:
-    """Find loop closures among the keyframes of a site's mapping drives (see module docstring).
+    """Find loop closures among the keyframes of a site's mapping drives (see the module docstring).
 
     Every keyframe is compared with every earlier keyframe in the global order (all frames of
-    earlier chains; its own chain outside the recent window), through the coarse candidate search.
+    earlier chains; its own chain outside the recent window) through the coarse candidate search.
 
     Args:
         chains: one ``(N_i, H, W)`` float32 stack of pre-processed keyframes per drive
@@ -314,18 +351,17 @@ def detect_loops(
         timestamps_s: optional ``(N_i,)`` non-decreasing seconds per chain, for ``recent_s``.
 
     Returns:
-        :class:`LoopResult`: closures ordered by query frame, and work statistics.
+        :class:`LoopResult`: closures ordered by query frame, thresholds and work statistics.
 
     Raises:
-        ValueError: chains of different image sizes or not 3-D, timestamps of the wrong shape,
+        ValueError: chains not 3-D or of different image sizes, timestamps of the wrong shape,
             or a SAD shift range leaving no overlap.
     """
-    frames, chain, pos, limit = _stack(chains, timestamps_s, params)
-    n = frames.shape[0]
-    times: dict[str, float] = {}
-    if n == 0 or limit[-1] == 0:
-        return LoopResult([], LoopStats(n_frames=n, time_s=times))
     p = params
+    frames, chain, pos, limit = _stack(chains, timestamps_s, p)
+    n = frames.shape[0]
+    if n == 0 or limit[-1] == 0:
+        return LoopResult([], LoopStats(n_frames=n))
     t0 = time.perf_counter()
     desc = describe(thumbnails(frames, p.coarse_size_px, p.coarse_blur_px), p.coarse_dims)
     t1 = time.perf_counter()
@@ -334,24 +370,30 @@ def detect_loops(
         limit,
         pos,
         top_k=p.top_k,
+        top_k_single=p.top_k_single,
         seq_len=p.coarse_seq_len,
         nms_radius=p.nms_radius,
         min_similarity=p.coarse_min_similarity,
     )
     t2 = time.perf_counter()
     cache = PairCache(frames, p.sad)
-    m = _Matcher(cache, chain, pos, p)
+    median, sigma = _background(cache, limit, p)
+    n_bg = cache.n_computed
+    d_t = p.d_t if p.d_t is not None else median - p.d_t_sigmas * sigma
+    d_hit = d_t if p.d_t is not None else median - p.hit_sigmas * sigma
     valid = cand.index >= 0
     qi = np.broadcast_to(np.arange(n)[:, None], cand.index.shape)
     d_cand = np.full(cand.index.shape, np.inf, dtype=np.float32)
     d_cand[valid] = cache.fetch(qi[valid], cand.index[valid])
-    n_full_candidates = cache.n_computed
+    n_cand = cache.n_computed - n_bg
     t3 = time.perf_counter()
-    # Sequence checks for the lowest-d candidates under the gate, all diagonals in one batch.
+    # Sequence checks of the lowest-d candidates better than the background, in one batch.
     order = np.argsort(d_cand, axis=1, kind="stable")
     d_sorted = np.take_along_axis(d_cand, order, axis=1)
     idx_sorted = np.take_along_axis(cand.index, order, axis=1)
-    checked = (d_sorted < p.d_t * p.seq_gate) & (np.arange(p.top_k) < p.max_seq_checks)[None, :]
+    gate = max(median - sigma, d_t, d_hit)
+    checked = (d_sorted < gate) & (np.arange(d_sorted.shape[1]) < p.max_seq_checks)[None, :]
+    m = _Matcher(cache, (chain, pos, limit), p, d_hit)
     seq = np.full(d_cand.shape, np.inf, dtype=np.float32)
     hits = np.zeros(d_cand.shape, dtype=np.int64)
     seq[checked], hits[checked] = m.seq_scores(qi[checked], idx_sorted[checked])
@@ -359,77 +401,73 @@ def detect_loops(
     closures: list[LoopClosure] = []
     accepted: dict[int, list[int]] = {}
     for g in np.flatnonzero(checked.any(axis=1) | (p.track & (pos > 0))).tolist():
-        # Evaluated places of query g: (reference, score, hits, d, tracked).
+        # The sequence-checked places of query g: (reference, score, hits, tracked).
         places = [
-            (
-                int(idx_sorted[g, k]),
-                float(seq[g, k] if checked[g, k] else d_sorted[g, k]),
-                int(hits[g, k]),
-                bool(checked[g, k]),
-                False,
-            )
-            for k in range(p.top_k)
-            if idx_sorted[g, k] >= 0
+            (int(r), float(s), int(h), False)
+            for r, s, h in zip(idx_sorted[g], seq[g], hits[g], strict=True)
+            if np.isfinite(s)
         ]
-        if p.track and pos[g] > 0:
-            for r in accepted.get(g - 1, []):
-                nxt = np.array(
-                    [x for x in (r, r + 1, r + 2) if x < limit[g] and chain[x] == chain[r]], dtype=np.int64
-                )
-                if not nxt.size:
-                    continue
+        for r in accepted.get(g - 1, []) if p.track and pos[g] > 0 else []:
+            nxt = np.array(
+                [x for x in range(r - 2, r + 3) if 0 <= x < limit[g] and chain[x] == chain[r]], dtype=np.int64
+            )
+            if nxt.size:
                 j = int(nxt[np.argmin(cache.fetch(np.full(nxt.size, g), nxt))])
-                known = [x for x in places if x[0] == j and x[3]]
-                if known:
-                    places.append((j, known[0][1], known[0][2], True, True))
-                    continue
-                s, h = m.seq_scores(np.array([g]), np.array([j]))
-                n_checks += 1
-                places.append((j, float(s[0]), int(h[0]), True, True))
-        emitted = _decide(g, places, m, closures)
+                known = [x for x in places if x[0] == j]
+                if not known:
+                    s, h = m.seq_scores(np.array([g]), np.array([j]))
+                    n_checks += 1
+                    known = [(j, float(s[0]), int(h[0]), True)]
+                places.append((j, known[0][1], known[0][2], True))
+        emitted = _decide(g, places, m, d_t, median, closures)
         if emitted:
             accepted[g] = emitted
     t4 = time.perf_counter()
-    times.update(descriptors=t1 - t0, coarse=t2 - t1, full=t3 - t2, sequence=t4 - t3)
     stats = LoopStats(
         n_frames=n,
         n_eligible_pairs=int(limit.sum()),
         n_coarse=cand.n_compared,
-        n_full_candidates=n_full_candidates,
-        n_full_sequence=cache.n_computed - n_full_candidates,
+        n_full_background=n_bg,
+        n_full_candidates=n_cand,
+        n_full_sequence=cache.n_computed - n_bg - n_cand,
         n_sequence_checks=n_checks,
-        time_s=times,
+        background_median=median,
+        background_sigma=sigma,
+        d_t=d_t,
+        d_hit=d_hit,
+        time_s={"descriptors": t1 - t0, "coarse": t2 - t1, "full": t3 - t2, "sequence": t4 - t3},
     )
     log.debug("loop closure: %d frames, %d closures, %s", n, len(closures), stats)
     return LoopResult(closures, stats)
 
 
 def _decide(
-    g: int, places: list[tuple[int, float, int, bool, bool]], m: _Matcher, out: list[LoopClosure]
+    g: int,
+    places: list[tuple[int, float, int, bool]],
+    m: _Matcher,
+    d_t: float,
+    median: float,
+    out: list[LoopClosure],
 ) -> list[int]:
     """Accept the distinctive, sequence-consistent places of query ``g``; append closures to ``out``."""
     p = m.p
     emitted: list[int] = []
-    for r, score, n_hits, seq_checked, tracked in sorted(places, key=lambda x: x[1]):
+    for r, score, n_hits, tracked in sorted(places, key=lambda x: x[1]):
         if len(emitted) >= p.max_closures_per_query:
             break
-        if not (seq_checked and score < p.d_t and n_hits >= p.seq_min_hits):
+        if not (score < d_t and n_hits >= p.seq_min_hits):
             continue
         if any(m.chain[e] == m.chain[r] and abs(e - r) <= p.same_place_frames for e in emitted):
             continue
-        others = [s for x, s, _, _, _ in places if not m.same_place(r, x)]
-        best_other = min(others, default=np.inf)
-        ratio = score / best_other if np.isfinite(best_other) and best_other > 0 else 0.0
+        margin = max(median - score, 1e-6)
+        rival = max((median - s for x, s, _, _ in places if not m.same_place(r, x)), default=0.0)
+        ratio = max(rival, 0.0) / margin
         if ratio > (1.0 / p.uniqueness_ratio if tracked else p.uniqueness_ratio):
             continue
         d, dx, dy = m.cache.get(g, r)
-        margin_d = min(1.0, max(0.0, 2.0 * (1.0 - score / p.d_t)))
-        margin_u = (
-            0.5
-            if tracked or p.uniqueness_ratio >= 1
-            else min(1.0, max(0.0, (1.0 - ratio) / (1.0 - p.uniqueness_ratio)))
-        )
-        conf = margin_d * margin_u
+        conf_d = min(1.0, max(0.0, (d_t - score) / max(median - d_t, 1e-6)))
+        conf_u = 0.5 if tracked else max(0.0, 1.0 - ratio / p.uniqueness_ratio)
+        conf = float(np.sqrt(conf_d * conf_u))
         out.append(
             LoopClosure(
                 chain_a=int(m.chain[g]),
