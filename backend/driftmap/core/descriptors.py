@@ -31,7 +31,15 @@ from numpy.typing import NDArray
 from driftmap.core.params import SAD_DEFAULT, SadParams
 from driftmap.core.sad import SadResult
 
-__all__ = ["CoarseCandidates", "PairCache", "coarse_candidates", "describe", "sad_pairs", "thumbnails"]
+__all__ = [
+    "CoarseCandidates",
+    "DiagonalScorer",
+    "PairCache",
+    "coarse_candidates",
+    "describe",
+    "sad_pairs",
+    "thumbnails",
+]
 
 _NEG = np.float32(-1e30)  # "not eligible": below any cosine similarity, safe in OpenCV filters
 
@@ -378,3 +386,77 @@ class PairCache:
     def get(self, i: int, j: int) -> tuple[float, int, int]:
         """``(d, dx, dy)`` of a pair already fetched."""
         return self.entries[i * self.n + j]
+
+    def background(self, limit: NDArray[np.int64], n_pairs: int, seed: int) -> tuple[float, float]:
+        """Median and robust sigma (1.4826 MAD) of d over random eligible pairs.
+
+        Args:
+            limit: ``(N,)`` exclusive end of each query's eligible references (see
+                :func:`coarse_candidates`); pairs are drawn uniformly from all eligible pairs.
+            n_pairs: pairs drawn (at most the number of eligible pairs), with replacement.
+            seed: of the draw.
+        """
+        q = np.flatnonzero(limit > 0)
+        rng = np.random.default_rng(seed)
+        gq = rng.choice(q, size=int(min(n_pairs, limit.sum())), p=limit[q] / limit[q].sum())
+        rj = np.minimum((rng.random(gq.size) * limit[gq]).astype(np.int64), limit[gq] - 1)
+        d = self.fetch(gq, rj)
+        median = float(np.median(d))
+        return median, 1.4826 * float(np.median(np.abs(d - median)))
+
+
+class DiagonalScorer:
+    """SeqSLAM-style scores of short diagonals of the confusion matrix, from a :class:`PairCache`.
+
+    Query frame ``i - l`` (``l = 0 .. seq_len - 1``) pairs with reference ``j - round(v l)`` for each
+    slope ``v`` (reference frames per query frame; negative: the reference drive passed the other
+    way, e.g. reversing with the same heading). Every pair must lie inside the two chains and be
+    eligible (``r < limit[i - l]``).
+
+    Args:
+        cache: eq. 3 scores.
+        chain: ``(N,)`` chain of each frame; ``pos``: ``(N,)`` index in its chain; ``limit``:
+            ``(N,)`` exclusive end of the eligible references of each query.
+        seq_len: frames in a diagonal.
+        slopes: the slopes ``v`` tried; the best one counts.
+        d_hit: a pair with ``d < d_hit`` is a hit.
+    """
+
+    def __init__(
+        self,
+        cache: PairCache,
+        chain: NDArray[np.int64],
+        pos: NDArray[np.int64],
+        limit: NDArray[np.int64],
+        seq_len: int,
+        slopes: tuple[float, ...],
+        d_hit: float,
+    ) -> None:
+        self.cache, self.chain, self.pos, self.limit = cache, chain, pos, limit
+        self.seq_len, self.d_hit, self.n = seq_len, d_hit, chain.size
+        self.offsets = np.unique(np.rint(np.outer(slopes, np.arange(seq_len))).astype(np.int64), axis=0)
+
+    def scores(
+        self, qi: NDArray[np.int64], rj: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        """Best mean d over the slopes of the diagonals ending at ``(qi[m], rj[m])``, and its hits.
+
+        Missing scores are computed in one batch. Returns ``(M,)`` float32 means (inf when no
+        diagonal fits) and ``(M,)`` int64 hits of the best slope.
+        """
+        lags = np.arange(self.seq_len)
+        q, r = np.broadcast_arrays(qi[:, None, None] - lags, rj[:, None, None] - self.offsets)  # (M, S, L)
+        r_in = np.clip(r, 0, self.n - 1)
+        fits = (
+            (r >= 0)
+            & (r < self.limit[np.clip(q, 0, self.n - 1)])
+            & (self.chain[r_in] == self.chain[rj][:, None, None])
+        )
+        ok = (self.pos[qi] >= self.seq_len - 1)[:, None] & fits.all(axis=2)
+        d = np.full(r.shape, np.inf, dtype=np.float32)
+        d[ok] = self.cache.fetch(q[ok], r[ok])
+        mean = d.mean(axis=2)
+        best = np.argmin(mean, axis=1)
+        take = np.arange(qi.size)
+        hits = (d[take, best] < self.d_hit).sum(axis=1)
+        return mean[take, best].astype(np.float32), hits.astype(np.int64)

@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.descriptors import PairCache, coarse_candidates, describe, thumbnails
+from driftmap.core.descriptors import DiagonalScorer, PairCache, coarse_candidates, describe, thumbnails
 from driftmap.core.params import SAD_DEFAULT, SAD_FAST, SadParams
 
 __all__ = [
@@ -268,58 +268,16 @@ def _stack(
     return np.asarray(frames, dtype=np.float32), chain, pos, limit.astype(np.int64)
 
 
-def _background(cache: PairCache, limit: NDArray[np.int64], p: LoopParams) -> tuple[float, float]:
-    """Median and robust sigma of d over random eligible pairs (uniform over all such pairs)."""
-    q = np.flatnonzero(limit > 0)
-    rng = np.random.default_rng(p.seed)
-    m = int(min(p.background_pairs, limit.sum()))
-    gq = rng.choice(q, size=m, p=limit[q] / limit[q].sum())
-    rj = np.minimum((rng.random(m) * limit[gq]).astype(np.int64), limit[gq] - 1)
-    d = cache.fetch(gq, rj)
-    median = float(np.median(d))
-    sigma = 1.4826 * float(np.median(np.abs(d - median)))
-    return median, max(sigma, p.sigma_floor * median, 1e-3)
+class _Places:
+    """Which frames count as one place: one chain within ``radius`` frames, or linked by a closure."""
 
-
-class _Matcher:
-    """Sequence scores and the place relation of one :func:`detect_loops` call."""
-
-    def __init__(
-        self, cache: PairCache, frames_index: tuple[NDArray[np.int64], ...], p: LoopParams, d_hit: float
-    ):
-        self.cache, self.p, self.d_hit = cache, p, d_hit
-        self.chain, self.pos, self.limit = frames_index
-        self.n = self.chain.size
+    def __init__(self, chain: NDArray[np.int64], radius: int) -> None:
+        self.chain, self.radius, self.n = chain, radius, chain.size
         self.links: dict[int, list[int]] = {}
-        lags = np.arange(p.seq_len)
-        self.offsets = np.unique(np.rint(np.outer(p.seq_slopes, lags)).astype(np.int64), axis=0)
-
-    def seq_scores(
-        self, qi: NDArray[np.int64], rj: NDArray[np.int64]
-    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
-        """Best mean d along a diagonal ending at each ``(qi, rj)``, and its frames below d_hit.
-
-        Query frame ``qi - l`` pairs with reference ``rj - round(v l)`` for each slope ``v``; every
-        pair must lie in the two chains and be eligible. Returns ``(M,)`` scores (inf when no
-        diagonal fits) and ``(M,)`` hits.
-        """
-        lags = np.arange(self.p.seq_len)
-        q, r = np.broadcast_arrays(qi[:, None, None] - lags, rj[:, None, None] - self.offsets)  # (M, S, L)
-        r_in = np.clip(r, 0, self.n - 1)
-        q_in = np.clip(q, 0, self.n - 1)
-        fits = (r >= 0) & (r < self.limit[q_in]) & (self.chain[r_in] == self.chain[rj][:, None, None])
-        ok = (self.pos[qi] >= self.p.seq_len - 1)[:, None] & fits.all(axis=2)
-        d = np.full(r.shape, np.inf, dtype=np.float32)
-        d[ok] = self.cache.fetch(q[ok], r[ok])
-        mean = d.mean(axis=2)
-        best = np.argmin(mean, axis=1)
-        take = np.arange(qi.size)
-        hits = (d[take, best] < self.d_hit).sum(axis=1)
-        return mean[take, best].astype(np.float32), hits.astype(np.int64)
 
     def same_place(self, a: int, b: int) -> bool:
-        """One chain within ``same_place_frames``, or linked through an accepted closure."""
-        rad, ch = self.p.same_place_frames, self.chain
+        """Frames ``a`` and ``b`` are one place."""
+        rad, ch = self.radius, self.chain
         if ch[a] == ch[b] and abs(a - b) <= rad:
             return True
         for x in range(max(0, a - rad), min(self.n, a + rad + 1)):
@@ -377,7 +335,8 @@ def detect_loops(
     )
     t2 = time.perf_counter()
     cache = PairCache(frames, p.sad)
-    median, sigma = _background(cache, limit, p)
+    median, sigma = cache.background(limit, p.background_pairs, p.seed)
+    sigma = max(sigma, p.sigma_floor * median, 1e-3)
     n_bg = cache.n_computed
     d_t = p.d_t if p.d_t is not None else median - p.d_t_sigmas * sigma
     d_hit = d_t if p.d_t is not None else median - p.hit_sigmas * sigma
@@ -393,10 +352,11 @@ def detect_loops(
     idx_sorted = np.take_along_axis(cand.index, order, axis=1)
     gate = max(median - sigma, d_t, d_hit)
     checked = (d_sorted < gate) & (np.arange(d_sorted.shape[1]) < p.max_seq_checks)[None, :]
-    m = _Matcher(cache, (chain, pos, limit), p, d_hit)
+    diag = DiagonalScorer(cache, chain, pos, limit, p.seq_len, p.seq_slopes, d_hit)
+    places_of = _Places(chain, p.same_place_frames)
     seq = np.full(d_cand.shape, np.inf, dtype=np.float32)
     hits = np.zeros(d_cand.shape, dtype=np.int64)
-    seq[checked], hits[checked] = m.seq_scores(qi[checked], idx_sorted[checked])
+    seq[checked], hits[checked] = diag.scores(qi[checked], idx_sorted[checked])
     n_checks = int(checked.sum())
     closures: list[LoopClosure] = []
     accepted: dict[int, list[int]] = {}
@@ -415,11 +375,11 @@ def detect_loops(
                 j = int(nxt[np.argmin(cache.fetch(np.full(nxt.size, g), nxt))])
                 known = [x for x in places if x[0] == j]
                 if not known:
-                    s, h = m.seq_scores(np.array([g]), np.array([j]))
+                    s, h = diag.scores(np.array([g]), np.array([j]))
                     n_checks += 1
                     known = [(j, float(s[0]), int(h[0]), True)]
                 places.append((j, known[0][1], known[0][2], True))
-        emitted = _decide(g, places, m, d_t, median, closures)
+        emitted = _decide(g, places, (cache, places_of, pos), p, (d_t, median), closures)
         if emitted:
             accepted[g] = emitted
     t4 = time.perf_counter()
@@ -444,36 +404,37 @@ def detect_loops(
 def _decide(
     g: int,
     places: list[tuple[int, float, int, bool]],
-    m: _Matcher,
-    d_t: float,
-    median: float,
+    state: tuple[PairCache, _Places, NDArray[np.int64]],
+    p: LoopParams,
+    thresholds: tuple[float, float],
     out: list[LoopClosure],
 ) -> list[int]:
     """Accept the distinctive, sequence-consistent places of query ``g``; append closures to ``out``."""
-    p = m.p
+    cache, m, pos = state
+    d_t, median = thresholds
     emitted: list[int] = []
     for r, score, n_hits, tracked in sorted(places, key=lambda x: x[1]):
         if len(emitted) >= p.max_closures_per_query:
             break
         if not (score < d_t and n_hits >= p.seq_min_hits):
             continue
-        if any(m.chain[e] == m.chain[r] and abs(e - r) <= p.same_place_frames for e in emitted):
+        if any(m.chain[e] == m.chain[r] and abs(e - r) <= m.radius for e in emitted):
             continue
         margin = max(median - score, 1e-6)
         rival = max((median - s for x, s, _, _ in places if not m.same_place(r, x)), default=0.0)
         ratio = max(rival, 0.0) / margin
         if ratio > (1.0 / p.uniqueness_ratio if tracked else p.uniqueness_ratio):
             continue
-        d, dx, dy = m.cache.get(g, r)
+        d, dx, dy = cache.get(g, r)
         conf_d = min(1.0, max(0.0, (d_t - score) / max(median - d_t, 1e-6)))
         conf_u = 0.5 if tracked else max(0.0, 1.0 - ratio / p.uniqueness_ratio)
         conf = float(np.sqrt(conf_d * conf_u))
         out.append(
             LoopClosure(
                 chain_a=int(m.chain[g]),
-                idx_a=int(m.pos[g]),
+                idx_a=int(pos[g]),
                 chain_b=int(m.chain[r]),
-                idx_b=int(m.pos[r]),
+                idx_b=int(pos[r]),
                 d=float(d),
                 seq_d=score,
                 uniqueness=float(ratio),
