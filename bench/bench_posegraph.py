@@ -82,10 +82,10 @@ def m3500(runs: int, with_gnc: bool) -> None:
     plain = PoseGraphParams(loop_kernel="none")
     clean, clean_s = timed(lambda: optimise_pose_graph(chains, closures, (), plain), runs)
     print(f"\nM3500 clean ({len(truth)} poses, {len(closures)} closures), batch LM:")
-    print(f"  time {clean_s:.2f} s, {clean.iterations} iterations, error {clean.initial_error:.1f} -> ")
     print(
-        f"  {clean.final_error:.3f}, ATE vs ground truth {ate_m(clean.all_poses(), truth):.3f} m (ref 0.794)"
+        f"  time {clean_s:.2f} s, {clean.iterations} iterations, error {clean.initial_error:.1f} -> {clean.final_error:.3f}"
     )
+    print(f"  ATE vs ground truth {ate_m(clean.all_poses(), truth):.3f} m (reference 0.794 m)")
     reference = clean.all_poses()
     infos = np.array([c.information for c in closures])
     kernels = (*KERNELS, "gnc_tls") if with_gnc else KERNELS
