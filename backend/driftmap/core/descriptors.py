@@ -150,8 +150,9 @@ def coarse_candidates(
             diagonal average never crosses a chain start.
         top_k: candidates kept per query by the sequence-filtered similarity, >= 1.
         top_k_single: further candidates by the single-frame similarity (when ``seq_len > 1``),
-            except those within ``nms_radius`` of a sequence candidate: a revisit's first frames,
-            whose predecessors lie elsewhere, and sharp turns, where the diagonal breaks.
+            other than the sequence candidates: for a revisit's first frames, whose predecessors
+            lie elsewhere, sharp turns, where the diagonal breaks, and the frame next to a
+            sequence candidate when the diagonal mean, flat over +-``jitter``, peaked beside it.
         seq_len: frames averaged along the diagonal (1 = single-frame similarity).
         jitter: reference frames either side over which each earlier diagonal term is maximised.
         nms_radius: a candidate must be the maximum within this many reference frames either side.
@@ -189,8 +190,7 @@ def coarse_candidates(
         idx, val = _select(c, lim[b0:b1], top_k, nms_radius, min_similarity)
         if top_k_single and seq_len > 1:
             idx1, val1 = _select(np.array(s[b0 - e0 :]), lim[b0:b1], top_k_single, nms_radius, min_similarity)
-            near = (np.abs(idx1[:, :, None] - idx[:, None, :]) <= nms_radius) & (idx[:, None, :] >= 0)
-            idx1[near.any(axis=2)] = -1
+            idx1[(idx1[:, :, None] == idx[:, None, :]).any(axis=2)] = -1
             idx, val = np.concatenate([idx, idx1], axis=1), np.concatenate([val, val1], axis=1)
         index[b0:b1, : idx.shape[1]] = idx
         sim[b0:b1, : idx.shape[1]] = np.where(idx >= 0, val, -np.inf)

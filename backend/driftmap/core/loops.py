@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -268,6 +268,9 @@ def _stack(
     return np.asarray(frames, dtype=np.float32), chain, pos, limit.astype(np.int64)
 
 
+_Place = tuple[int, float, int, bool]  # a sequence-checked place: (reference, score, hits, tracked)
+
+
 class _Places:
     """Which frames count as one place: one chain within ``radius`` frames, or linked by a closure."""
 
@@ -361,8 +364,7 @@ def detect_loops(
     closures: list[LoopClosure] = []
     accepted: dict[int, list[int]] = {}
     for g in np.flatnonzero(checked.any(axis=1) | (p.track & (pos > 0))).tolist():
-        # The sequence-checked places of query g: (reference, score, hits, tracked).
-        places = [
+        places: list[_Place] = [
             (int(r), float(s), int(h), False)
             for r, s, h in zip(idx_sorted[g], seq[g], hits[g], strict=True)
             if np.isfinite(s)
@@ -379,7 +381,21 @@ def detect_loops(
                     n_checks += 1
                     known = [(j, float(s[0]), int(h[0]), True)]
                 places.append((j, known[0][1], known[0][2], True))
-        emitted = _decide(g, places, (cache, places_of, pos), p, (d_t, median), closures)
+
+        def rivals(g: int = g, known: list[tuple[int, float, int, bool]] = places) -> list[_Place]:
+            """Sequence scores of the frames beside the candidates: the coarse peak may be one off."""
+            seen = {x[0] for x in known}
+            beside = {
+                x + k for x in cand.index[g].tolist() if x >= 0 for k in (-1, 1) if 0 <= x + k < limit[g]
+            }
+            nb = np.array(sorted(beside - seen), dtype=np.int64)
+            nb = nb[cache.fetch(np.full(nb.size, g), nb) < gate] if nb.size else nb  # any chain will do
+            s, h = diag.scores(np.full(nb.size, g), nb)
+            return [
+                (int(x), float(a), int(b), False) for x, a, b in zip(nb, s, h, strict=True) if np.isfinite(a)
+            ]
+
+        emitted = _decide(g, places, rivals, (cache, places_of, pos), p, (d_t, median), closures)
         if emitted:
             accepted[g] = emitted
     t4 = time.perf_counter()
@@ -403,7 +419,8 @@ def detect_loops(
 
 def _decide(
     g: int,
-    places: list[tuple[int, float, int, bool]],
+    places: list[_Place],
+    rivals: Callable[[], list[_Place]],
     state: tuple[PairCache, _Places, NDArray[np.int64]],
     p: LoopParams,
     thresholds: tuple[float, float],
@@ -413,6 +430,12 @@ def _decide(
     cache, m, pos = state
     d_t, median = thresholds
     emitted: list[int] = []
+    expanded = False
+
+    def rival_ratio(r: int, score: float) -> float:
+        rival = max((median - s for x, s, _, _ in places if not m.same_place(r, x)), default=0.0)
+        return max(rival, 0.0) / max(median - score, 1e-6)
+
     for r, score, n_hits, tracked in sorted(places, key=lambda x: x[1]):
         if len(emitted) >= p.max_closures_per_query:
             break
@@ -420,9 +443,11 @@ def _decide(
             continue
         if any(m.chain[e] == m.chain[r] and abs(e - r) <= m.radius for e in emitted):
             continue
-        margin = max(median - score, 1e-6)
-        rival = max((median - s for x, s, _, _ in places if not m.same_place(r, x)), default=0.0)
-        ratio = max(rival, 0.0) / margin
+        ratio = rival_ratio(r, score)
+        if not (tracked or expanded) and ratio <= p.uniqueness_ratio:  # about to accept: look harder
+            places.extend(rivals())
+            expanded = True
+            ratio = rival_ratio(r, score)
         if ratio > (1.0 / p.uniqueness_ratio if tracked else p.uniqueness_ratio):
             continue
         d, dx, dy = cache.get(g, r)
