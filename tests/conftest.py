@@ -25,3 +25,11 @@ def storage(settings: Settings) -> Iterator[Storage]:
     opened = Storage.open(settings)
     yield opened
     opened.close()
+
+
+@pytest.fixture(scope="session")
+def tiny_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The tiny simulated site, written once per test session (read-only for tests)."""
+    from tests.sim_site import make_tiny_site
+
+    return make_tiny_site(tmp_path_factory.mktemp("tiny-site") / "site")

@@ -60,18 +60,17 @@ class MappingParams:
 
     odometry: OdometryParams = ODOMETRY_DEFAULT  # ground-plane VO (eq. 1, 2)
     images: ImageParams = IMAGES_DEFAULT  # place-recognition pre-processing (IV-C)
-    loops: loop_search.LoopParams = loop_search.PAPER  # loop-closure search (eq. 3)
+    loops: loop_search.LoopParams = loop_search.LOOPS_DEFAULT  # loop-closure search (eq. 3)
     graph: posegraph.PoseGraphParams = posegraph.ROBUST  # pose-graph back end
     topomap: TopoMapParams = TOPO_PAPER  # map compression (III-A-4)
     keyframe_spacing_m: float = 1.0  # odometry travel between keyframes used for loop closure, metres
-    closure_sigmas: tuple[float, float, float] = (1.5, 1.0, 0.15)  # same-place closure [x_m, y_m, rad]
     grounding_sigma_m: float = 0.5  # surveyor click accuracy, metres
     use_loop_closures: bool = True  # Table I variants switch these two off
     use_groundings: bool = True
 
 
 PAPER = MappingParams()
-FAST = MappingParams(odometry=ODOMETRY_FAST, loops=loop_search.FAST, keyframe_spacing_m=2.0)
+FAST = MappingParams(odometry=ODOMETRY_FAST, loops=loop_search.LOOPS_FAST, keyframe_spacing_m=2.0)
 
 
 @dataclass(frozen=True)
@@ -165,7 +164,7 @@ class PreparedDrives:
     confidence: tuple[F64, ...]
     thumbs: tuple[NDArray[np.float32], ...]
     keyframes: tuple[NDArray[np.int64], ...]
-    closures: tuple[loop_search.Closure, ...]
+    closures: tuple[loop_search.LoopClosure, ...]
     timings: dict[str, float]
 
 
@@ -211,11 +210,12 @@ def prepare_drives(
 
     start = time.perf_counter()
     keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
-    found: tuple[loop_search.Closure, ...] = ()
+    found: tuple[loop_search.LoopClosure, ...] = ()
     if params.use_loop_closures:
         report("loop closure", 0.0)
         key_thumbs = [t[k] for t, k in zip(thumbs, keyframes, strict=True)]
-        found = tuple(loop_search.find_closures(key_thumbs, params.loops).closures)
+        key_times = [d.t_s[k] for d, k in zip(drives, keyframes, strict=True)]
+        found = tuple(loop_search.detect_loops(key_thumbs, params.loops, key_times).closures)
     report("loop closure", 1.0)
     timings["loop_closure_s"] = time.perf_counter() - start
     return PreparedDrives(
@@ -245,9 +245,9 @@ def solve_map(
     keyframes = prepared.keyframes
     closures = [
         posegraph.LoopClosure(
-            a=(c.chain_a, int(keyframes[c.chain_a][c.index_a])),
-            b=(c.chain_b, int(keyframes[c.chain_b][c.index_b])),
-            sigmas=params.closure_sigmas,
+            a=(c.chain_a, int(keyframes[c.chain_a][c.idx_a])),
+            b=(c.chain_b, int(keyframes[c.chain_b][c.idx_b])),
+            sigmas=(c.sigma_xy_m, c.sigma_xy_m, c.sigma_theta_rad),
             sad=c.d,
         )
         for c in (prepared.closures if params.use_loop_closures else ())

@@ -99,7 +99,8 @@ def load_site_drives(session: Session, blobs: BlobStore, site: Site) -> SiteDriv
 
 
 def _params_json(params: MappingParams) -> dict[str, Any]:
-    return json_safe(dataclasses.asdict(params))
+    encoded: dict[str, Any] = json_safe(dataclasses.asdict(params))
+    return encoded
 
 
 def json_safe(value: Any) -> Any:
