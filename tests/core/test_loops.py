@@ -152,6 +152,20 @@ class TestAliasing:
         blind = dataclasses.replace(params, uniqueness_ratio=1.0, track=False)
         assert len(detect_loops(chains, blind).closures) > 0
 
+    def test_tracking_carries_a_distinctive_entry_through_an_aliased_stretch(self) -> None:
+        # Chain 0 drove A then the stretch S twice (copies within its recent window, never linked);
+        # chain 1 drives A then S: entering S its sequence still holds A, so the first copy wins;
+        # deeper in S both copies tie, and only continuing the previous closure keeps the match.
+        rng = np.random.default_rng(9)
+        strip = make_strip(26, rng)
+        a, s = np.arange(10), np.arange(10, 26)
+        chains = [views(strip, np.concatenate([a, s, s]), rng), views(strip, np.concatenate([a, s]), rng)]
+        tracked = cross_closures(detect_loops(chains))
+        assert np.all(tracked[:, 0] == tracked[:, 1])  # always the first copy, the one after A
+        assert np.isin(s, tracked[:, 0]).mean() >= RECALL_MIN
+        untracked = cross_closures(detect_loops(chains, dataclasses.replace(LOOPS_DEFAULT, track=False)))
+        assert np.isin(s, untracked[:, 0]).mean() < 0.5
+
 
 class TestRecentWindow:
     @pytest.mark.parametrize("recent_frames", [5, 20])

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -360,42 +360,29 @@ def detect_loops(
     seq = np.full(d_cand.shape, np.inf, dtype=np.float32)
     hits = np.zeros(d_cand.shape, dtype=np.int64)
     seq[checked], hits[checked] = diag.scores(qi[checked], idx_sorted[checked])
-    n_checks = int(checked.sum())
+    # Rivals: the frames beside every candidate of a query that may close a loop (a coarse peak may
+    # be one frame off the true one), checked in a second batch before any decision.
+    passing = checked & (seq < d_t) & (hits >= p.seq_min_hits)
+    beside = _beside(
+        np.flatnonzero(passing.any(axis=1)), cand.index, np.where(checked, idx_sorted, -1), limit
+    )
+    beside = beside[cache.fetch(beside[:, 0], beside[:, 1]) < gate]
+    rival_seq, rival_hits = diag.scores(beside[:, 0], beside[:, 1])
+    n_checks = int(checked.sum()) + len(beside)
+    extra: dict[int, list[_Place]] = {}
+    for (g, x), s_x, h_x in zip(beside.tolist(), rival_seq.tolist(), rival_hits.tolist(), strict=True):
+        if np.isfinite(s_x):
+            extra.setdefault(g, []).append((x, s_x, h_x, False))
     closures: list[LoopClosure] = []
     accepted: dict[int, list[int]] = {}
-    for g in np.flatnonzero(checked.any(axis=1) | (p.track & (pos > 0))).tolist():
+    for g in np.flatnonzero(checked.any(axis=1)).tolist():
+        prev = accepted.get(g - 1, []) if p.track and pos[g] > 0 else []
         places: list[_Place] = [
-            (int(r), float(s), int(h), False)
-            for r, s, h in zip(idx_sorted[g], seq[g], hits[g], strict=True)
-            if np.isfinite(s)
+            (r, s_r, h_r, any(chain[e] == chain[r] and abs(e - r) <= 2 for e in prev))
+            for r, s_r, h_r in zip(idx_sorted[g].tolist(), seq[g].tolist(), hits[g].tolist(), strict=True)
+            if np.isfinite(s_r)
         ]
-        for r in accepted.get(g - 1, []) if p.track and pos[g] > 0 else []:
-            nxt = np.array(
-                [x for x in range(r - 2, r + 3) if 0 <= x < limit[g] and chain[x] == chain[r]], dtype=np.int64
-            )
-            if nxt.size:
-                j = int(nxt[np.argmin(cache.fetch(np.full(nxt.size, g), nxt))])
-                known = [x for x in places if x[0] == j]
-                if not known:
-                    s, h = diag.scores(np.array([g]), np.array([j]))
-                    n_checks += 1
-                    known = [(j, float(s[0]), int(h[0]), True)]
-                places.append((j, known[0][1], known[0][2], True))
-
-        def rivals(g: int = g, known: list[tuple[int, float, int, bool]] = places) -> list[_Place]:
-            """Sequence scores of the frames beside the candidates: the coarse peak may be one off."""
-            seen = {x[0] for x in known}
-            beside = {
-                x + k for x in cand.index[g].tolist() if x >= 0 for k in (-1, 1) if 0 <= x + k < limit[g]
-            }
-            nb = np.array(sorted(beside - seen), dtype=np.int64)
-            nb = nb[cache.fetch(np.full(nb.size, g), nb) < gate] if nb.size else nb  # any chain will do
-            s, h = diag.scores(np.full(nb.size, g), nb)
-            return [
-                (int(x), float(a), int(b), False) for x, a, b in zip(nb, s, h, strict=True) if np.isfinite(a)
-            ]
-
-        emitted = _decide(g, places, rivals, (cache, places_of, pos), p, (d_t, median), closures)
+        emitted = _decide(g, places + extra.get(g, []), (cache, places_of, pos), p, (d_t, median), closures)
         if emitted:
             accepted[g] = emitted
     t4 = time.perf_counter()
@@ -417,10 +404,21 @@ def detect_loops(
     return LoopResult(closures, stats)
 
 
+def _beside(
+    queries: NDArray[np.int64], index: NDArray[np.int64], known: NDArray[np.int64], limit: NDArray[np.int64]
+) -> NDArray[np.int64]:
+    """``(M, 2)`` unique (query, frame) pairs: eligible frames next to a query's candidates, not known."""
+    c = index[queries]
+    nb = np.concatenate([c - 1, c + 1], axis=1)
+    ok = (np.concatenate([c, c], axis=1) >= 0) & (nb >= 0) & (nb < limit[queries][:, None])
+    ok &= ~(nb[:, :, None] == known[queries][:, None, :]).any(axis=2)
+    q = np.broadcast_to(queries[:, None], nb.shape)
+    return np.unique(np.stack([q[ok], nb[ok]], axis=1).reshape(-1, 2), axis=0).astype(np.int64)
+
+
 def _decide(
     g: int,
     places: list[_Place],
-    rivals: Callable[[], list[_Place]],
     state: tuple[PairCache, _Places, NDArray[np.int64]],
     p: LoopParams,
     thresholds: tuple[float, float],
@@ -430,12 +428,6 @@ def _decide(
     cache, m, pos = state
     d_t, median = thresholds
     emitted: list[int] = []
-    expanded = False
-
-    def rival_ratio(r: int, score: float) -> float:
-        rival = max((median - s for x, s, _, _ in places if not m.same_place(r, x)), default=0.0)
-        return max(rival, 0.0) / max(median - score, 1e-6)
-
     for r, score, n_hits, tracked in sorted(places, key=lambda x: x[1]):
         if len(emitted) >= p.max_closures_per_query:
             break
@@ -443,11 +435,8 @@ def _decide(
             continue
         if any(m.chain[e] == m.chain[r] and abs(e - r) <= m.radius for e in emitted):
             continue
-        ratio = rival_ratio(r, score)
-        if not (tracked or expanded) and ratio <= p.uniqueness_ratio:  # about to accept: look harder
-            places.extend(rivals())
-            expanded = True
-            ratio = rival_ratio(r, score)
+        rival = max((median - s for x, s, _, _ in places if not m.same_place(r, x)), default=0.0)
+        ratio = max(rival, 0.0) / max(median - score, 1e-6)
         if ratio > (1.0 / p.uniqueness_ratio if tracked else p.uniqueness_ratio):
             continue
         d, dx, dy = cache.get(g, r)
