@@ -411,7 +411,8 @@ class DiagonalScorer:
     Query frame ``i - l`` (``l = 0 .. seq_len - 1``) pairs with reference ``j - round(v l)`` for each
     slope ``v`` (reference frames per query frame; negative: the reference drive passed the other
     way, e.g. reversing with the same heading). Every pair must lie inside the two chains and be
-    eligible (``r < limit[i - l]``).
+    eligible (``r < limit[i - l]``). Slopes +-1 (keyframes at equal spacing) are tried first; the
+    others only where those do not already give a mean below ``d_t`` with ``min_hits`` hits.
 
     Args:
         cache: eq. 3 scores.
@@ -419,7 +420,8 @@ class DiagonalScorer:
             ``(N,)`` exclusive end of the eligible references of each query.
         seq_len: frames in a diagonal.
         slopes: the slopes ``v`` tried; the best one counts.
-        d_hit: a pair with ``d < d_hit`` is a hit.
+        thresholds: ``(d_hit, d_t, min_hits)``: a pair with ``d < d_hit`` is a hit; a diagonal with
+            mean below ``d_t`` and ``min_hits`` hits needs no other slope.
     """
 
     def __init__(
@@ -430,22 +432,40 @@ class DiagonalScorer:
         limit: NDArray[np.int64],
         seq_len: int,
         slopes: tuple[float, ...],
-        d_hit: float,
+        thresholds: tuple[float, float, int],
     ) -> None:
         self.cache, self.chain, self.pos, self.limit = cache, chain, pos, limit
-        self.seq_len, self.d_hit, self.n = seq_len, d_hit, chain.size
-        self.offsets = np.unique(np.rint(np.outer(slopes, np.arange(seq_len))).astype(np.int64), axis=0)
+        self.seq_len, self.n = seq_len, chain.size
+        self.d_hit, self.d_t, self.min_hits = thresholds
+        lags = np.arange(seq_len)
+        offsets = np.unique(np.rint(np.outer(slopes, lags)).astype(np.int64), axis=0)
+        unit = np.all(np.abs(offsets) == lags, axis=1)
+        if not unit.any():
+            unit[:] = True
+        self.first: NDArray[np.int64] = offsets[unit]
+        self.rest: NDArray[np.int64] = offsets[~unit]
 
     def scores(
         self, qi: NDArray[np.int64], rj: NDArray[np.int64]
     ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
         """Best mean d over the slopes of the diagonals ending at ``(qi[m], rj[m])``, and its hits.
 
-        Missing scores are computed in one batch. Returns ``(M,)`` float32 means (inf when no
+        Missing scores are computed in batches. Returns ``(M,)`` float32 means (inf when no
         diagonal fits) and ``(M,)`` int64 hits of the best slope.
         """
+        mean, hits = self._scores(qi, rj, self.first)
+        redo = np.flatnonzero(~((mean < self.d_t) & (hits >= self.min_hits)))
+        if self.rest.size and redo.size:
+            mean2, hits2 = self._scores(qi[redo], rj[redo], self.rest)
+            better = mean2 < mean[redo]
+            mean[redo[better]], hits[redo[better]] = mean2[better], hits2[better]
+        return mean, hits
+
+    def _scores(
+        self, qi: NDArray[np.int64], rj: NDArray[np.int64], offsets: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
         lags = np.arange(self.seq_len)
-        q, r = np.broadcast_arrays(qi[:, None, None] - lags, rj[:, None, None] - self.offsets)  # (M, S, L)
+        q, r = np.broadcast_arrays(qi[:, None, None] - lags, rj[:, None, None] - offsets)  # (M, S, L)
         r_in = np.clip(r, 0, self.n - 1)
         fits = (
             (r >= 0)

@@ -353,9 +353,9 @@ def detect_loops(
     order = np.argsort(d_cand, axis=1, kind="stable")
     d_sorted = np.take_along_axis(d_cand, order, axis=1)
     idx_sorted = np.take_along_axis(cand.index, order, axis=1)
-    gate = max(median - sigma, d_t, d_hit)
+    gate = max(d_t, d_hit)  # the query frame itself must match
     checked = (d_sorted < gate) & (np.arange(d_sorted.shape[1]) < p.max_seq_checks)[None, :]
-    diag = DiagonalScorer(cache, chain, pos, limit, p.seq_len, p.seq_slopes, d_hit)
+    diag = DiagonalScorer(cache, chain, pos, limit, p.seq_len, p.seq_slopes, (d_hit, d_t, p.seq_min_hits))
     places_of = _Places(chain, p.same_place_frames)
     seq = np.full(d_cand.shape, np.inf, dtype=np.float32)
     hits = np.zeros(d_cand.shape, dtype=np.int64)
