@@ -1,23 +1,21 @@
-"""Coarse global image descriptors and the all-pairs candidate search of loop closure.
+"""Scores for loop closure: coarse descriptors and candidates, eq. 3 on pairs, diagonal sequences.
 
-The full shifted SAD of :mod:`driftmap.core.sad` costs about 35 us per pair of 64x32 images, far too
-much for every pair of a site's keyframes. Loop closure (:mod:`driftmap.core.loops`) therefore first
-ranks all earlier keyframes of each query with a cheap descriptor and keeps only a few candidates:
+The shifted SAD of eq. 3 costs ~35 us per pair of 64x32 frames, too much for every pair of a site.
+:mod:`driftmap.core.loops` therefore ranks all earlier keyframes of each query by a cheap descriptor
+and computes eq. 3 on a few candidates only:
 
-1. **Thumbnail**: the patch-normalised frame blurred by a Gaussian of about the SAD's shift range
-   (patch-normalised texture is mostly fine detail, which a shift of a few pixels decorrelates;
-   what survives the blur is alike in views a few pixels apart), then area-averaged to 16x8 pixels.
-2. **Centring and projection**: the site's mean thumbnail is subtracted (every tunnel view shares
-   the same floor/walls/roof layout; what remains is what tells places apart), optionally followed
-   by a PCA projection to a few dozen dimensions, then each vector is scaled to unit length.
-3. **Sequence-filtered cosine similarity**: query block x all earlier frames by one matrix product,
-   averaged along the diagonal over ``seq_len`` consecutive frames of both chains (SeqSLAM on
-   thumbnails; the reference axis is max-filtered by +-1 frame so that uneven keyframe spacing
-   does not break the diagonal), then non-maximum suppression along the reference axis (so that the
-   ``top_k`` candidates are distinct places, not neighbouring frames of one place) and top-k.
+1. **thumbnail**: the patch-normalised frame blurred by a Gaussian about the SAD shift range (such
+   texture is fine detail, which a few pixels of shift decorrelate) and area-averaged to 16x8;
+2. **centring and projection**: minus the site's mean thumbnail (all tunnel views share a layout),
+   optionally PCA-projected, scaled to unit length;
+3. **sequence-filtered cosine similarity**: a query block against all earlier frames by one matrix
+   product, averaged along diagonals of ``seq_len`` frames of both chains (SeqSLAM on thumbnails,
+   the reference axis max-filtered by +-1 frame against uneven keyframe spacing), non-maximum
+   suppression along the reference axis (distinct places, not neighbours of one) and top-k.
 
-The search is O(N^2 D) multiply-adds on D-element vectors, a few seconds for N = 16,000; the
-memory is bounded by the query block.
+That is O(N^2 D) multiply-adds, seconds for N = 16,000, in memory bounded by the query block.
+:class:`PairCache` computes eq. 3 in batches (:func:`sad_pairs`); :class:`DiagonalScorer` scores
+diagonals of the confusion matrix from it.
 """
 
 from __future__ import annotations
@@ -106,12 +104,10 @@ class CoarseCandidates:
     Attributes:
         index: ``(N, k)`` int64 global frame indices of the candidates: the sequence-filtered top
             ``top_k`` best first, then the single-frame ones; -1 pads missing ones.
-        similarity: ``(N, k)`` float32 cosine similarity of the list each came from (-inf: pad).
         n_compared: descriptor dot products computed (including the sequence context rows).
     """
 
     index: NDArray[np.int64]
-    similarity: NDArray[np.float32]
     n_compared: int
 
 
@@ -133,7 +129,6 @@ def coarse_candidates(
     seq_len: int = 1,
     jitter: int = 1,
     nms_radius: int = 2,
-    min_similarity: float = -1.0,
     block: int = 256,
 ) -> CoarseCandidates:
     """Rank, for every query frame, the earlier frames it may close a loop with.
@@ -156,7 +151,6 @@ def coarse_candidates(
         seq_len: frames averaged along the diagonal (1 = single-frame similarity).
         jitter: reference frames either side over which each earlier diagonal term is maximised.
         nms_radius: a candidate must be the maximum within this many reference frames either side.
-        min_similarity: candidates below this sequence-filtered cosine similarity are dropped.
         block: queries per matrix product (memory ~ ``(block + seq_len) x N`` float32 x 4).
 
     Returns:
@@ -175,9 +169,7 @@ def coarse_candidates(
         raise ValueError("top_k, seq_len and block must be >= 1")
     if n and (np.any(np.diff(lim) < 0) or np.any(lim > np.arange(n)) or np.any(lim < 0)):
         raise ValueError("limit must be non-decreasing with 0 <= limit[g] <= g")
-    width = top_k + top_k_single
-    index = np.full((n, width), -1, dtype=np.int64)
-    sim = np.full((n, width), -np.inf, dtype=np.float32)
+    index = np.full((n, top_k + top_k_single), -1, dtype=np.int64)
     n_compared = 0
     first = int(np.searchsorted(lim, 1))  # queries before this have no eligible reference
     for b0 in range(first, n, block):
@@ -187,31 +179,23 @@ def coarse_candidates(
         s = d[e0:b1] @ d[:r].T  # (b1 - e0, r) cosine similarities
         n_compared += s.size
         c = _sequence_filter(s, b0 - e0, p[b0:b1], p[:r], seq_len, jitter)
-        idx, val = _select(c, lim[b0:b1], top_k, nms_radius, min_similarity)
+        idx = _select(c, lim[b0:b1], top_k, nms_radius)
         if top_k_single and seq_len > 1:
-            idx1, val1 = _select(np.array(s[b0 - e0 :]), lim[b0:b1], top_k_single, nms_radius, min_similarity)
+            idx1 = _select(np.array(s[b0 - e0 :]), lim[b0:b1], top_k_single, nms_radius)
             idx1[(idx1[:, :, None] == idx[:, None, :]).any(axis=2)] = -1
-            idx, val = np.concatenate([idx, idx1], axis=1), np.concatenate([val, val1], axis=1)
+            idx = np.concatenate([idx, idx1], axis=1)
         index[b0:b1, : idx.shape[1]] = idx
-        sim[b0:b1, : idx.shape[1]] = np.where(idx >= 0, val, -np.inf)
-    return CoarseCandidates(index=index, similarity=sim, n_compared=n_compared)
+    return CoarseCandidates(index=index, n_compared=n_compared)
 
 
-def _select(
-    c: NDArray[np.float32], lim: NDArray[np.int64], k: int, nms_radius: int, min_similarity: float
-) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
-    """Top-``k`` eligible local maxima per row of ``c`` (overwritten); -1 pads missing ones."""
+def _select(c: NDArray[np.float32], lim: NDArray[np.int64], k: int, nms_radius: int) -> NDArray[np.int64]:
+    """Top-``k`` eligible local maxima per row of ``c`` (overwritten), best first; -1 pads."""
     for i in np.flatnonzero(lim < c.shape[1]).tolist():  # the recent window of the block's queries
         c[i, lim[i] :] = _NEG
-    suppress = c < _hfilter_max(c, nms_radius)
-    if min_similarity > -1.0:
-        suppress |= c < np.float32(min_similarity)
-    np.copyto(c, _NEG, where=suppress)
+    np.copyto(c, _NEG, where=c < _hfilter_max(c, nms_radius))
     top, top_sim = _top_k_rows(c, min(k, c.shape[1]))
-    keep = top_sim > _NEG
-    pad = k - top.shape[1]
-    top = np.pad(np.where(keep, top, -1), ((0, 0), (0, pad)), constant_values=-1)
-    return top, np.pad(top_sim, ((0, 0), (0, pad)), constant_values=-np.inf)
+    top = np.where(top_sim > _NEG, top, -1)
+    return np.pad(top, ((0, 0), (0, k - top.shape[1])), constant_values=-1)
 
 
 def _top_k_rows(
@@ -254,11 +238,9 @@ def _sequence_filter(
 ) -> NDArray[np.float32]:
     """Mean of ``s`` over the diagonal ending at each (query, reference) entry.
 
-    ``s`` rows ``q0 ..`` are the queries; the ``q0`` rows above them are their predecessors. The
-    term ``l`` steps back pairs query ``i - l`` with reference ``j - l`` (max over ``+-jitter``
-    references); terms that would cross either chain's start are left out of the mean. Such
-    entries are few (the first ``seq_len - 1`` frames of a chain), so every term is added to the
-    whole matrix and the crossing ones are taken out again row by row and column by column.
+    Rows ``q0 ..`` of ``s`` are the queries, the rows above their predecessors. Term ``l`` pairs
+    query ``i - l`` with reference ``j - l`` (max over ``+-jitter`` references); terms crossing
+    either chain's start (few) are added with the rest, then taken out row by row and column by column.
     """
     out = np.array(s[q0:], dtype=np.float32)
     if seq_len == 1:

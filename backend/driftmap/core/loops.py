@@ -1,46 +1,40 @@
-"""Appearance-only loop closure between keyframes of mapping drives (paper 000, section III-A-2).
+"""Appearance-only loop closure between the keyframes of a site's drives (paper 000, III-A-2).
 
-The paper compares each new frame with every earlier frame by the shifted SAD of eq. 3 (frames
-pre-processed as in IV-C) and adds a constraint when ``d(i, j) < d_t``. In a mine that single-frame
-rule is fooled by long, visually aliased tunnels, and comparing every pair costs O(N^2) full
-comparisons. :func:`detect_loops` keeps eq. 3 and a threshold d_t but
+The paper compares every new frame with every earlier one by the shifted SAD of eq. 3 (frames
+pre-processed as in IV-C) and adds a constraint when ``d(i, j) < d_t``. That costs O(N^2) full
+comparisons, and in a mine a single frame is easily fooled by tunnels that look alike.
+:func:`detect_loops` keeps eq. 3 but
 
-1. finds candidates cheaply: blurred 16x8 thumbnails, centred on the site mean and PCA projected,
-   compared for all pairs by matrix products and averaged along short diagonals; only the
-   ``top_k`` distinct places per query go on (:mod:`driftmap.core.descriptors`);
-2. computes the full shifted SAD (eq. 3, overlap-normalised) on those candidates only;
-3. accepts ``(i, j)`` only when a *sequence* of ``seq_len`` query frames ``i - l`` matches reference
-   frames ``j - round(v l)`` for one of a few forward speed ratios ``v`` (SeqSLAM's diagonal in the
-   local confusion sub-matrix): mean d below d_t, and at least ``seq_min_hits`` of the frames below
-   the per-frame threshold d_hit. Only forward slopes are tried, so passes in opposite directions (a
-   forward camera sees another view) never close a loop;
-4. requires the match to be *distinctive* against the other sequence-checked places of the query:
-   how far the best other place's score lies below the background median, over how far the
-   match's score does, must be at most ``uniqueness_ratio``. Frames within ``same_place_frames`` in
-   one chain, or linked by an accepted closure, are one place, so a third pass matching two earlier
-   passes is not self-ambiguous. A candidate continuing the previous query frame's closure (0-2
-   frames further on) needs no uniqueness (tracking through an aliased stretch entered at a
-   distinctive place) unless another place is clearly better.
+1. ranks all earlier keyframes of a query by a coarse descriptor and keeps a few distinct places
+   (:func:`~driftmap.core.descriptors.coarse_candidates`); eq. 3 runs on those only;
+2. accepts ``(i, j)`` only when ``d(i, j) < d_hit`` and a *sequence* of ``seq_len`` query frames
+   ``i - l`` matches reference frames ``j - round(v l)`` for one of a few slopes ``v`` (SeqSLAM's
+   diagonal): mean d below d_t, at least ``seq_min_hits`` frames below d_hit. Negative slopes match
+   a pass with the same heading travelled backwards (an LHD reversing out of a drawpoint sees the
+   same view); opposite headings are not matched (a forward camera sees another view);
+3. requires the match to be *distinctive*: the best other place's margin below the background
+   median, over this match's margin, at most ``uniqueness_ratio``. Frames within
+   ``same_place_frames`` of one chain, or linked by an accepted closure, are one place (a third pass
+   matching two earlier ones is not ambiguous). A place continuing the previous query frame's
+   closure (+-2 frames) needs no uniqueness unless another place is clearly better: tracking
+   through an aliased stretch entered at a distinctive place.
 
-Threshold. d is dimensionless (patch-normalised pixels have unit local variance) but the score of
-*unrelated* views depends on the site: two random textures give ~1.0 (2/sqrt(pi) less the shift
-minimum), views of one mine's tunnels share their layout and give ~0.73 with a spread of ~0.05, and
-a true revisit lies anywhere from 0.3 to 0.7. A fixed d_t right for one is useless for the other,
-so by default d_t is relative: ``background_pairs`` random eligible pairs (revisits are a small
-fraction of them) give the background median m and robust sigma s (1.4826 MAD), and
-``d_t = m - d_t_sigmas s``, ``d_hit = m - hit_sigmas s``. An absolute ``d_t`` (the paper's rule)
-can be given instead; then ``d_hit = d_t``. The values used are in :class:`LoopStats`.
+Thresholds. d is dimensionless (patch-normalised pixels), but unrelated views score ~1.0 on random
+texture and ~0.73 +- 0.05 in one mine's tunnels, whose views share their layout; revisits score
+0.3-0.7. No fixed d_t suits both, so by default the thresholds are relative to the background: eq. 3
+on ``background_pairs`` random eligible pairs (nearly all unrelated) gives a median m and a robust
+sigma s (1.4826 MAD, at least ``sigma_floor`` m); ``d_t = m - d_t_sigmas s`` and
+``d_hit = m - hit_sigmas s``. An absolute ``d_t`` (the paper's rule) can be given instead; then
+``d_hit = d_t``. :class:`LoopStats` reports the values used.
 
-Pose of a closure: appearance alone gives no metric relative pose. Add the constraint with relative
-pose ~ identity (same place, same heading: only same-direction passes are accepted) and the
-suggested ``sigma_xy_m`` (a few metres: keyframe spacing, the +-1 frame uncertainty of the match,
-the vehicle's lateral position in the tunnel) and ``sigma_theta_rad``. ``shift_px`` (query pixel
-``(x, y)`` matches reference pixel ``(x + dx, y + dy)``) hints at a yaw and lateral offset for
-callers that know the camera.
+Pose of a closure: appearance gives no metric relative pose. Add it as ~ identity (same place, same
+heading) with the suggested ``sigma_xy_m``, a few metres (keyframe spacing, the +-1 frame
+uncertainty, the lateral position in the tunnel), and ``sigma_theta_rad``. ``shift_px`` (query pixel
+``(x, y)`` matches reference pixel ``(x + dx, y + dy)``) hints at a yaw and lateral offset.
 
-Frames are addressed by ``(chain, index)``; the global order is chain 0's frames, then chain 1's,
-... (pass chains in recording order). Decisions are causal except for the descriptor mean, the PCA
-axes and the background score, which use all frames.
+Frames are addressed by ``(chain, index)``; the global order is chain 0, then chain 1, ... (pass
+chains in recording order). Decisions are causal except that the descriptor mean and PCA axes and
+the background use all frames.
 """
 
 from __future__ import annotations
@@ -86,21 +80,13 @@ class LoopParams:
     coarse_blur_px: float = 3.0  # Gaussian sigma before thumbnailing, frame pixels (shift tolerance)
     coarse_dims: int = 64  # PCA dimensions of the centred thumbnail; 0 keeps all
     coarse_seq_len: int = 5  # frames averaged along the diagonal of the coarse similarity
-    coarse_min_similarity: float = -1.0  # drop coarse candidates below this cosine similarity
     top_k: int = 4  # distinct-place candidates per query by sequence-filtered descriptors, full SAD
     top_k_single: int = 4  # plus this many by single-frame descriptors (revisit starts, turns)
     nms_radius: int = 2  # a coarse candidate is the best within this many frames of its chain
     seq_len: int = 5  # query frames i-seq_len+1 .. i that must match a diagonal; 1 = single frame
     seq_min_hits: int = 4  # of those, frames that must have d < d_hit
-    seq_slopes: tuple[float, ...] = (
-        -1.5,
-        -1.0,
-        -0.67,
-        0.67,
-        1.0,
-        1.5,
-    )  # ref. frames per query frame; <0: reversing
-    max_seq_checks: int = 3  # candidates per query checked (lowest d; d < median - 1 sigma)
+    seq_slopes: tuple[float, ...] = (-1.5, -1, -0.67, 0.67, 1, 1.5)  # ref./query frames; < 0 reversing
+    max_seq_checks: int = 3  # candidates per query with d < d_hit whose sequences are checked
     uniqueness_ratio: float = 0.7  # accept when other place's margin / this margin <= this; 1 = off
     same_place_frames: int = 4  # same-chain frames this close (or linked by a closure) are one place
     track: bool = True  # continuing the previous frame's closure needs no uniqueness test
@@ -113,14 +99,15 @@ class LoopParams:
     def __post_init__(self) -> None:
         if self.d_t is not None and not self.d_t > 0:
             raise ValueError(f"LoopParams.d_t must be > 0 or None, got {self.d_t}")
-        for name in (
+        nonneg = (
             "recent_frames",
+            "recent_s",
             "coarse_dims",
             "nms_radius",
             "same_place_frames",
-            "recent_s",
             "top_k_single",
-        ):
+        )
+        for name in nonneg:
             if getattr(self, name) < 0:
                 raise ValueError(f"LoopParams.{name} must be >= 0, got {getattr(self, name)}")
         for name in ("top_k", "seq_len", "coarse_seq_len", "max_seq_checks", "max_closures_per_query"):
@@ -141,7 +128,6 @@ LOOPS_DEFAULT = LoopParams()
 LOOPS_PAPER = LoopParams(
     coarse_seq_len=1,
     top_k=8,
-    top_k_single=0,
     seq_len=1,
     seq_min_hits=1,
     uniqueness_ratio=1.0,
@@ -334,7 +320,6 @@ def detect_loops(
         top_k_single=p.top_k_single,
         seq_len=p.coarse_seq_len,
         nms_radius=p.nms_radius,
-        min_similarity=p.coarse_min_similarity,
     )
     t2 = time.perf_counter()
     cache = PairCache(frames, p.sad)
