@@ -24,7 +24,9 @@ MAX_DX, MAX_DY = 4, 2
 NAIVE_PAIRS = 300  # the naive loop is timed on this many references and scaled
 
 
-def naive_sad(query: NDArray, refs: NDArray, max_dx: int, max_dy: int) -> NDArray:
+def naive_sad(
+    query: NDArray[np.float32], refs: NDArray[np.float32], max_dx: int, max_dy: int
+) -> NDArray[np.float64]:
     """Per-pair, per-shift Python loop: the obvious implementation of eq. 3."""
     height, width = query.shape
     out = np.empty(len(refs))
@@ -62,12 +64,13 @@ def main() -> None:
         raw = rng.integers(0, 256, size=(6001, height, width), dtype=np.uint8)
         imgs = patch_normalise(raw, patch_px=8 if width >= 64 else 4)
         query, all_refs = imgs[0], imgs[1:]
-        naive_t = median_time(lambda: naive_sad(query, all_refs[:NAIVE_PAIRS], MAX_DX, MAX_DY), 3)
+        naive_refs = all_refs[:NAIVE_PAIRS]
+        naive_t = median_time(lambda q=query, r=naive_refs: naive_sad(q, r, MAX_DX, MAX_DY), 3)
         naive_rate = NAIVE_PAIRS / naive_t
         for m in (2000, 6000):
             refs = all_refs[:m]
             sad_one_to_many(query, refs, params)  # warm-up
-            t = median_time(lambda refs=refs: sad_one_to_many(query, refs, params), args.runs)
+            t = median_time(lambda q=query, r=refs: sad_one_to_many(q, r, params), args.runs)
             fast = sad_one_to_many(query, refs[:NAIVE_PAIRS], params).d
             err = float(np.max(np.abs(fast - naive_sad(query, refs[:NAIVE_PAIRS], MAX_DX, MAX_DY))))
             rate = m / t
@@ -76,7 +79,7 @@ def main() -> None:
                 f"{err:>10.1e}"
             )
         block = imgs[:64]
-        t = median_time(lambda block=block: sad_matrix(block, all_refs[:2000], params), 1)
+        t = median_time(lambda b=block, r=all_refs[:2000]: sad_matrix(b, r, params), 1)
         print(f"{width}x{height:<4} confusion block 64x2000: {64 * 2000 / t:,.0f} comparisons/s")
 
 

@@ -49,7 +49,9 @@ def to_gray(images: NDArray) -> NDArray:
         if images.ndim == 3:
             return np.asarray(cv2.cvtColor(images, code))
         return np.stack([cv2.cvtColor(im, code) for im in images])
-    raise ValueError(f"images must be (H, W), (N, H, W) or with a trailing 3/4 channel axis, got {images.shape}")
+    raise ValueError(
+        f"images must be (H, W), (N, H, W) or with a trailing 3/4 channel axis, got {images.shape}"
+    )
 
 
 def crop(

@@ -69,19 +69,27 @@ class OdometryParams:
     """Ground-plane visual odometry (paper 000 eq. 1, 2; bird's-eye extension)."""
 
     model: OdometryModel = "auto"  # "linear": eq. 1-2 with k_x/k_y; "homography": bird's-eye; auto picks
-    max_step_m: float = 2.0  # largest forward or reverse travel per frame that is searched, metres
-    max_turn_rad: float = 0.15  # largest heading change per frame that is searched, radians
+    max_step_m: float = 1.5  # largest forward or reverse travel per frame that is searched, metres
+    max_turn_rad: float = 0.12  # largest heading change per frame that is searched, radians
     max_lateral_m: float = 0.3  # sideways slip searched on top of what a turn explains, metres
     bev_res_m: float = 0.02  # bird's-eye grid cell, metres (coarsened when the grid would exceed bev_max_px)
     bev_max_px: int = 640  # largest side of the bird's-eye grid, cells
     max_roi_px: int = 480  # linear model: the ROI window is down-sampled so its longer side is at most this
     patch_px: int = 8  # patch-normalisation square on every pyramid level, pixels
-    coarse_min_px: int = 8  # the coarsest pyramid level keeps at least this many pixels across the ROI
+    coarse_min_px: int = 10  # the coarsest pyramid level keeps at least this many pixels across the ROI
     coarse_candidates: int = 3  # local minima of the coarse exhaustive search refined to full resolution
     refine_radius_px: int = 2  # search radius around the up-sampled estimate on each finer level
-    rotation_steps: int = 3  # bird's-eye: heading candidates on each side of the eq.-1 estimate
-    rotation_step_rad: float = 0.006  # spacing of those candidates, radians
-    nonholonomic: bool = True  # bird's-eye: project the motion onto a rear-axle arc (no sideways slip)
+    rerotate: bool = True  # bird's-eye: re-match with the current grid rotated by the estimated turn
+    linear_blur_px: float = (
+        3.0  # linear model: Gaussian blur before matching (fine grain decorrelates under zoom)
+    )
+    linear_patches: tuple[int, int] = (
+        3,
+        3,
+    )  # linear model: ROI split into (cols, rows) tracked patches, median
+    self_calibrate: bool = True  # dead_reckon, bird's-eye: estimate the homography's horizon offset
+    horizon_max_px: float = 40.0  # largest horizon offset searched by the self-calibration, pixels
+    subpixel: Literal["lk", "parabola", "equiangular"] = "lk"  # sub-pixel: Gauss-Newton, or per-axis fits
     stationary_px: float = 0.3  # |shift| below this (pixels of the matching grid) with a good match -> zero
     stationary_min_confidence: float = 0.3  # the "good match" of stationary detection
     texture_ref: float = 4.0  # high-pass intensity std (grey levels) giving texture factor 1 - 1/e
@@ -102,7 +110,6 @@ class OdometryParams:
         positive = {
             "max_step_m": self.max_step_m,
             "bev_res_m": self.bev_res_m,
-            "rotation_step_rad": self.rotation_step_rad,
             "texture_ref": self.texture_ref,
             "blur_ref": self.blur_ref,
             "distinct_ref": self.distinct_ref,
@@ -113,10 +120,16 @@ class OdometryParams:
                 raise ValueError(f"OdometryParams.{name} must be > 0, got {value}")
         if self.max_turn_rad < 0 or self.max_lateral_m < 0:
             raise ValueError("OdometryParams: max_turn_rad and max_lateral_m must be >= 0")
+        if min(self.linear_patches) < 1 or self.horizon_max_px <= 0:
+            raise ValueError("OdometryParams: linear_patches >= (1, 1) and horizon_max_px > 0")
         if self.patch_px < 2 or self.coarse_min_px < 2 or self.coarse_candidates < 1:
             raise ValueError("OdometryParams: patch_px >= 2, coarse_min_px >= 2, coarse_candidates >= 1")
-        if self.refine_radius_px < 1 or self.rotation_steps < 0 or self.bev_max_px < 16 or self.max_roi_px < 16:
-            raise ValueError("OdometryParams: bad refine_radius_px, rotation_steps, bev_max_px or max_roi_px")
+        if self.refine_radius_px < 1 or self.bev_max_px < 64 or self.max_roi_px < 16:
+            raise ValueError("OdometryParams: refine_radius_px >= 1, bev_max_px >= 64, max_roi_px >= 16")
+        if self.subpixel not in ("lk", "parabola", "equiangular"):
+            raise ValueError(
+                f"OdometryParams.subpixel must be lk, parabola or equiangular, got {self.subpixel!r}"
+            )
 
 
 IMAGES_PAPER = ImageParams(size_px=(64, 32), patch_px=8)
@@ -129,4 +142,4 @@ SAD_FAST = SadParams(max_shift_x_px=2, max_shift_y_px=1)
 
 ODOMETRY_DEFAULT = OdometryParams()
 ODOMETRY_PAPER = OdometryParams(model="linear")
-ODOMETRY_FAST = OdometryParams(bev_res_m=0.04, max_roi_px=240, rotation_steps=2, rotation_step_rad=0.01)
+ODOMETRY_FAST = OdometryParams(bev_res_m=0.04, max_roi_px=240, coarse_candidates=1, rerotate=False)

@@ -1,0 +1,643 @@
+"""Ground-plane visual odometry (paper 000 III-A-1, eq. 1 and 2) and dead reckoning.
+
+Two consecutive frames are compared over the calibrated floor region (``ground_roi``); the motion
+of the floor content is found by coarse-to-fine, sub-pixel, two-sided SAD registration
+(:func:`driftmap.core.sad.register_shift`) of patch-normalised images. Two models turn it into
+vehicle motion:
+
+* **linear** (the paper): the ROI is split into ``linear_bands`` row bands (the paper's tracked
+  patches; one translation cannot fit a whole ROI seen in perspective), the median band shift
+  ``(x_p, y_p)`` pixels gives ``theta = atan(x_p k_x / (y_c + y_h))`` (eq. 1) and
+  ``d = y_p k_y forward_sign`` (eq. 2).
+* **homography** (beyond the paper): frames are warped through ``ground_homography`` into a
+  metric bird's-eye grid (``bev_res_m`` cells; rows point backwards, columns right), where a shift
+  is floor motion in metres whatever the perspective. The floor point ``C`` at the ROI-footprint
+  centre and its match in the current frame give ``(d, theta)`` of a rear-axle arc (the lever-arm
+  geometry of eq. 1, no sideways slip); the current frame is then re-warped rotated by ``theta``
+  about ``C``, removing the shear of a turn, and matched and solved again.
+
+Horizon self-calibration (homography model, :func:`dead_reckon`): a camera pitch error shifts the
+true horizon by ``delta`` pixels, ``H_true(u, v) = H(u, v + delta)``, and scales floor motion by a
+depth-dependent factor (about 17 % on the KITTI clips). Floor motion is rigid, so the distance
+between the matched near-half and far-half ROI points must be the same in both frames; each
+moving step yields the ``delta`` that makes it so, the median over the drive is applied to every
+step at the end. :func:`shift_horizon` gives the corrected camera for later single steps.
+
+Signs. ``theta`` is counter-clockwise (left turn) positive. Floor content moves right in the
+image (+u) when the vehicle turns left, for forward- and rear-looking cameras alike (the camera
+yaws left with the vehicle), so ``x_p > 0`` gives ``theta > 0``. ``forward_sign = +1``: content
+moves down (+v) when driving forward, so ``d = +y_p k_y``; reversing gives ``d < 0``.
+
+Motion model (rear-axle arc, midpoint heading). Poses are of the camera's floor point (x forward,
+y left), ``y_c`` ahead of the rear axle. In a step the rear axle travels ``d`` along the chord at
+the midpoint heading ``theta / 2``, so the camera foot moves by
+``t = d (cos theta/2, sin theta/2) + y_c (cos theta - 1, sin theta)`` in the previous frame and
+``wT_{k+1} = wT_k * (t, theta)`` (SE(2): translate, then rotate).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core.camera import CameraModel
+from driftmap.core.images import patch_normalise
+from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
+from driftmap.core.sad import mask_pyramid, pyramid, register_shift
+
+__all__ = ["DeadReckoning", "OdometryStep", "compose", "dead_reckon", "estimate_step", "shift_horizon"]
+
+Rect = tuple[int, int, int, int]
+Pair = tuple[NDArray[np.float64], NDArray[np.float64]]  # matched pixels (previous frame, current frame)
+Region = tuple[Rect, float, float]  # image rectangle, and the floor depth interval x_lo..x_hi (metres) kept
+
+
+@dataclass(frozen=True)
+class OdometryStep:
+    """Motion of the vehicle between two consecutive frames.
+
+    Attributes:
+        dx_m: signed travel of the rear axle along its arc, metres (+ forward, - reverse).
+        dtheta_rad: heading change, radians, counter-clockwise positive.
+        shift_px: ``(x, y)`` floor-content shift from the previous to the current frame in the
+            matching grid: image pixels (linear model) or bird's-eye cells (homography model).
+        confidence: in [0, 1], from texture, blur, occlusion, match distinctiveness and range.
+        stationary: the shift was below ``stationary_px`` with a good match; motion set to 0.
+        sigma_xy_m: suggested standard deviation of the step's position, metres.
+        sigma_theta_rad: suggested standard deviation of the heading change, radians.
+        prev_T_curr: ``(x_m, y_m, yaw_rad)`` pose of the current camera-foot frame in the previous.
+        model: "linear" or "homography".
+    """
+
+    dx_m: float
+    dtheta_rad: float
+    shift_px: tuple[float, float]
+    confidence: float
+    stationary: bool
+    sigma_xy_m: float
+    sigma_theta_rad: float
+    prev_T_curr: tuple[float, float, float]
+    model: str
+
+
+@dataclass(frozen=True)
+class DeadReckoning:
+    """Integrated odometry of a frame sequence.
+
+    Attributes:
+        wTi: ``(N, 3)`` float64 world poses ``[x_m, y_m, yaw_rad]`` of the camera foot per frame.
+        steps: the ``N - 1`` steps between consecutive frames.
+        ms_per_step: ``(N - 1,)`` float64 wall-clock milliseconds per step (frame preparation included).
+        horizon_offset_px: horizon offset applied by the self-calibration (0 when off or unobservable).
+    """
+
+    wTi: NDArray[np.float64]
+    steps: list[OdometryStep]
+    ms_per_step: NDArray[np.float64]
+    horizon_offset_px: float
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """The matching grid of one camera and parameter set (built once, cached)."""
+
+    model: str
+    px_from_grid: NDArray[np.float64]  # (3, 3): grid (col, row, 1) -> (scaled) source pixel
+    floor_from_grid: NDArray[np.float64]  # (3, 3): grid -> floor metres (homography model)
+    size: tuple[int, int]  # grid (width, height), cells
+    scale: float  # the source image is first resized by this (linear model)
+    levels: int
+    range_px: tuple[float, float]  # (x, y) search range, grid cells
+    region_px: list[NDArray[np.uint8]]  # image masks of the matched regions: linear patches, or the ROI
+    #                                     and its nearest and farthest depth slices (bird's-eye)
+    regions: list[list[NDArray[np.float32]]]  # mask pyramid per rectangle
+    valid: list[NDArray[np.float32]]  # pyramid of cells showing image content
+    extent_m: float  # half the larger side of the ROI footprint, metres (shear lever of a turn)
+
+
+@dataclass(frozen=True)
+class _Frame:
+    raw: NDArray[np.uint8]
+    pyr: list[NDArray[np.float32]]
+    quality: float
+
+
+def _check_frame(frame: NDArray, camera: CameraModel, name: str) -> NDArray[np.uint8]:
+    arr = np.asarray(frame)
+    if arr.shape != (camera.height_px, camera.width_px):
+        shape = (camera.height_px, camera.width_px)
+        raise ValueError(f"{name} must be a gray (H, W) = {shape} image, got shape {arr.shape}")
+    return arr if arr.dtype == np.uint8 else np.clip(arr, 0, 255).astype(np.uint8)
+
+
+def _apply(hom: NDArray, pts: NDArray) -> NDArray[np.float64]:
+    """Apply a (3, 3) homography to ``(..., 2)`` points."""
+    pts = np.asarray(pts, dtype=np.float64)
+    h = pts @ hom[:, :2].T + hom[:, 2]
+    return np.asarray(h[..., :2] / h[..., 2:3])
+
+
+def _warp(
+    image: NDArray,
+    setup: _Setup,
+    px_from_grid: NDArray,
+    interp: int = cv2.INTER_LINEAR,
+    border: int = cv2.BORDER_REPLICATE,
+) -> NDArray[np.float32]:
+    """Sample ``image`` (full resolution) on the matching grid."""
+    src = image
+    if setup.scale < 1.0:
+        size = (round(image.shape[1] * setup.scale), round(image.shape[0] * setup.scale))
+        src = cv2.resize(image, size, interpolation=cv2.INTER_AREA if interp != cv2.INTER_NEAREST else interp)
+    grid = cv2.warpPerspective(
+        src, px_from_grid, setup.size, flags=interp | cv2.WARP_INVERSE_MAP, borderMode=border
+    )
+    return np.asarray(grid, dtype=np.float32)
+
+
+def _region_images(camera: CameraModel, regions: list[Region]) -> list[NDArray[np.uint8]]:
+    """{0, 1} image-resolution masks of each region (rectangle within the floor depth interval)."""
+    hom = camera.homography()
+    cols, rows = np.meshgrid(np.arange(camera.width_px), np.arange(camera.height_px))
+    depth = np.zeros(cols.shape)
+    if hom is not None:
+        floor = np.einsum("ij,jhw->ihw", hom, np.stack([cols, rows, np.ones_like(cols)]).astype(np.float64))
+        depth = np.where(floor[2] > 0, floor[0] / np.where(floor[2] > 0, floor[2], 1.0), -np.inf)
+    out = []
+    for (x, y, w, h), lo, hi in regions:
+        inside = (cols >= x) & (cols < x + w) & (rows >= y) & (rows < y + h) & (depth >= lo) & (depth <= hi)
+        out.append(inside.astype(np.uint8))
+    return out
+
+
+def _masks(
+    camera: CameraModel, setup: _Setup, px_from_grid: NDArray, erode: int
+) -> tuple[list[NDArray[np.float32]], NDArray[np.float32]]:
+    """{0, 1} grids of the cells showing each region, and of the cells inside the frame (eroded)."""
+    cols, rows = np.meshgrid(np.arange(setup.size[0]), np.arange(setup.size[1]))
+    ahead = (px_from_grid[2, 0] * cols + px_from_grid[2, 1] * rows + px_from_grid[2, 2]) > 1e-9
+    full = np.ones((camera.height_px, camera.width_px), np.uint8)
+    grids = [
+        _warp(m, setup, px_from_grid, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT) * ahead
+        for m in [full, *setup.region_px]
+    ]
+    valid = cv2.erode(grids[0], np.ones((3, 3), np.uint8), iterations=erode)
+    return [np.asarray(g, dtype=np.float32) for g in grids[1:]], np.asarray(valid, dtype=np.float32)
+
+
+@lru_cache(maxsize=16)
+def _setup(camera: CameraModel, params: OdometryParams) -> _Setup:
+    """Build the matching grid: image window (linear) or metric bird's-eye grid (homography)."""
+    hom = camera.homography()
+    model = params.model if params.model != "auto" else ("homography" if hom is not None else "linear")
+    if model == "homography" and hom is None:
+        raise ValueError("OdometryParams.model='homography' needs a camera with ground_homography")
+    x, y, w, h = camera.ground_roi_px
+    margin = 2 * params.refine_radius_px + 3
+    if model == "linear":
+        n_x, n_y = min(params.linear_patches[0], w), min(params.linear_patches[1], h)
+        xs = [x + round(i * w / n_x) for i in range(n_x + 1)]
+        ys = [y + round(j * h / n_y) for j in range(n_y + 1)]
+        spec = [
+            ((xs[i], ys[j], xs[i + 1] - xs[i], ys[j + 1] - ys[j]), -math.inf, math.inf)
+            for j in range(n_y)
+            for i in range(n_x)
+        ]
+        scale = min(1.0, params.max_roi_px / max(w, h))
+        lever = abs(camera.y_c_m + camera.y_h_m)
+        rx = scale * (math.tan(params.max_turn_rad) * lever + params.max_lateral_m) / camera.k_x_m_per_px
+        ry = scale * params.max_step_m / camera.k_y_m_per_px
+        x0, y0 = math.floor(x * scale - rx) - margin, math.floor(y * scale - ry) - margin
+        size = (math.ceil(w * scale + 2 * rx) + 2 * margin, math.ceil(h * scale + 2 * ry) + 2 * margin)
+        px_from_grid = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
+        floor_from_grid, res, roi_min, extent = np.eye(3), 0.0, min(w / n_x, h / n_y) * scale, 0.0
+    else:
+        assert hom is not None
+        u = np.array([x, x + w / 2, x + w, x + w, x + w, x + w / 2, x, x], dtype=np.float64)
+        v = np.array([y, y, y, y + h / 2, y + h, y + h, y + h, y + h / 2], dtype=np.float64)
+        if np.any(hom[2, 0] * u + hom[2, 1] * v + hom[2, 2] <= 0):
+            raise ValueError("ground_roi reaches above the horizon of ground_homography")
+        f = _apply(hom, np.stack([u, v], axis=1))
+        span_x = params.max_step_m
+        span_y = (
+            math.sin(params.max_turn_rad) * abs(float(f[:, 0].max()) + camera.y_c_m) + params.max_lateral_m
+        )
+        ext_x, ext_y = float(np.ptp(f[:, 0])) + 2 * span_x, float(np.ptp(f[:, 1])) + 2 * span_y
+        res = max(params.bev_res_m, max(ext_x, ext_y) / (params.bev_max_px - 2 * margin))
+        x_top, y_left = (
+            float(f[:, 0].max()) + span_x + margin * res,
+            float(f[:, 1].max()) + span_y + margin * res,
+        )
+        size = (math.ceil(ext_y / res) + 2 * margin, math.ceil(ext_x / res) + 2 * margin)
+        floor_from_grid = np.array([[0.0, -res, x_top], [-res, 0.0, y_left], [0.0, 0.0, 1.0]])
+        px_from_grid = np.linalg.inv(hom) @ floor_from_grid
+        rx, ry, scale = span_y / res, span_x / res, 1.0
+        roi_min = min(float(np.ptp(f[:, 0])), float(np.ptp(f[:, 1]))) / res
+        extent = 0.5 * max(float(np.ptp(f[:, 0])), float(np.ptp(f[:, 1])))
+        # calibration slices: the nearest and the farthest 30 % of the footprint's depth range
+        near_x, far_x = float(f[:, 0].min()), float(f[:, 0].max())
+        cut = 0.2 * (far_x - near_x)
+        rect = (x, y, w, h)
+        spec = [(rect, -math.inf, math.inf), (rect, -math.inf, near_x + cut), (rect, far_x - cut, math.inf)]
+    levels = 0
+    while roi_min / 2 ** (levels + 1) >= params.coarse_min_px and max(rx, ry) / 2**levels > 4:
+        levels += 1
+    base = _Setup(
+        model,
+        px_from_grid,
+        floor_from_grid,
+        size,
+        scale,
+        levels,
+        (rx, ry),
+        _region_images(camera, spec),
+        [],
+        [],
+        extent,
+    )
+    masks, valid = _masks(camera, base, px_from_grid, max(1, params.patch_px // 2))
+    regions = [mask_pyramid(m, levels) for m in masks]
+    return dataclasses.replace(base, regions=regions, valid=mask_pyramid(valid, levels))
+
+
+def _quality(raw: NDArray[np.uint8], camera: CameraModel, params: OdometryParams) -> float:
+    """Texture x sharpness x unoccluded fraction of a frame's ROI, in [0, 1]."""
+    x, y, w, h = camera.ground_roi_px
+    roi = raw[y : y + h, x : x + w].astype(np.float32)
+    contrast = float((roi - cv2.blur(roi, (9, 9))).std())
+    texture = 1.0 - math.exp(-contrast / params.texture_ref)
+    # Re-blur test: a sharp image loses much gradient under a 1-px Gaussian, a blurred one little.
+    soft = cv2.GaussianBlur(roi, (0, 0), 1.0)
+    g_sharp = float(np.abs(np.diff(roi, axis=0)).mean() + np.abs(np.diff(roi, axis=1)).mean())
+    g_soft = float(np.abs(np.diff(soft, axis=0)).mean() + np.abs(np.diff(soft, axis=1)).mean())
+    blur = min(1.0, max(0.0, 1.0 - g_soft / g_sharp) / params.blur_ref) if g_sharp > 0 else 0.0
+    mean = cv2.blur(roi, (5, 5))
+    local_std = np.sqrt(np.maximum(cv2.blur(roi * roi, (5, 5)) - mean * mean, 0.0))
+    bad = (roi <= params.saturated_low) | (roi >= params.saturated_high) | (local_std < params.flat_std)
+    return texture * blur * (1.0 - float(bad.mean()))
+
+
+def _normalised_pyramid(grid: NDArray, levels: int, params: OdometryParams) -> list[NDArray[np.float32]]:
+    return [patch_normalise(level, params.patch_px, params.flat_std) for level in pyramid(grid, levels)]
+
+
+def _prepare(frame: NDArray[np.uint8], camera: CameraModel, setup: _Setup, params: OdometryParams) -> _Frame:
+    grid = _warp(frame, setup, setup.px_from_grid)
+    if setup.model == "linear" and params.linear_blur_px > 0:  # fine grain does not survive the zoom
+        grid = np.asarray(cv2.GaussianBlur(grid, (0, 0), params.linear_blur_px), dtype=np.float32)
+    pyr = _normalised_pyramid(grid, setup.levels, params)
+    return _Frame(frame, pyr, _quality(frame, camera, params))
+
+
+def _arc(d_m: float, theta_rad: float, y_c_m: float) -> tuple[float, float]:
+    """Camera-foot displacement (previous frame) for a rear-axle chord d at midpoint heading."""
+    return (
+        d_m * math.cos(theta_rad / 2) + y_c_m * (math.cos(theta_rad) - 1.0),
+        d_m * math.sin(theta_rad / 2) + y_c_m * math.sin(theta_rad),
+    )
+
+
+def _solve_arc(f1: NDArray, f2: NDArray, y_c_m: float) -> tuple[float, float]:
+    """(d, theta) of the rear-axle arc taking floor point ``f2`` (current frame) to ``f1`` (previous).
+
+    Solves ``f1 = R(theta) f2 + arc(d, theta)`` by fixed-point iteration; the lateral row is eq. 1
+    with lever arm ``f2_x + y_c``, the longitudinal row is eq. 2.
+    """
+    (x1, y1), (x2, y2) = (float(v) for v in f1), (float(v) for v in f2)
+    theta, d = 0.0, x1 - x2
+    for _ in range(10):
+        s = (y1 - math.cos(theta) * y2 - d * math.sin(theta / 2)) / (x2 + y_c_m)
+        theta = math.asin(max(-1.0, min(1.0, s)))
+        c = math.cos(theta)
+        d = (x1 - c * x2 + math.sin(theta) * y2 - y_c_m * (c - 1.0)) / math.cos(theta / 2)
+    return d, theta
+
+
+def _rotated_grid(setup: _Setup, hom: NDArray, centre: NDArray, theta: float) -> NDArray[np.float64]:
+    """Grid -> pixel map of a bird's-eye grid whose point g shows floor R(-theta)(g - C) + C."""
+    c, s = math.cos(theta), math.sin(theta)
+    rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    move = np.array([[1.0, 0.0, centre[0]], [0.0, 1.0, centre[1]], [0.0, 0.0, 1.0]])
+    back = np.array([[1.0, 0.0, -centre[0]], [0.0, 1.0, -centre[1]], [0.0, 0.0, 1.0]])
+    return np.asarray(np.linalg.inv(hom) @ move @ rot @ back @ setup.floor_from_grid)
+
+
+def _energy(img: NDArray) -> NDArray[np.float32]:
+    """Squared central-difference gradient magnitude, zero on the border."""
+    out = np.zeros_like(img)
+    out[1:-1, 1:-1] = (img[2:, 1:-1] - img[:-2, 1:-1]) ** 2 + (img[1:-1, 2:] - img[1:-1, :-2]) ** 2
+    return out
+
+
+def _centroid(floor_from_grid: NDArray, weights: NDArray) -> NDArray[np.float64]:
+    """Floor point of the weighted centroid of a grid (geometric centroid of the support if all 0)."""
+    total = float(weights.sum())
+    if total <= 0:
+        weights, total = (weights > 0).astype(np.float64) + 1e-12, float((weights > 0).sum()) + 1e-12
+    rows, cols = np.indices(weights.shape)
+    centroid = np.array([float((cols * weights).sum()), float((rows * weights).sum())]) / total
+    return _apply(floor_from_grid, centroid)
+
+
+def _centre_px(rect: Rect) -> NDArray[np.float64]:
+    return np.array([rect[0] + rect[2] / 2.0, rect[1] + rect[3] / 2.0])
+
+
+def _finish(
+    d: float,
+    theta: float,
+    shift_px: tuple[float, float],
+    confidence: float,
+    camera: CameraModel,
+    model: str,
+    params: OdometryParams,
+) -> OdometryStep:
+    """The step record: stationary detection, sigmas, and the arc as a relative pose."""
+    stationary = math.hypot(*shift_px) < params.stationary_px
+    stationary = stationary and confidence >= params.stationary_min_confidence
+    if stationary:
+        d, theta = 0.0, 0.0
+    floor = max(confidence, params.confidence_floor)
+    tx, ty = _arc(d, theta, camera.y_c_m)
+    return OdometryStep(
+        dx_m=d, dtheta_rad=theta, shift_px=shift_px, confidence=float(confidence),
+        stationary=stationary, prev_T_curr=(tx, ty, theta), model=model,
+        sigma_xy_m=(params.sigma_xy_base_m + params.sigma_xy_per_m * abs(d)) / floor,
+        sigma_theta_rad=(params.sigma_theta_base_rad + params.sigma_theta_per_m * abs(d)) / floor,
+    )  # fmt: skip
+
+
+def _match_linear(
+    prev: _Frame, curr: _Frame, camera: CameraModel, setup: _Setup, params: OdometryParams
+) -> OdometryStep:
+    """Paper model: median patch shift (x_p, y_p) -> eq. 1 and eq. 2."""
+    ms = [
+        register_shift(prev.pyr, curr.pyr, region, setup.valid, *setup.range_px,
+                       candidates=params.coarse_candidates, radius=params.refine_radius_px, subpixel=params.subpixel)
+        for region in setup.regions
+    ]  # fmt: skip
+    shift = (float(np.median([m.shift_px[0] for m in ms])), float(np.median([m.shift_px[1] for m in ms])))
+    x_p, y_p = shift[0] / setup.scale, shift[1] / setup.scale
+    d = y_p * camera.k_y_m_per_px * camera.forward_sign
+    theta = math.atan(x_p * camera.k_x_m_per_px / (camera.y_c_m + camera.y_h_m))
+    conf = min(prev.quality, curr.quality) * min(
+        1.0, float(np.median([m.distinctiveness for m in ms])) / params.distinct_ref
+    )
+    conf *= min(1.0, min(m.overlap for m in ms) / 0.5) * (0.1 if any(m.at_range_edge for m in ms) else 1.0)
+    return _finish(d, theta, shift, conf, camera, "linear", params)
+
+
+def _match_birdseye(
+    prev: _Frame, curr: _Frame, camera: CameraModel, setup: _Setup, params: OdometryParams
+) -> tuple[OdometryStep, list[Pair]]:
+    """Bird's-eye model; also the matched pixel pairs [ROI centre, near slice, far slice]."""
+    hom = camera.homography()
+    assert hom is not None
+    rx, ry = setup.range_px
+    sub = params.subpixel
+    res = -float(setup.floor_from_grid[0, 1])
+    # A shift estimate is a gradient-energy weighted mean of local shifts (Lucas-Kanade), so each
+    # region's correspondence sits at its texture-weighted centroid, not its geometric one.
+    energy = _energy(prev.pyr[0])
+    centres = [_centroid(setup.floor_from_grid, energy * region[0]) for region in setup.regions]
+    centre = centres[0]
+
+    def motion(shift_px: tuple[float, float]) -> NDArray[np.float64]:
+        """Floor motion of content (x forward, y left) for a grid shift (columns right, rows back)."""
+        return -res * np.array([shift_px[1], shift_px[0]])
+
+    def rot_w(g: NDArray, theta_w: float) -> NDArray[np.float64]:
+        """Current-frame floor point shown at floor point g of the grid rotated by theta_w about C."""
+        c, s = math.cos(theta_w), math.sin(theta_w)
+        g = g - centre
+        return np.asarray(centre + np.array([c * g[0] + s * g[1], -s * g[0] + c * g[1]]))
+
+    def pair(shift_px: tuple[float, float], theta_w: float) -> tuple[NDArray, NDArray]:
+        """Previous/current floor points of the ROI match: the two-sided cost pools the ROI in both
+        frames, so the correspondence sits half a shift either side of the centroid."""
+        half = 0.5 * motion(shift_px)
+        return centre - half, rot_w(centre + half, theta_w)
+
+    def rotated(theta_w: float, levels: int) -> tuple[list[NDArray], list[list[NDArray]], list[NDArray]]:
+        """Pyramids of the current frame's grid turned by theta_w about C, of its regions and valid cells."""
+        if theta_w == 0.0:
+            return curr.pyr[: levels + 1], [r[: levels + 1] for r in setup.regions], setup.valid[: levels + 1]
+        m_rot = _rotated_grid(setup, hom, centre, theta_w)
+        regions, valid = _masks(camera, setup, m_rot, max(1, params.patch_px // 2))
+        pyr = _normalised_pyramid(_warp(curr.raw, setup, m_rot), levels, params)
+        return pyr, [mask_pyramid(r, levels) for r in regions], mask_pyramid(valid, levels)
+
+    def turn(shift_px: tuple[float, float], theta_w: float) -> float:
+        return _solve_arc(*pair(shift_px, theta_w), camera.y_c_m)[1] if params.rerotate else 0.0
+
+    # Translation only, exhaustive at the coarsest level and refined one level down (a turn's shear
+    # is still below a cell there); then the current grid is turned by the estimate and refined to
+    # level 0, turned once more if the estimate moved by half a cell of shear across the footprint.
+    mid = max(0, setup.levels - 1)
+    first = register_shift(
+        prev.pyr[mid:], curr.pyr[mid:], setup.regions[0][mid:], setup.valid[mid:], rx / 2**mid, ry / 2**mid,
+        candidates=params.coarse_candidates, radius=params.refine_radius_px, subpixel=sub,
+    )  # fmt: skip
+    shift, theta_w = (first.shift_px[0] * 2**mid, first.shift_px[1] * 2**mid), 0.0
+    for i, level in enumerate((mid, 0)):
+        theta = turn(shift, theta_w)
+        if i == 1 and abs(theta - theta_w) * setup.extent_m < 0.5 * res:
+            break
+        theta_w = theta if abs(theta) > 1e-3 else 0.0
+        b_pyr, b_regions, b_valid = rotated(theta_w, level)
+        match = register_shift(
+            prev.pyr[: level + 1], b_pyr, setup.regions[0][: level + 1], setup.valid[: level + 1], rx, ry,
+            roi_b=b_regions[0], valid_b=b_valid, radius=1, subpixel=sub,
+            start_px=(round(shift[0] / 2**level), round(shift[1] / 2**level)),
+        )  # fmt: skip
+        shift = match.shift_px
+    floor_pairs = [pair(shift, theta_w)]
+    if params.self_calibrate:  # one-sided slices: the correspondence lies at that frame's slice centroid
+        b_pyr, b_regions, b_valid = rotated(theta_w, 0)
+        b_energy = _energy(b_pyr[0])
+        for k in (1, 2):
+            args = (prev.pyr[:1], b_pyr, setup.regions[k][:1], setup.valid[:1], rx, ry)
+            kw = {"roi_b": b_regions[k], "valid_b": b_valid, "start_px": (round(shift[0]), round(shift[1]))}
+            m_a = register_shift(*args, side="a", radius=1, subpixel=sub, **kw)  # type: ignore[arg-type]
+            m_b = register_shift(*args, side="b", radius=1, subpixel=sub, **kw)  # type: ignore[arg-type]
+            if m_a.overlap >= m_b.overlap:  # previous slice -> anywhere in the current frame
+                floor_pairs.append((centres[k], rot_w(centres[k] + motion(m_a.shift_px), theta_w)))
+            else:  # current slice <- anywhere in the previous frame
+                g = _centroid(setup.floor_from_grid, b_energy * b_regions[k][0])
+                floor_pairs.append((g - motion(m_b.shift_px), rot_w(g, theta_w)))
+    d, theta = _solve_arc(*floor_pairs[0], camera.y_c_m)
+    hom_inv = np.linalg.inv(hom)
+    pairs: list[Pair] = [(_apply(hom_inv, f1), _apply(hom_inv, f2)) for f1, f2 in floor_pairs]
+    conf = min(prev.quality, curr.quality) * min(1.0, first.distinctiveness / params.distinct_ref)
+    conf *= min(1.0, match.overlap / 0.5) * (0.1 if first.at_range_edge else 1.0)
+    return _finish(d, theta, shift, conf, camera, "homography", params), pairs
+
+
+def _match(
+    prev: _Frame, curr: _Frame, camera: CameraModel, setup: _Setup, params: OdometryParams
+) -> tuple[OdometryStep, list[Pair]]:
+    if setup.model == "linear":
+        return _match_linear(prev, curr, camera, setup, params), []
+    return _match_birdseye(prev, curr, camera, setup, params)
+
+
+def _horizon_offset(hom: NDArray, pairs: list[Pair], max_px: float) -> float | None:
+    """Horizon offset that keeps the near-far distance of one step's matched floor points rigid."""
+    if len(pairs) < 3 or min(abs(p[1][1] - p[0][1]) for p in pairs[1:]) < 2.0:
+        return None
+    (n1, n2), (f1, f2) = pairs[1], pairs[2]
+    pts = np.stack([n1, f1, n2, f2])
+
+    def gap(delta: float) -> float:
+        shifted = pts + np.array([0.0, delta])
+        if np.any(shifted @ hom[2, :2] + hom[2, 2] <= 0):
+            return math.nan
+        f = _apply(hom, shifted)
+        return float(np.linalg.norm(f[0] - f[1]) - np.linalg.norm(f[2] - f[3]))
+
+    grid = np.linspace(-max_px, max_px, 81)
+    vals = np.array([gap(float(g)) for g in grid])
+    roots = [i for i in range(80) if np.isfinite(vals[i] + vals[i + 1]) and vals[i] * vals[i + 1] <= 0]
+    if not roots:
+        return None
+    i = min(roots, key=lambda j: abs(grid[j]))
+    lo, hi, g_lo = float(grid[i]), float(grid[i + 1]), float(vals[i])
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        g_mid = gap(mid)
+        lo, hi, g_lo = (mid, hi, g_mid) if g_lo * g_mid > 0 else (lo, mid, g_lo)
+    return 0.5 * (lo + hi)
+
+
+def shift_horizon(camera: CameraModel, offset_px: float) -> CameraModel:
+    """The camera with its ground homography's horizon moved by ``offset_px`` pixels.
+
+    ``H'(u, v) = H(u, v + offset_px)`` (a small pitch change); ``k_x``, ``k_y`` and ``y_h`` are
+    recomputed at the ROI centre (``k`` as the floor metres per pixel step along u and v).
+
+    Raises:
+        ValueError: the camera has no ground homography.
+    """
+    hom = camera.homography()
+    if hom is None:
+        raise ValueError("shift_horizon needs a camera with ground_homography")
+    shifted = hom @ np.array([[1.0, 0.0, 0.0], [0.0, 1.0, offset_px], [0.0, 0.0, 1.0]])
+    c = _centre_px(camera.ground_roi_px)
+    step_u, step_v = np.array([0.5, 0.0]), np.array([0.0, 0.5])
+    f = _apply(shifted, np.stack([c, c + step_u, c - step_u, c + step_v, c - step_v]))
+    return dataclasses.replace(
+        camera,
+        k_x_m_per_px=float(np.linalg.norm(f[1] - f[2])),
+        k_y_m_per_px=float(np.linalg.norm(f[3] - f[4])),
+        y_h_m=float(np.hypot(*f[0])),
+        ground_homography=tuple((float(r[0]), float(r[1]), float(r[2])) for r in shifted),
+    )
+
+
+def estimate_step(
+    prev: NDArray, curr: NDArray, camera: CameraModel, params: OdometryParams = ODOMETRY_DEFAULT
+) -> OdometryStep:
+    """Vehicle motion between two consecutive frames from the floor region.
+
+    Args:
+        prev: ``(H, W)`` uint8 gray frame at time k (other real dtypes are clipped to 0-255).
+        curr: ``(H, W)`` uint8 gray frame at time k + 1; ``(H, W)`` must equal the camera's size.
+        camera: calibration: ROI, k_x, k_y, y_c, y_h, forward_sign, optional ground_homography.
+        params: search ranges, model choice, confidence and sigma settings.
+
+    Returns:
+        :class:`OdometryStep` (metres, radians, counter-clockwise positive).
+
+    Raises:
+        ValueError: wrong frame shapes, or a homography model without a homography.
+    """
+    a, b = _check_frame(prev, camera, "prev"), _check_frame(curr, camera, "curr")
+    single = dataclasses.replace(params, self_calibrate=False)  # needs a whole drive
+    setup = _setup(camera, single)
+    return _match(
+        _prepare(a, camera, setup, single), _prepare(b, camera, setup, single), camera, setup, single
+    )[0]
+
+
+def compose(wTa: NDArray | tuple[float, ...], aTb: NDArray | tuple[float, ...]) -> NDArray[np.float64]:
+    """SE(2) ``wTb = wTa * aTb`` of ``(3,)`` poses ``[x_m, y_m, yaw_rad]``; yaw wrapped to (-pi, pi]."""
+    x, y, yaw = (float(v) for v in wTa)
+    dx, dy, dyaw = (float(v) for v in aTb)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [x + c * dx - s * dy, y + s * dx + c * dy, math.atan2(math.sin(yaw + dyaw), math.cos(yaw + dyaw))]
+    )
+
+
+def dead_reckon(
+    frames: Iterable[NDArray] | NDArray,
+    camera: CameraModel,
+    params: OdometryParams = ODOMETRY_DEFAULT,
+    start_wT: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> DeadReckoning:
+    """Integrate the steps of a frame sequence; each frame is prepared once.
+
+    With ``params.self_calibrate`` and the homography model, the horizon offset is estimated from
+    the whole sequence (median of the moving, confident steps' estimates; needs at least 3) and
+    every step is re-solved with it before integration.
+
+    Args:
+        frames: ``(N, H, W)`` uint8 stack or an iterable of ``(H, W)`` uint8 frames in time order.
+        camera: the drive's camera.
+        params: odometry parameters.
+        start_wT: world pose ``(x_m, y_m, yaw_rad)`` of the camera foot at the first frame.
+
+    Returns:
+        :class:`DeadReckoning`: ``wTi`` ``(N, 3)``, ``N - 1`` steps, timings, horizon offset.
+
+    Raises:
+        ValueError: a frame of the wrong shape or a bad start pose.
+    """
+    start = np.asarray(start_wT, dtype=np.float64)
+    if start.shape != (3,) or not np.all(np.isfinite(start)):
+        raise ValueError(f"start_wT must be finite (x_m, y_m, yaw_rad), got {start_wT}")
+    setup = _setup(camera, params)
+    steps: list[OdometryStep] = []
+    pairs: list[list[Pair]] = []
+    times: list[float] = []
+    prev: _Frame | None = None
+    n_frames = 0
+    for k, frame in enumerate(frames):
+        t0 = time.perf_counter()
+        curr = _prepare(_check_frame(frame, camera, f"frame {k}"), camera, setup, params)
+        n_frames += 1
+        if prev is not None:
+            step, pair = _match(prev, curr, camera, setup, params)
+            steps.append(step)
+            pairs.append(pair)
+            times.append(1e3 * (time.perf_counter() - t0))
+        prev = curr
+    offset = 0.0
+    hom = camera.homography()
+    if params.self_calibrate and setup.model == "homography" and hom is not None:
+        found = [
+            _horizon_offset(hom, p, params.horizon_max_px)
+            for s, p in zip(steps, pairs, strict=True)
+            if not s.stationary and s.confidence >= params.stationary_min_confidence
+        ]
+        estimates = [f for f in found if f is not None]
+        if len(estimates) >= 3:
+            offset = float(np.median(estimates))
+            shifted = np.asarray(shift_horizon(camera, offset).homography())
+            for i, (s, p) in enumerate(zip(steps, pairs, strict=True)):
+                if not s.stationary:
+                    d, theta = _solve_arc(_apply(shifted, p[0][0]), _apply(shifted, p[0][1]), camera.y_c_m)
+                    steps[i] = _finish(d, theta, s.shift_px, s.confidence, camera, s.model, params)
+    poses = [start] if n_frames else []
+    for s in steps:
+        poses.append(compose(poses[-1], s.prev_T_curr))
+    wTi = np.stack(poses) if poses else np.zeros((0, 3))
+    return DeadReckoning(wTi, steps, np.asarray(times, dtype=np.float64), offset)

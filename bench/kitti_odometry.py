@@ -1,0 +1,143 @@
+"""Ground-plane visual odometry on the two KITTI clips: dead reckoning against ground truth.
+
+For each clip (``shared/data/kitti/kitti-clip-{1,2}``) and each model, integrates the odometry from the
+first frame's true pose and prints distance travelled, final position error (absolute and as a
+percentage of the distance), final heading error and the median wall-clock time per step. Models:
+
+* ``birdseye``: the homography (bird's-eye) model with horizon self-calibration (the default);
+* ``birdseye-raw``: the same without self-calibration, i.e. the drive.json homography as given;
+* ``linear``: the paper's linear k_x/k_y model (eq. 1, 2).
+
+Writes a plot of estimated against true trajectories to ``bench/out/kitti_odometry.png`` and copies
+it to ``docs/kitti_odometry.png``. Ground truth positions are the camera's floor point, as ours.
+
+Usage: ``.venv/bin/python bench/kitti_odometry.py [--data ../shared/data/kitti]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core.camera import CameraModel
+from driftmap.core.odometry import DeadReckoning, dead_reckon
+from driftmap.core.params import ODOMETRY_DEFAULT, ODOMETRY_PAPER, OdometryParams
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS: dict[str, OdometryParams] = {
+    "birdseye": ODOMETRY_DEFAULT,
+    "birdseye-raw": dataclasses.replace(ODOMETRY_DEFAULT, self_calibrate=False),
+    "linear": ODOMETRY_PAPER,
+}
+TARGET_PCT = 5.0
+
+
+def load_clip(folder: Path) -> tuple[CameraModel, NDArray[np.float64], NDArray[np.uint8]]:
+    """Camera, ground truth ``(N, 3)`` [x_m, y_m, yaw_rad] and gray frames ``(N, H, W)`` of a drive folder."""
+    try:
+        from driftmap.formats.drive_folder import read_drive_folder
+        from driftmap.formats.frame_images import decode_gray
+    except ImportError:  # the shared reader is not there yet: a minimal parse of the same format
+        meta = json.loads((folder / "drive.json").read_text())["camera"]
+        hom = meta.get("ground_homography")
+        camera = CameraModel(
+            meta["width"], meta["height"], tuple(meta["ground_roi"]), meta["k_x"], meta["k_y"], meta["y_c"],
+            meta["y_h"], meta.get("forward_sign", 1), tuple(tuple(r) for r in hom) if hom else None,
+        )  # fmt: skip
+        with (folder / "frames.csv").open() as fh:
+            rows = list(csv.DictReader(fh))
+        truth = np.array([[float(r["x"]), float(r["y"]), float(r["yaw"])] for r in rows])
+        files = [folder / "frames" / f"{int(r['frame']):06d}.png" for r in rows]
+        frames = np.stack(
+            [np.asarray(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), dtype=np.uint8) for f in files]
+        )
+        return camera, np.asarray(truth, dtype=np.float64), frames
+    drive = read_drive_folder(folder)
+    truth = np.array([[r.x_m, r.y_m, r.yaw_rad] for r in drive.frames], dtype=np.float64)
+    frames = np.stack([decode_gray(f.read_bytes(), f) for f in drive.frame_files]).astype(np.uint8)
+    return drive.meta.camera, truth, frames
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data" / "kitti")
+    parser.add_argument("--out", type=Path, default=ROOT / "bench" / "out" / "kitti_odometry.png")
+    args = parser.parse_args()
+    clips = sorted(p for p in args.data.glob("kitti-clip-*") if p.is_dir())
+    if not clips:
+        raise SystemExit(f"no KITTI clips under {args.data}")
+    header = (
+        f"{'clip':<13} {'model':<13} {'dist m':>7} {'err m':>6} {'err %':>6} {'yaw err':>8} "
+        f"{'ms/step':>8} {'horizon px':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+    results: dict[str, dict[str, DeadReckoning]] = {}
+    truths: dict[str, NDArray[np.float64]] = {}
+    for clip in clips:
+        camera, truth, frames = load_clip(clip)
+        truths[clip.name] = truth
+        distance = float(np.linalg.norm(np.diff(truth[:, :2], axis=0), axis=1).sum())
+        results[clip.name] = {}
+        for name, params in MODELS.items():
+            run = dead_reckon(frames, camera, params, start_wT=tuple(truth[0]))
+            results[clip.name][name] = run
+            err = float(np.linalg.norm(run.wTi[-1, :2] - truth[-1, :2]))
+            yaw_err = float(np.angle(np.exp(1j * (run.wTi[-1, 2] - truth[-1, 2]))))
+            flag = "" if 100 * err / distance <= TARGET_PCT else "  > target"
+            print(
+                f"{clip.name:<13} {name:<13} {distance:>7.1f} {err:>6.2f} {100 * err / distance:>6.1f} "
+                f"{yaw_err:>+8.3f} {np.median(run.ms_per_step):>8.0f} {run.horizon_offset_px:>10.1f}{flag}"
+            )
+    plot(results, truths, args.out)
+    docs = ROOT / "docs" / "kitti_odometry.png"
+    docs.parent.mkdir(exist_ok=True)
+    shutil.copyfile(args.out, docs)
+    print(f"plot: {args.out} (copied to {docs.relative_to(ROOT)})")
+
+
+def plot(
+    results: dict[str, dict[str, DeadReckoning]], truths: dict[str, NDArray[np.float64]], out: Path
+) -> None:
+    """Estimated against true trajectories, one panel per clip."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    styles = {
+        "birdseye": ("tab:blue", "-"),
+        "birdseye-raw": ("tab:blue", ":"),
+        "linear": ("tab:orange", "--"),
+    }
+    fig, axes = plt.subplots(1, len(results), figsize=(5.2 * len(results), 4.6))
+    for ax, (clip, runs) in zip(np.atleast_1d(axes), results.items(), strict=True):
+        truth = truths[clip]
+        ax.plot(truth[:, 0], truth[:, 1], color="black", lw=2.5, label="ground truth")
+        for name, run in runs.items():
+            color, ls = styles.get(name, ("gray", "-"))
+            ax.plot(run.wTi[:, 0], run.wTi[:, 1], color=color, ls=ls, lw=1.6, label=name)
+        ax.plot(*truth[0, :2], "ko", ms=5)
+        ax.set_title(clip)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("Ground-plane visual odometry, dead reckoning from the first true pose")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main()
