@@ -8,7 +8,14 @@ the time of each stage (median of runs) and the closures' precision/recall again
 strip positions. On the smallest size it also times the naive all-pairs ``sad_matrix`` in the same
 process and prints the speed-up.
 
+With ``--site DIR`` (a site written by :func:`driftmap.sim.simulate_site`) it instead runs the
+detector on the site's mapping drives (``--localisation`` adds the localisation drives as further
+passes), keyframes every ``--spacing`` metres of ground-truth travel, and prints precision (both
+ends of a closure within 3 m of each other) and recall (keyframes with an earlier eligible keyframe
+within 1.5 m and 45 degrees of heading that got a correct closure) for the presets.
+
 Usage: ``.venv/bin/python bench/bench_loops.py [--runs 3] [--sizes 1000 4000 16000]``
+       ``.venv/bin/python bench/bench_loops.py --site OUT [--localisation] [--spacing 1.0]``
 """
 
 from __future__ import annotations
@@ -16,18 +23,25 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.images import patch_normalise
-from driftmap.core.loops import LOOPS_DEFAULT, LoopParams, LoopResult, detect_loops
+from driftmap.core.images import patch_normalise, preprocess
+from driftmap.core.loops import LOOPS_DEFAULT, LOOPS_FAST, LOOPS_PAPER, LoopParams, LoopResult, detect_loops
+from driftmap.core.params import IMAGES_DEFAULT
 from driftmap.core.sad import sad_matrix
+from driftmap.formats.drive_folder import read_drive_folder
+from driftmap.formats.frame_images import decode_gray
 
 H, W, STEP_PX, MARGIN_PX = 32, 64, 32, 8
 N_CHAINS = 4
 TRUE_WITHIN = 2  # a closure is correct when its strip positions are at most this many views apart
+SITE_TRUE_M = 3.0  # simulator: a closure is correct when its two keyframes are this close, metres
+SITE_RECALLABLE_M = 1.5  # a keyframe is recallable with an earlier eligible one this close ...
+SITE_RECALLABLE_RAD = np.pi / 4  # ... and heading this similar
 
 
 def synthetic_site(n: int, seed: int = 0) -> tuple[list[NDArray[np.float32]], list[NDArray[np.int64]]]:
@@ -69,11 +83,78 @@ def precision_recall(
     return precision, found / max(revisits, 1)
 
 
+def load_site(
+    site: Path, spacing_m: float, localisation: bool
+) -> tuple[list[NDArray[np.float32]], list[NDArray[np.float64]], list[NDArray[np.float64]]]:
+    """Keyframes (one per ``spacing_m`` of true travel) of a site's drives, with true x, y and yaw."""
+    chains, poses, times = [], [], []
+    kinds = ("mapping", "localisation") if localisation else ("mapping",)
+    for path in sorted((site / "drives").iterdir()):
+        drive = read_drive_folder(path)
+        if drive.meta.kind not in kinds or path.name.count("-") > 1:  # skip obscured copies (loc-01-dust1)
+            continue
+        xy = np.array([(f.x_m, f.y_m) for f in drive.frames], dtype=np.float64)
+        travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+        keep = np.flatnonzero(np.diff(np.floor(travel / spacing_m), prepend=-1.0) > 0)
+        images = np.stack([decode_gray(drive.frame_files[k].read_bytes()) for k in keep])
+        chains.append(preprocess(images, IMAGES_DEFAULT))
+        poses.append(np.array([(*xy[k], drive.frames[k].yaw_rad) for k in keep], dtype=np.float64))
+        times.append(np.array([drive.frames[k].t_s for k in keep], dtype=np.float64))
+    return chains, poses, times
+
+
+def site_precision_recall(
+    result: LoopResult, poses: list[NDArray[np.float64]], params: LoopParams
+) -> tuple[float, float, int]:
+    """Closure precision, recall of recallable keyframes, and their number."""
+    pairs = result.pairs()
+    ok = [np.hypot(*(poses[a][i, :2] - poses[b][j, :2])) <= SITE_TRUE_M for a, i, b, j in pairs]
+    closed = {(int(a), int(i)) for (a, i, _, _), good in zip(pairs, ok, strict=True) if good}
+    flat = np.concatenate(poses)
+    start = np.cumsum([0] + [len(p) for p in poses])
+    recallable = found = 0
+    for c, chain_poses in enumerate(poses):
+        for i, (x, y, yaw) in enumerate(chain_poses):
+            limit = start[c] + max(0, i - params.recent_frames)
+            if i < params.seq_len - 1 or limit == 0:
+                continue
+            near = np.hypot(flat[:limit, 0] - x, flat[:limit, 1] - y) <= SITE_RECALLABLE_M
+            turn = np.abs((flat[:limit, 2] - yaw + np.pi) % (2 * np.pi) - np.pi)
+            if np.any(near & (turn < SITE_RECALLABLE_RAD)):
+                recallable += 1
+                found += (c, i) in closed
+    return (float(np.mean(ok)) if ok else float("nan")), found / max(recallable, 1), recallable
+
+
+def bench_site(site: Path, spacing_m: float, localisation: bool) -> None:
+    chains, poses, times = load_site(site, spacing_m, localisation)
+    print(f"{site}: keyframes per drive {[len(c) for c in chains]} (every {spacing_m} m)")
+    header = f"{'preset':>8} {'closures':>8} {'precision':>9} {'recall':>6} {'of':>5} {'full SAD':>9} {'d_t':>6} {'s':>6}"
+    print(header)
+    print("-" * len(header))
+    for name, params in (("DEFAULT", LOOPS_DEFAULT), ("FAST", LOOPS_FAST), ("PAPER", LOOPS_PAPER)):
+        t0 = time.perf_counter()
+        res = detect_loops(chains, params, times)
+        elapsed = time.perf_counter() - t0
+        prec, rec, n_rec = site_precision_recall(res, poses, params)
+        st = res.stats
+        print(
+            f"{name:>8} {len(res.closures):>8} {prec:>9.3f} {rec:>6.3f} {n_rec:>5} {st.n_full:>9,} "
+            f"{st.d_t:>6.3f} {elapsed:>6.2f}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3, help="timed runs per size (median reported)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 4000, 16000])
+    parser.add_argument("--site", type=Path, help="evaluate on this simulated site instead")
+    parser.add_argument("--localisation", action="store_true", help="with --site: add localisation drives")
+    parser.add_argument("--spacing", type=float, default=1.0, help="with --site: keyframe spacing, metres")
     args = parser.parse_args()
+    if args.site is not None:
+        bench_site(args.site, args.spacing, args.localisation)
+        return
     params = LOOPS_DEFAULT
     print(
         f"{N_CHAINS} chains, 64x32 frames, shifts +-{params.sad.max_shift_x_px} x +-{params.sad.max_shift_y_px}"
