@@ -51,7 +51,10 @@ def write_test_drive(
         )
         for i in range(frames)
     ]
-    marks = [GroundingRow(frame=0, x_m=12000.1, y_m=-4.0), GroundingRow(frame=frames - 1, x_m=12004.2, y_m=-3.9)]
+    marks = [
+        GroundingRow(frame=0, x_m=12000.1, y_m=-4.0),
+        GroundingRow(frame=frames - 1, x_m=12004.2, y_m=-3.9),
+    ]
     meta = DriveMeta(name=name, kind="mapping", fps=10.0, camera=camera)
     images = (frame_png(seed * 10_000 + i, camera) for i in range(frames))
     write_drive_folder(out, meta, rows, images, marks if groundings else None)
