@@ -44,7 +44,9 @@ class CameraModel:
             raise ValueError("frame size must be positive")
         x, y, w, h = self.ground_roi_px
         if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > self.width_px or y + h > self.height_px:
-            raise ValueError(f"ground_roi {self.ground_roi_px} does not fit a {self.width_px}x{self.height_px} frame")
+            raise ValueError(
+                f"ground_roi {self.ground_roi_px} does not fit a {self.width_px}x{self.height_px} frame"
+            )
         if self.forward_sign not in (1, -1):
             raise ValueError("forward_sign must be +1 or -1")
         if self.ground_homography is not None and np.asarray(self.ground_homography).shape != (3, 3):
