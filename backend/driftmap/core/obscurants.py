@@ -13,6 +13,7 @@ Images are uint8 ``(H, W)`` grayscale or ``(H, W, C)`` colour; every function re
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -120,10 +121,19 @@ def apply_water(
     if diameter_px <= 0:
         raise ValueError(f"water diameter must be positive, got {diameter_px}")
     sigma = diameter_px / 4 if sigma_px is None else sigma_px
-    blurred = cv2.GaussianBlur(img, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
-    mask = water_mask(img.shape, diameter_px, centre_xy)
+    h, w = img.shape[:2]
+    # blur only the circle's box plus a margin the kernel (radius 3 sigma, as OpenCV sizes it for
+    # 8-bit images) cannot cross, so the values equal those of blurring the whole frame
+    reach = diameter_px / 2 + 1
+    x0, x1 = max(int(centre_xy[0] - reach), 0), min(int(centre_xy[0] + reach) + 1, w)
+    y0, y1 = max(int(centre_xy[1] - reach), 0), min(int(centre_xy[1] + reach) + 1, h)
+    pad = math.ceil(3 * sigma) + 1
+    px0, px1, py0, py1 = max(x0 - pad, 0), min(x1 + pad, w), max(y0 - pad, 0), min(y1 + pad, h)
+    blurred = cv2.GaussianBlur(img[py0:py1, px0:px1], (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    mask = water_mask((y1 - y0, x1 - x0), diameter_px, (centre_xy[0] - x0, centre_xy[1] - y0))
     out = img.copy()
-    out[mask] = blurred[mask]
+    window = out[y0:y1, x0:x1]
+    window[mask] = blurred[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0][mask]
     return out
 
 

@@ -5,6 +5,6 @@ for a seed and a size ("tiny", "small", "medium", "large"); the same seed gives 
 """
 
 from driftmap.sim.params import SIZES
-from driftmap.sim.site import DriveSummary, SimulationSummary, simulate_site
+from driftmap.sim.site import DriveSummary, SimulationSummary, SitePlan, plan_site, simulate_site
 
-__all__ = ["SIZES", "DriveSummary", "SimulationSummary", "simulate_site"]
+__all__ = ["SIZES", "DriveSummary", "SimulationSummary", "SitePlan", "plan_site", "simulate_site"]

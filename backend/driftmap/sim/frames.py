@@ -21,7 +21,12 @@ from driftmap.sim.world import World
 
 __all__ = ["Chunk", "encode_png", "exposure_curve", "init_worker", "make_renderer", "render_chunk"]
 
-_PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 3]
+_PNG_PARAMS = [
+    cv2.IMWRITE_PNG_COMPRESSION,
+    1,
+    cv2.IMWRITE_PNG_STRATEGY,
+    cv2.IMWRITE_PNG_STRATEGY_RLE,
+]  # fast, small for noisy frames
 _worker: dict[str, Renderer] = {}
 
 
@@ -43,8 +48,7 @@ def make_renderer(world: World, rig: CameraRig) -> Renderer:
 
 
 def init_worker(renderer: Renderer) -> None:
-    """Install the renderer of this process (pool initializer); OpenCV single-threaded."""
-    cv2.setNumThreads(1)
+    """Install the renderer of this process (pool initializer)."""
     _worker["renderer"] = renderer
 
 

@@ -9,7 +9,7 @@ Output layout::
         loc-01, loc-02, ...   localisation drives (LHD duty cycles)
         loc-01-dust1, ...     obscured copies of each localisation drive (dust1, dust2, water1, water2)
 
-Frames are rendered in chunks on a pool of worker processes (fork); every frame depends only on the
+Frames are rendered in chunks on a pool of worker processes (forked); every frame depends only on the
 seed, the drive and the frame number, so the output is byte-identical for a seed whatever the number
 of workers.
 """
@@ -34,7 +34,7 @@ from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 from driftmap.sim import frames as frame_worker
-from driftmap.sim.layout import generate_layout
+from driftmap.sim.layout import Layout, generate_layout
 from driftmap.sim.motion import DrivePlan, plan_localisation, plan_mapping
 from driftmap.sim.params import VEHICLE_DEFAULT, site_size
 from driftmap.sim.rig import CameraRig
@@ -43,7 +43,7 @@ from driftmap.sim.survey import write_survey_dxf
 from driftmap.sim.trajectory import FramePoses, sample_frames
 from driftmap.sim.world import build_world
 
-__all__ = ["SITE_FORMAT", "DriveSummary", "SimulationSummary", "simulate_site"]
+__all__ = ["SITE_FORMAT", "DriveSummary", "SimulationSummary", "SitePlan", "plan_site", "simulate_site"]
 
 log = logging.getLogger(__name__)
 
@@ -79,11 +79,31 @@ class SimulationSummary:
     seconds: float  # wall-clock time
 
 
-def _plans(seed: int, size: str) -> tuple[Any, list[DrivePlan], CameraRig]:
+@dataclass(frozen=True, eq=False)
+class SitePlan:
+    """Everything decided before rendering: the layout, the camera, every drive and its frame poses."""
+
+    seed: int
+    size: str
+    layout: Layout
+    rig: CameraRig
+    plans: tuple[DrivePlan, ...]  # mapping drives first, then localisation drives
+    poses: tuple[FramePoses, ...]  # per drive: frame times, camera floor points (grid m), yaw, groundings
+
+
+def plan_site(seed: int, size: str) -> SitePlan:
+    """Lay out the site and plan every drive (no rendering); deterministic per seed.
+
+    Mapping drives come first; the localisation drives share what the mapping leaves of the size's
+    frame budget (at least ``min_localisation_frames``).
+
+    Raises:
+        ValueError: an unknown size.
+    """
     spec = site_size(size)
+    vp = VEHICLE_DEFAULT
     layout = generate_layout(seed, spec)
     rig = CameraRig()
-    vp = VEHICLE_DEFAULT
     graph = Graph(layout, vp.turn_max_rad)
     plans = plan_mapping(graph, vp, rig.params.y_c_m, seed)
     used = sum(p.frame_count(vp.fps) for p in plans)
@@ -93,7 +113,23 @@ def _plans(seed: int, size: str) -> tuple[Any, list[DrivePlan], CameraRig]:
         plan_localisation(graph, vp, rig.params.y_c_m, seed, i, share)
         for i in range(spec.localisation_drives)
     ]
-    return layout, plans, rig
+    poses = [
+        sample_frames(
+            list(p.runs),
+            vp.fps,
+            rig.params.y_c_m,
+            p.start_dwell_s,
+            vp.grounding_sigma_m,
+            np.random.default_rng([seed, 53, i]),
+            p.start_grounding,
+        )
+        for i, p in enumerate(plans)
+    ]
+    return SitePlan(seed, size, layout, rig, tuple(plans), tuple(poses))
+
+
+def _truncate(p: FramePoses, n: int) -> FramePoses:
+    return FramePoses(p.t[:n], p.xy[:n], p.yaw[:n], [g for g in p.groundings if g[0] < n])
 
 
 def _frame_rows(poses: FramePoses) -> list[FrameRow]:
@@ -111,6 +147,7 @@ def simulate_site(
     obscurants: bool = True,
     progress: Callable[[str, float], None] | None = None,
     workers: int | None = None,
+    max_frames_per_drive: int | None = None,
 ) -> SimulationSummary:
     """Generate the synthetic site ``size`` for ``seed`` and write it to ``out_dir``.
 
@@ -121,6 +158,7 @@ def simulate_site(
         obscurants: also write dust1/dust2/water1/water2 copies of every localisation drive.
         progress: called with (what is happening, fraction done in [0, 1]).
         workers: rendering processes (default: up to 2, the CPU count).
+        max_frames_per_drive: keep only the first frames of every drive (quick previews and tests).
 
     Raises:
         BadInputError: a bad seed or size.
@@ -138,20 +176,11 @@ def simulate_site(
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
         raise ConflictError(f"{out_dir} already exists and is not empty")
     report("planning", 0.0)
-    layout, plans, rig = _plans(seed, size)
-    vp = VEHICLE_DEFAULT
-    poses = [
-        sample_frames(
-            list(p.runs),
-            vp.fps,
-            rig.params.y_c_m,
-            p.start_dwell_s,
-            vp.grounding_sigma_m,
-            np.random.default_rng([seed, 53, i]),
-            p.start_grounding,
-        )
-        for i, p in enumerate(plans)
-    ]
+    site = plan_site(seed, size)
+    layout, plans, rig, vp = site.layout, list(site.plans), site.rig, VEHICLE_DEFAULT
+    poses = list(site.poses)
+    if max_frames_per_drive is not None:
+        poses = [_truncate(p, max(int(max_frames_per_drive), 1)) for p in poses]
     out_dir.mkdir(parents=True, exist_ok=True)
     write_survey_dxf(layout, out_dir / "survey.dxf")
     report("building world", 0.02)
@@ -225,13 +254,19 @@ def _tasks(
 def _run(
     tasks: list[frame_worker.Chunk], renderer: Any, n_workers: int
 ) -> Iterator[tuple[frame_worker.Chunk, dict[str, list[bytes]]]]:
-    """Render tasks in order, on a fork pool when more than one worker is asked for."""
-    if n_workers <= 1 or len(tasks) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+    """Render tasks in order, on a pool of forked processes when more than one worker is asked for.
+
+    Forked (where available) so that callers need no ``__main__`` guard and the renderer is shared,
+    not pickled; the workers leave OpenCV's thread settings alone (changing them in a forked child
+    deadlocks on the thread pool copied from the parent).
+    """
+    if n_workers <= 1 or len(tasks) <= 1:
         frame_worker.init_worker(renderer)
         for task in tasks:
             yield task, frame_worker.render_chunk(task)
         return
-    ctx = multiprocessing.get_context("fork")
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    ctx = multiprocessing.get_context(method)
     with ctx.Pool(n_workers, initializer=frame_worker.init_worker, initargs=(renderer,)) as pool:
         yield from zip(tasks, pool.imap(frame_worker.render_chunk, tasks), strict=True)
 
@@ -253,7 +288,7 @@ def _write_drive(
                 name,
                 kind,
                 len(rows),
-                round(plan.duration_s, 3),
+                round(float(poses.t[-1]), 3),
                 len(g or []),
                 plan.name if variant else None,
                 variant or None,

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from driftmap.sim.geometry import FloatArray, arc_lengths, resample
 from driftmap.sim.params import VehicleParams
@@ -211,6 +212,22 @@ def time_run(run: Run, vp: VehicleParams) -> TimedRun:
     return TimedRun(np.asarray(t_list), pts[idx], yaw[idx], v[idx], tuple(events))
 
 
+def _locate(r: TimedRun, tl: FloatArray) -> tuple[NDArray[np.int64], FloatArray]:
+    """Sample interval j of each time and the fraction f of its distance covered by then.
+
+    Within an interval the acceleration is constant, so distance grows quadratically in time:
+    f = (v0 tau + (v1 - v0) tau^2 / (2 dt)) / ((v0 + v1) dt / 2); linear when both speeds are 0.
+    """
+    j = np.clip(np.searchsorted(r.t, tl, side="right") - 1, 0, len(r.t) - 2)
+    dt = np.maximum(r.t[j + 1] - r.t[j], 1e-12)
+    tau = np.clip(tl - r.t[j], 0.0, dt)
+    v0, v1 = r.speed[j], r.speed[j + 1]
+    dist = 0.5 * (v0 + v1) * dt
+    quad = (v0 * tau + 0.5 * (v1 - v0) / dt * tau * tau) / np.maximum(dist, 1e-12)
+    f = np.where(dist > 1e-9, quad, tau / dt)
+    return j, np.clip(f, 0.0, 1.0)
+
+
 @dataclass(frozen=True, eq=False)
 class FramePoses:
     """Per-frame ground truth of a drive: t (n,) s, camera floor point xy (n, 2) grid m, yaw (n,) rad,
@@ -250,10 +267,9 @@ def sample_frames(
     k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(runs) - 1)
     for i, r in enumerate(runs):
         sel = np.flatnonzero(k == i)
-        tl = np.clip(t[sel] - starts[i], 0.0, r.duration_s)
-        xy[sel, 0] = np.interp(tl, r.t, r.xy[:, 0])
-        xy[sel, 1] = np.interp(tl, r.t, r.xy[:, 1])
-        yaw[sel] = np.interp(tl, r.t, r.yaw)
+        j, f = _locate(r, np.clip(t[sel] - starts[i], 0.0, r.duration_s))
+        xy[sel] = r.xy[j] + f[:, None] * (r.xy[j + 1] - r.xy[j])
+        yaw[sel] = r.yaw[j] + f * (r.yaw[j + 1] - r.yaw[j])
     yaw = (yaw + math.pi) % (2 * math.pi) - math.pi
     cam = xy + y_c_m * np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
     spans = [(0.0, start_dwell_s)] if start_grounding else []  # global (start, end) of grounding stops
