@@ -272,9 +272,9 @@ def sample_frames(
         yaw[sel] = r.yaw[j] + f * (r.yaw[j + 1] - r.yaw[j])
     yaw = (yaw + math.pi) % (2 * math.pi) - math.pi
     cam = xy + y_c_m * np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
-    spans = [(0.0, start_dwell_s)] if start_grounding else []  # global (start, end) of grounding stops
+    spans: list[tuple[float, float]] = [(0.0, start_dwell_s)] if start_grounding else []  # grounding stops
     for i, r in enumerate(runs):
-        spans += [(starts[i] + t0, starts[i] + t1) for t0, t1, st in r.events if st.grounding]
+        spans += [(float(starts[i] + t0), float(starts[i] + t1)) for t0, t1, st in r.events if st.grounding]
     groundings: list[tuple[int, float, float]] = []
     for t0, t1 in spans:
         f = min(max(round((t0 + t1) / 2 * fps), 0), n - 1)
