@@ -277,7 +277,7 @@ def sample_frames(
         spans += [(float(starts[i] + t0), float(starts[i] + t1)) for t0, t1, st in r.events if st.grounding]
     groundings: list[tuple[int, float, float]] = []
     for t0, t1 in spans:
-        f = min(max(round((t0 + t1) / 2 * fps), 0), n - 1)
+        frame = min(max(round((t0 + t1) / 2 * fps), 0), n - 1)
         ex, ey = rng.normal(0.0, grounding_sigma_m, 2)
-        groundings.append((f, float(cam[f, 0] + ex), float(cam[f, 1] + ey)))
+        groundings.append((frame, float(cam[frame, 0] + ex), float(cam[frame, 1] + ey)))
     return FramePoses(t, cam, yaw, groundings)
