@@ -318,6 +318,7 @@ def sad_pairs(
     chunk = max(1, params.chunk_bytes // (height * width * 4))
     ones = np.ones(width, dtype=np.float32)
     rows = np.empty(chunk * height, dtype=np.float32)
+    diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
     for c0 in range(0, qi.size, chunk):
         c1 = min(qi.size, c0 + chunk)
         m = c1 - c0
@@ -328,7 +329,8 @@ def sad_pairs(
             qx = slice(max(0, -dx), width - max(0, dx))
             rx = slice(qx.start + dx, qx.stop + dx)
             k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
-            diff = cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx])
+            diff = diff_buf[: (k1 - k0) * (qx.stop - qx.start)].reshape(k1 - k0, qx.stop - qx.start)
+            cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff)
             np.matmul(diff, ones[: qx.stop - qx.start], out=rows[k0:k1])
             score = rows[: m * height].reshape(m, height)[:, qy].sum(axis=1)
             score *= np.float32(1.0 / ((qy.stop - qy.start) * (qx.stop - qx.start)))
