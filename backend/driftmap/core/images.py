@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.params import ImageParams
 
-__all__ = ["crop", "downsample", "patch_normalise", "preprocess", "to_gray"]
+__all__ = ["crop", "downsample", "mask_pyramid", "patch_normalise", "preprocess", "pyramid", "to_gray"]
 
 
 def _check_gray(images: NDArray, name: str) -> None:
@@ -182,3 +182,27 @@ def preprocess(images: NDArray, params: ImageParams) -> NDArray[np.float32]:
     if params.size_px is not None:
         gray = downsample(np.ascontiguousarray(gray), params.size_px)
     return patch_normalise(gray, params.patch_px, params.min_std)
+
+
+def pyramid(image: NDArray, levels: int) -> list[NDArray[np.float32]]:
+    """Gaussian pyramid ``[level 0 = image, level 1 = half size, ...]`` via ``cv2.pyrDown``.
+
+    Args:
+        image: ``(H, W)`` any real dtype.
+        levels: number of halvings (>= 0); level ``l`` pixel ``i`` sits at level-0 pixel ``2^l i``.
+
+    Returns:
+        ``levels + 1`` float32 arrays.
+    """
+    img = np.asarray(image, dtype=np.float32)
+    if img.ndim != 2:
+        raise ValueError(f"image must be (H, W), got {img.shape}")
+    out = [img]
+    for _ in range(levels):
+        out.append(np.asarray(cv2.pyrDown(out[-1]), dtype=np.float32))
+    return out
+
+
+def mask_pyramid(mask: NDArray, levels: int) -> list[NDArray[np.float32]]:
+    """Pyramid of a {0, 1} mask: a coarse pixel is 1 only when its whole footprint is 1."""
+    return [(m >= 0.999).astype(np.float32) for m in pyramid(np.asarray(mask, dtype=np.float32), levels)]

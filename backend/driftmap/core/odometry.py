@@ -49,9 +49,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.camera import CameraModel
-from driftmap.core.images import patch_normalise
+from driftmap.core.images import mask_pyramid, patch_normalise, pyramid
 from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
-from driftmap.core.sad import mask_pyramid, pyramid, register_shift
+from driftmap.core.sad import register_shift
 
 __all__ = ["DeadReckoning", "OdometryStep", "compose", "dead_reckon", "estimate_step", "shift_horizon"]
 

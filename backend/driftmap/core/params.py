@@ -89,7 +89,7 @@ class OdometryParams:
     )  # linear model: ROI split into (cols, rows) tracked patches, median
     self_calibrate: bool = True  # dead_reckon, bird's-eye: estimate the homography's horizon offset
     horizon_max_px: float = 40.0  # largest horizon offset searched by the self-calibration, pixels
-    subpixel: Literal["lk", "parabola", "equiangular"] = "lk"  # sub-pixel: Gauss-Newton, or per-axis fits
+    subpixel: Literal["lk", "parabola"] = "lk"  # sub-pixel: Gauss-Newton on the SSD, or per-axis SAD parabola
     stationary_px: float = 0.3  # |shift| below this (pixels of the matching grid) with a good match -> zero
     stationary_min_confidence: float = 0.3  # the "good match" of stationary detection
     texture_ref: float = 4.0  # high-pass intensity std (grey levels) giving texture factor 1 - 1/e

@@ -38,12 +38,9 @@ from driftmap.core.params import SAD_DEFAULT, SadParams
 __all__ = [
     "SadResult",
     "ShiftMatch",
-    "mask_pyramid",
-    "pyramid",
     "register_shift",
     "sad_matrix",
     "sad_one_to_many",
-    "sad_surface",
 ]
 
 
@@ -200,45 +197,6 @@ def sad_matrix(
     return out
 
 
-def sad_surface(
-    a: NDArray,
-    b: NDArray,
-    max_dx: int,
-    max_dy: int,
-    mask: NDArray | None = None,
-) -> NDArray[np.float64]:
-    """The whole overlap-normalised SAD cost surface of one image pair (the simple reference form).
-
-    Args:
-        a: ``(H, W)`` query image.
-        b: ``(H, W)`` reference image.
-        max_dx: horizontal shift range, pixels (shifts ``-max_dx..max_dx``).
-        max_dy: vertical shift range, pixels.
-        mask: optional ``(H, W)`` weights on ``a``.
-
-    Returns:
-        ``(2 max_dy + 1, 2 max_dx + 1)`` float64: element ``[dy + max_dy, dx + max_dx]`` is the mean
-        absolute difference at shift ``(dx, dy)``; ``inf`` where no weight overlaps.
-
-    Raises:
-        ValueError: shapes disagree or the range leaves no overlap.
-    """
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    if a.ndim != 2 or a.shape != b.shape:
-        raise ValueError(f"a and b must be (H, W) of one shape, got {a.shape}, {b.shape}")
-    height, width = a.shape
-    w = _check_mask(mask, a.shape)
-    cost = np.full((2 * max_dy + 1, 2 * max_dx + 1), np.inf)
-    for dx, dy in _shifts(max_dx, max_dy, height, width):
-        qy, qx, ry, rx = _overlap(dx, dy, height, width)
-        diff = np.abs(a[qy, qx] - b[ry, rx])
-        weight = np.ones_like(diff) if w is None else w[qy, qx].astype(np.float64)
-        if weight.sum() > 0:
-            cost[dy + max_dy, dx + max_dx] = float((diff * weight).sum() / weight.sum())
-    return cost
-
-
 # --- Registration of two images of one scene: coarse-to-fine, two-sided, masked SAD -------------
 
 
@@ -251,7 +209,6 @@ class ShiftMatch:
         cost: mean absolute difference at the integer minimum (level 0).
         distinctiveness: ``1 - best / second-best`` local minimum of the coarse exhaustive (squared
             difference) search, in [0, 1]; near 0 when another shift matches about as well.
-        curvature: mean rise of the cost one pixel away from the minimum, relative to the minimum.
         at_range_edge: the minimum lies on the border of the searched range (motion maybe larger).
         overlap: weighted pixels compared at the minimum / ROI pixels of the sides used, in [0, 1].
     """
@@ -259,33 +216,8 @@ class ShiftMatch:
     shift_px: tuple[float, float]
     cost: float
     distinctiveness: float
-    curvature: float
     at_range_edge: bool
     overlap: float
-
-
-def pyramid(image: NDArray, levels: int) -> list[NDArray[np.float32]]:
-    """Gaussian pyramid ``[level 0 = image, level 1 = half size, ...]`` via ``cv2.pyrDown``.
-
-    Args:
-        image: ``(H, W)`` any real dtype.
-        levels: number of halvings (>= 0); level ``l`` pixel ``i`` sits at level-0 pixel ``2^l i``.
-
-    Returns:
-        ``levels + 1`` float32 arrays.
-    """
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim != 2:
-        raise ValueError(f"image must be (H, W), got {img.shape}")
-    out = [img]
-    for _ in range(levels):
-        out.append(np.asarray(cv2.pyrDown(out[-1]), dtype=np.float32))
-    return out
-
-
-def mask_pyramid(mask: NDArray, levels: int) -> list[NDArray[np.float32]]:
-    """Pyramid of a {0, 1} mask: a coarse pixel is 1 only when its whole footprint is 1."""
-    return [(m >= 0.999).astype(np.float32) for m in pyramid(np.asarray(mask, dtype=np.float32), levels)]
 
 
 def _bbox(mask: NDArray) -> tuple[int, int, int, int]:
@@ -415,16 +347,26 @@ class _TwoSided:
         return out
 
 
-def _subpixel(c_minus: float, c_0: float, c_plus: float, method: str) -> float:
-    if not np.isfinite(c_minus + c_plus) or method == "lk":
+def _parabola(c_minus: float, c_0: float, c_plus: float) -> float:
+    """Offset in [-0.5, 0.5] of the vertex of the parabola through three equally spaced costs."""
+    curv = c_minus - 2.0 * c_0 + c_plus
+    if not np.isfinite(curv) or curv <= 0:
         return 0.0
-    if method == "equiangular":
-        slope = max(c_minus, c_plus) - c_0
-        off = 0.5 * (c_minus - c_plus) / slope if slope > 0 else 0.0
-    else:
-        curv = c_minus - 2.0 * c_0 + c_plus
-        off = 0.5 * (c_minus - c_plus) / curv if curv > 0 else 0.0
-    return float(np.clip(off, -0.5, 0.5))
+    return float(np.clip(0.5 * (c_minus - c_plus) / curv, -0.5, 0.5))
+
+
+def _coarse_minima(surf: NDArray, candidates: int) -> tuple[list[tuple[int, int]], float]:
+    """The best ``candidates`` 3x3 local minima ``(x, y)`` of a cost surface, and 1 - best/second."""
+    finite = np.isfinite(surf)
+    if not finite.any():
+        return [(surf.shape[1] // 2, surf.shape[0] // 2)], 0.0
+    filled = np.where(finite, surf, surf[finite].max() * 2 + 1).astype(np.float32)
+    minima = np.argwhere((filled <= cv2.erode(filled, np.ones((3, 3), np.uint8))) & finite)
+    values = filled[minima[:, 0], minima[:, 1]]
+    order = np.argsort(values)
+    second = values[order[1]] if values.size > 1 else float(surf[finite].max())
+    distinct = float(np.clip(1.0 - values[order[0]] / second, 0.0, 1.0)) if second > 0 else 0.0
+    return [(int(minima[i, 1]), int(minima[i, 0])) for i in order[:candidates]], distinct
 
 
 def _descend(cost: _TwoSided, dx: int, dy: int, radius: int, max_steps: int = 20) -> tuple[int, int, float]:
@@ -483,8 +425,8 @@ def register_shift(
         radius: refinement window radius per level, pixels.
         start_px: skip the exhaustive search and descend from this shift, in pixels of the coarsest
             level given (level 0 when the pyramids have one level).
-        subpixel: "lk" (Gauss-Newton on the two-sided SSD, most accurate), "parabola" or
-            "equiangular" (per-axis fits of the SAD values around the minimum).
+        subpixel: "lk" (Gauss-Newton on the two-sided SSD, most accurate) or "parabola" (per-axis
+            fit of the SAD values around the minimum).
         side: "both" (two-sided), or only "a"'s ROI against ``b`` or only "b"'s ROI against ``a``;
             one side puts the correspondence exactly at that image's ROI.
 
@@ -510,26 +452,8 @@ def register_shift(
         seeds = [start_px]
     else:
         rx, ry = int(np.ceil(max_dx / 2**top)), int(np.ceil(max_dy / 2**top))
-        surf = costs[top].ssd_surface(rx, ry)
-        padded = np.pad(surf, 1, constant_values=np.inf)
-        neigh = np.min(
-            [
-                padded[1 + j : padded.shape[0] - 1 + j, 1 + i : padded.shape[1] - 1 + i]
-                for j in (-1, 0, 1)
-                for i in (-1, 0, 1)
-                if (i, j) != (0, 0)
-            ],
-            axis=0,
-        )
-        minima = np.argwhere((surf <= neigh) & np.isfinite(surf))
-        if minima.size == 0:
-            minima = np.argwhere(surf == surf.min())
-        order = np.argsort(surf[minima[:, 0], minima[:, 1]])
-        values = surf[minima[order, 0], minima[order, 1]]
-        finite = surf[np.isfinite(surf)]
-        second = values[1] if values.size > 1 else (finite.max() if finite.size else np.inf)
-        distinct = float(np.clip(1.0 - values[0] / second, 0.0, 1.0)) if second > 0 else 0.0
-        seeds = [(int(m[1]) - rx, int(m[0]) - ry) for m in minima[order[:candidates]]]
+        seeds, distinct = _coarse_minima(costs[top].ssd_surface(rx, ry), candidates)
+        seeds = [(sx - rx, sy - ry) for sx, sy in seeds]
     results = []
     for sx, sy in seeds:
         for level in range(top, -1, -1):
@@ -539,20 +463,15 @@ def register_shift(
         results.append((c, sx, sy))
     c0, sx, sy = min(results)
     cost = costs[0]
-    cxm, cxp = cost(sx - 1, sy)[0], cost(sx + 1, sy)[0]
-    cym, cyp = cost(sx, sy - 1)[0], cost(sx, sy + 1)[0]
-    neighbours = [v for v in (cxm, cxp, cym, cyp) if np.isfinite(v)]
-    curvature = float(np.mean(neighbours) / c0 - 1.0) if neighbours and c0 > 0 else 0.0
-    fx = sx + _subpixel(cxm, c0, cxp, subpixel)
-    fy = sy + _subpixel(cym, c0, cyp, subpixel)
     if subpixel == "lk":
         fx, fy = cost.refine(sx, sy)
-    edge = abs(sx) >= max_dx or abs(sy) >= max_dy
+    else:
+        fx = sx + _parabola(cost(sx - 1, sy)[0], c0, cost(sx + 1, sy)[0])
+        fy = sy + _parabola(cost(sx, sy - 1)[0], c0, cost(sx, sy + 1)[0])
     return ShiftMatch(
         shift_px=(fx, fy),
         cost=float(c0),
         distinctiveness=distinct,
-        curvature=max(curvature, 0.0),
-        at_range_edge=bool(edge),
+        at_range_edge=abs(sx) >= max_dx or abs(sy) >= max_dy,
         overlap=min(1.0, float(cost(sx, sy)[1] / cost.den_max)),
     )
