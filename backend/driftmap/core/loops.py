@@ -334,7 +334,7 @@ def detect_loops(
     d_cand[valid] = cache.fetch(qi[valid], cand.index[valid])
     n_cand = cache.n_computed - n_bg
     t3 = time.perf_counter()
-    # Sequence checks of the lowest-d candidates better than the background, in one batch.
+    # Sequence checks of the lowest-d candidates whose query frame itself matches, in one batch.
     order = np.argsort(d_cand, axis=1, kind="stable")
     d_sorted = np.take_along_axis(d_cand, order, axis=1)
     idx_sorted = np.take_along_axis(cand.index, order, axis=1)
