@@ -5,10 +5,10 @@ of the floor content is found by coarse-to-fine, sub-pixel, two-sided SAD regist
 (:func:`driftmap.core.sad.register_shift`) of patch-normalised images. Two models turn it into
 vehicle motion:
 
-* **linear** (the paper): the ROI is split into ``linear_bands`` row bands (the paper's tracked
-  patches; one translation cannot fit a whole ROI seen in perspective), the median band shift
-  ``(x_p, y_p)`` pixels gives ``theta = atan(x_p k_x / (y_c + y_h))`` (eq. 1) and
-  ``d = y_p k_y forward_sign`` (eq. 2).
+* **linear** (the paper): the ROI is split into ``linear_patches`` (the paper's tracked patches;
+  one translation cannot fit a whole ROI seen in perspective), matched after a light blur (fine
+  grain does not survive the zoom between frames); the median patch shift ``(x_p, y_p)`` pixels
+  gives ``theta = atan(x_p k_x / (y_c + y_h))`` (eq. 1) and ``d = y_p k_y forward_sign`` (eq. 2).
 * **homography** (beyond the paper): frames are warped through ``ground_homography`` into a
   metric bird's-eye grid (``bev_res_m`` cells; rows point backwards, columns right), where a shift
   is floor motion in metres whatever the perspective. The floor point ``C`` at the ROI-footprint
@@ -19,9 +19,10 @@ vehicle motion:
 Horizon self-calibration (homography model, :func:`dead_reckon`): a camera pitch error shifts the
 true horizon by ``delta`` pixels, ``H_true(u, v) = H(u, v + delta)``, and scales floor motion by a
 depth-dependent factor (about 17 % on the KITTI clips). Floor motion is rigid, so the distance
-between the matched near-half and far-half ROI points must be the same in both frames; each
-moving step yields the ``delta`` that makes it so, the median over the drive is applied to every
-step at the end. :func:`shift_horizon` gives the corrected camera for later single steps.
+between matched points in the nearest and the farthest slice of the ROI footprint must be the
+same in both frames; each moving step yields the ``delta`` that makes it so, and the median over
+the drive is applied to every step at the end. :func:`shift_horizon` gives the corrected camera
+for later single steps. Camera height (the overall scale) is not observable this way.
 
 Signs. ``theta`` is counter-clockwise (left turn) positive. Floor content moves right in the
 image (+u) when the vehicle turns left, for forward- and rear-looking cameras alike (the camera
@@ -43,6 +44,7 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -193,6 +195,58 @@ def _masks(
     return [np.asarray(g, dtype=np.float32) for g in grids[1:]], np.asarray(valid, dtype=np.float32)
 
 
+def _linear_grid(camera: CameraModel, params: OdometryParams, margin: int) -> dict[str, Any]:
+    """Image window around the ROI (resized so the ROI fits ``max_roi_px``), split into patches."""
+    x, y, w, h = camera.ground_roi_px
+    n_x, n_y = min(params.linear_patches[0], w), min(params.linear_patches[1], h)
+    xs = [x + round(i * w / n_x) for i in range(n_x + 1)]
+    ys = [y + round(j * h / n_y) for j in range(n_y + 1)]
+    spec = [
+        ((xs[i], ys[j], xs[i + 1] - xs[i], ys[j + 1] - ys[j]), -math.inf, math.inf)
+        for j in range(n_y)
+        for i in range(n_x)
+    ]
+    scale = min(1.0, params.max_roi_px / max(w, h))
+    lever = abs(camera.y_c_m + camera.y_h_m)
+    rx = scale * (math.tan(params.max_turn_rad) * lever + params.max_lateral_m) / camera.k_x_m_per_px
+    ry = scale * params.max_step_m / camera.k_y_m_per_px
+    x0, y0 = math.floor(x * scale - rx) - margin, math.floor(y * scale - ry) - margin
+    return {
+        "spec": spec, "scale": scale, "range_px": (rx, ry), "roi_min": min(w / n_x, h / n_y) * scale,
+        "size": (math.ceil(w * scale + 2 * rx) + 2 * margin, math.ceil(h * scale + 2 * ry) + 2 * margin),
+        "px_from_grid": np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]]),
+        "floor_from_grid": np.eye(3), "extent_m": 0.0,
+    }  # fmt: skip
+
+
+def _birdseye_grid(camera: CameraModel, hom: NDArray, params: OdometryParams, margin: int) -> dict[str, Any]:
+    """Metric grid over the ROI footprint plus the search ranges; regions: ROI, nearest and farthest
+    20 % of its depth range (the horizon self-calibration slices)."""
+    x, y, w, h = camera.ground_roi_px
+    u = np.array([x, x + w / 2, x + w, x + w, x + w, x + w / 2, x, x], dtype=np.float64)
+    v = np.array([y, y, y, y + h / 2, y + h, y + h, y + h, y + h / 2], dtype=np.float64)
+    if np.any(hom[2, 0] * u + hom[2, 1] * v + hom[2, 2] <= 0):
+        raise ValueError("ground_roi reaches above the horizon of ground_homography")
+    f = _apply(hom, np.stack([u, v], axis=1))
+    (near_x, near_y), (far_x, far_y) = f.min(axis=0), f.max(axis=0)
+    span_x = params.max_step_m
+    span_y = math.sin(params.max_turn_rad) * abs(far_x + camera.y_c_m) + params.max_lateral_m
+    ext_x, ext_y = far_x - near_x + 2 * span_x, far_y - near_y + 2 * span_y
+    res = max(params.bev_res_m, max(ext_x, ext_y) / (params.bev_max_px - 2 * margin))
+    top, left = far_x + span_x + margin * res, far_y + span_y + margin * res
+    floor_from_grid = np.array([[0.0, -res, top], [-res, 0.0, left], [0.0, 0.0, 1.0]])
+    cut = 0.2 * (far_x - near_x)
+    rect = (x, y, w, h)
+    return {
+        "spec": [(rect, -math.inf, math.inf), (rect, -math.inf, near_x + cut), (rect, far_x - cut, math.inf)],
+        "scale": 1.0, "range_px": (span_y / res, span_x / res),
+        "roi_min": min(far_x - near_x, far_y - near_y) / res,
+        "size": (math.ceil(ext_y / res) + 2 * margin, math.ceil(ext_x / res) + 2 * margin),
+        "px_from_grid": np.linalg.inv(hom) @ floor_from_grid, "floor_from_grid": floor_from_grid,
+        "extent_m": 0.5 * max(far_x - near_x, far_y - near_y),
+    }  # fmt: skip
+
+
 @lru_cache(maxsize=16)
 def _setup(camera: CameraModel, params: OdometryParams) -> _Setup:
     """Build the matching grid: image window (linear) or metric bird's-eye grid (homography)."""
@@ -200,70 +254,21 @@ def _setup(camera: CameraModel, params: OdometryParams) -> _Setup:
     model = params.model if params.model != "auto" else ("homography" if hom is not None else "linear")
     if model == "homography" and hom is None:
         raise ValueError("OdometryParams.model='homography' needs a camera with ground_homography")
-    x, y, w, h = camera.ground_roi_px
     margin = 2 * params.refine_radius_px + 3
-    if model == "linear":
-        n_x, n_y = min(params.linear_patches[0], w), min(params.linear_patches[1], h)
-        xs = [x + round(i * w / n_x) for i in range(n_x + 1)]
-        ys = [y + round(j * h / n_y) for j in range(n_y + 1)]
-        spec = [
-            ((xs[i], ys[j], xs[i + 1] - xs[i], ys[j + 1] - ys[j]), -math.inf, math.inf)
-            for j in range(n_y)
-            for i in range(n_x)
-        ]
-        scale = min(1.0, params.max_roi_px / max(w, h))
-        lever = abs(camera.y_c_m + camera.y_h_m)
-        rx = scale * (math.tan(params.max_turn_rad) * lever + params.max_lateral_m) / camera.k_x_m_per_px
-        ry = scale * params.max_step_m / camera.k_y_m_per_px
-        x0, y0 = math.floor(x * scale - rx) - margin, math.floor(y * scale - ry) - margin
-        size = (math.ceil(w * scale + 2 * rx) + 2 * margin, math.ceil(h * scale + 2 * ry) + 2 * margin)
-        px_from_grid = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
-        floor_from_grid, res, roi_min, extent = np.eye(3), 0.0, min(w / n_x, h / n_y) * scale, 0.0
-    else:
-        assert hom is not None
-        u = np.array([x, x + w / 2, x + w, x + w, x + w, x + w / 2, x, x], dtype=np.float64)
-        v = np.array([y, y, y, y + h / 2, y + h, y + h, y + h, y + h / 2], dtype=np.float64)
-        if np.any(hom[2, 0] * u + hom[2, 1] * v + hom[2, 2] <= 0):
-            raise ValueError("ground_roi reaches above the horizon of ground_homography")
-        f = _apply(hom, np.stack([u, v], axis=1))
-        span_x = params.max_step_m
-        span_y = (
-            math.sin(params.max_turn_rad) * abs(float(f[:, 0].max()) + camera.y_c_m) + params.max_lateral_m
-        )
-        ext_x, ext_y = float(np.ptp(f[:, 0])) + 2 * span_x, float(np.ptp(f[:, 1])) + 2 * span_y
-        res = max(params.bev_res_m, max(ext_x, ext_y) / (params.bev_max_px - 2 * margin))
-        x_top, y_left = (
-            float(f[:, 0].max()) + span_x + margin * res,
-            float(f[:, 1].max()) + span_y + margin * res,
-        )
-        size = (math.ceil(ext_y / res) + 2 * margin, math.ceil(ext_x / res) + 2 * margin)
-        floor_from_grid = np.array([[0.0, -res, x_top], [-res, 0.0, y_left], [0.0, 0.0, 1.0]])
-        px_from_grid = np.linalg.inv(hom) @ floor_from_grid
-        rx, ry, scale = span_y / res, span_x / res, 1.0
-        roi_min = min(float(np.ptp(f[:, 0])), float(np.ptp(f[:, 1]))) / res
-        extent = 0.5 * max(float(np.ptp(f[:, 0])), float(np.ptp(f[:, 1])))
-        # calibration slices: the nearest and the farthest 30 % of the footprint's depth range
-        near_x, far_x = float(f[:, 0].min()), float(f[:, 0].max())
-        cut = 0.2 * (far_x - near_x)
-        rect = (x, y, w, h)
-        spec = [(rect, -math.inf, math.inf), (rect, -math.inf, near_x + cut), (rect, far_x - cut, math.inf)]
-    levels = 0
-    while roi_min / 2 ** (levels + 1) >= params.coarse_min_px and max(rx, ry) / 2**levels > 4:
+    g = (
+        _linear_grid(camera, params, margin)
+        if hom is None or model == "linear"
+        else _birdseye_grid(camera, hom, params, margin)
+    )
+    rx, ry = g["range_px"]
+    levels = 0  # coarsest level: regions keep coarse_min_px across, or the range is small enough
+    while g["roi_min"] / 2 ** (levels + 1) >= params.coarse_min_px and max(rx, ry) / 2**levels > 4:
         levels += 1
     base = _Setup(
-        model,
-        px_from_grid,
-        floor_from_grid,
-        size,
-        scale,
-        levels,
-        (rx, ry),
-        _region_images(camera, spec),
-        [],
-        [],
-        extent,
-    )
-    masks, valid = _masks(camera, base, px_from_grid, max(1, params.patch_px // 2))
+        model, g["px_from_grid"], g["floor_from_grid"], g["size"], g["scale"], levels, (rx, ry),
+        _region_images(camera, g["spec"]), [], [], g["extent_m"],
+    )  # fmt: skip
+    masks, valid = _masks(camera, base, base.px_from_grid, max(1, params.patch_px // 2))
     regions = [mask_pyramid(m, levels) for m in masks]
     return dataclasses.replace(base, regions=regions, valid=mask_pyramid(valid, levels))
 

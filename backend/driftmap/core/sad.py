@@ -161,8 +161,8 @@ def sad_matrix(
 ) -> NDArray[np.float32]:
     """Confusion matrix of shift-minimised SAD scores, computed in memory-bounded blocks.
 
-    References are processed in chunks of about ``params.chunk_bytes``; every query is compared
-    with a chunk while it is in cache. Peak extra memory is about three chunks plus the output.
+    Row by row with :func:`sad_one_to_many`, whose reference chunks of about ``params.chunk_bytes``
+    stay in cache through all shifts; peak extra memory is about three chunks plus the output.
 
     Args:
         queries: ``(Q, H, W)`` images.
@@ -187,13 +187,8 @@ def sad_matrix(
         if masks.shape != qs.shape:
             raise ValueError(f"masks must be (H, W) or (Q, H, W) = {qs.shape}, got {masks.shape}")
     out = np.empty((qs.shape[0], r.shape[0]), dtype=np.float32)
-    height, width = r.shape[1:]
-    block = max(1, params.chunk_bytes // (height * width * 4))
-    for c0 in range(0, r.shape[0], block):
-        chunk = r[c0 : c0 + block]
-        for i in range(qs.shape[0]):
-            mask = None if masks is None else masks[i]
-            out[i, c0 : c0 + chunk.shape[0]] = sad_one_to_many(qs[i], chunk, params, mask).d
+    for i in range(qs.shape[0]):  # each row streams the references once, chunk by cache-sized chunk
+        out[i] = sad_one_to_many(qs[i], r, params, None if masks is None else masks[i]).d
     return out
 
 
