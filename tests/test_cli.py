@@ -84,3 +84,58 @@ class TestSiteAndDrives:
         help_text = runner.invoke(app, ["--help"]).output
         for command in ("simulate", "site", "drive", "db"):
             assert command in help_text
+
+
+class TestMapping:
+    def test_build_show_export_and_table_one(
+        self, data_dir: Path, tmp_path: Path, tiny_site_dir: Path
+    ) -> None:
+        created = runner.invoke(
+            app,
+            [
+                "site",
+                "create",
+                "tiny",
+                "--survey",
+                str(tiny_site_dir / "survey.dxf"),
+                "--drives",
+                str(tiny_site_dir / "drives"),
+            ],
+        )
+        assert created.exit_code == 0, created.output
+        built = runner.invoke(app, ["map", "build", "tiny", "--preset", "fast"])
+        assert built.exit_code == 0, built.output
+        assert "map version 1" in built.output
+
+        shown = runner.invoke(app, ["map", "show", "tiny"])
+        assert shown.exit_code == 0, shown.output
+        assert "map-01" in shown.output and "distance m" in shown.output
+
+        poses = tmp_path / "poses.csv"
+        exported = runner.invoke(app, ["map", "export", "tiny", "--version", "1", "--poses", str(poses)])
+        assert exported.exit_code == 0, exported.output
+        lines = poses.read_text().splitlines()
+        assert lines[0] == "drive,frame,x,y,yaw"
+        mapping_frames = sum(
+            len((d / "frames.csv").read_text().splitlines()) - 1
+            for d in (tiny_site_dir / "drives").glob("map-*")
+        )
+        assert len(lines) - 1 == mapping_frames
+
+        report = runner.invoke(
+            app, ["report", "mapping", "tiny", "--truth", "--preset", "fast", "--out", str(tmp_path)]
+        )
+        assert report.exit_code == 0, report.output
+        for label in ("visual odometry", "loop closure", "groundings", "full system"):
+            assert label in report.output
+        assert (tmp_path / "mapping.png").stat().st_size > 10_000
+
+    def test_map_commands_explain_missing_pieces(self, data_dir: Path, tmp_path: Path) -> None:
+        survey = _survey(tmp_path / "survey.dxf")
+        assert runner.invoke(app, ["site", "create", "bare", "--survey", str(survey)]).exit_code == 0
+        result = runner.invoke(app, ["map", "show", "bare"])
+        assert result.exit_code == 2 and "map build bare" in result.output
+        result = runner.invoke(app, ["map", "build", "bare"])
+        assert result.exit_code == 2 and "no grounding" in result.output
+        result = runner.invoke(app, ["report", "mapping", "bare"])
+        assert result.exit_code == 2 and "--truth" in result.output
