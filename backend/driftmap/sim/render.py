@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from driftmap.sim import shading
 from driftmap.sim.rig import CameraRig
-from driftmap.sim.textures import F32, level_for
+from driftmap.sim.textures import F32, Levels, level_for
 from driftmap.sim.world import World
 
 __all__ = ["RENDER_DEFAULT", "RenderParams", "Renderer"]
@@ -37,7 +37,7 @@ class RenderParams:
 
     max_range_m: float = 45.0  # walls beyond are culled; floor or roof beyond (without a wall) is black
     azimuth_bins: int = 1024  # azimuths cast in 2-D per frame
-    headlight: float = 4.5  # radiance of albedo 1 at 1 m, normal incidence, on the beam axis
+    headlight: float = 7.0  # radiance of albedo 1 at 1 m, normal incidence, on the beam axis
     near_clip_m: float = 1.2  # distances below this count as this for the 1/d^2 fall-off
     beam_pitch_rad: float = math.radians(12.0)  # headlight axis below the horizontal
     beam_exponent: float = 3.0  # beam pattern cos(angle off axis)^exponent
@@ -45,6 +45,7 @@ class RenderParams:
     light_emission: float = 6.0  # radiance of a light tube seen directly
     bloom: float = 0.35  # weight of the blurred glow around emitters
     rut_depth: float = 0.25  # darkening of the wheel ruts
+    bump: float = 2.0  # strength of the bump shading of gravel and rock relief (0: flat)
     vignette: float = 0.35  # brightness lost at the image corners
     read_noise: float = 0.008  # sensor read noise (linear units of full scale)
     shot_noise: float = 0.015  # shot noise scale: sigma = shot_noise * sqrt(signal)
@@ -65,6 +66,37 @@ class _Plane:
     dist: F32  # (P,) 3-D distance from the camera, metres
     cos: F32  # (P,) cosine of incidence
     footprint: F32  # (P,) metres of plane under one pixel
+
+
+@dataclass(frozen=True, eq=False)
+class _Walls:
+    """Wall segments within range of the camera, and the one each azimuth bin hits."""
+
+    seg_of_bin: NDArray[np.int64]  # (B,) index into the culled segments, -1 where no wall is in range
+    p0: F32  # (K, 2) segment starts relative to the camera foot, metres
+    unit: F32  # (K, 2) unit directions
+    s0: F32  # (K,) strip arc length at the starts
+
+
+@dataclass(eq=False)
+class _Frame:
+    """Per-pixel working arrays of one frame (N = H * W, float32); hit points relative to the camera foot."""
+
+    cam: tuple[float, float]  # camera foot, local metres
+    hx: F32
+    hy: F32
+    hz: F32
+    dist: F32  # 3-D distance of the hit, inf where nothing is hit
+    cos: F32  # cosine of incidence of the headlight
+    albedo: F32
+    emission: F32
+    dirx: F32  # horizontal unit ray direction in the world
+    diry: F32
+
+    @staticmethod
+    def empty(n: int, cam: tuple[float, float]) -> _Frame:
+        z = [np.zeros(n, np.float32) for _ in range(8)]
+        return _Frame(cam, z[0], z[1], z[2], np.full(n, np.inf, np.float32), z[3], z[4], z[5], z[6], z[7])
 
 
 def _plane(d: NDArray[np.float64], idx: NDArray[np.int64], height_m: float, pix_rad: float) -> _Plane:
@@ -111,9 +143,8 @@ class Renderer:
             np.uint8
         )
 
-    def _cast_walls(self, ox: float, oy: float, yaw: float) -> tuple[NDArray[np.int64], F32, F32, F32]:
-        """Nearest culled wall segment of every azimuth bin (-1: none) and the culled segments'
-        starts relative to the camera foot, unit directions and strip arc starts."""
+    def _cast_walls(self, ox: float, oy: float, yaw: float) -> _Walls:
+        """The nearest wall segment of every azimuth bin among the segments within range."""
         w = self.world
         p0, p1 = w.wall_p0.astype(np.float64), w.wall_p1.astype(np.float64)
         e = p1 - p0
@@ -135,7 +166,7 @@ class Renderer:
             best = np.argmin(r, axis=1)
             seg = np.where(np.isfinite(r[np.arange(len(ang)), best]), best, -1)
         unit = ek / np.sqrt(L2[keep])[:, None]
-        return seg, p0k.astype(np.float32), unit.astype(np.float32), w.wall_s0[keep]
+        return _Walls(seg, p0k.astype(np.float32), unit.astype(np.float32), w.wall_s0[keep])
 
     def radiance(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[F32, F32]:
         """Linear radiance (H, W) lit by headlight and roof lights, and emission (H, W), at a pose.
@@ -145,76 +176,93 @@ class Renderer:
             yaw_rad: vehicle heading, radians CCW from +x.
         """
         pr, world = self.params, self.world
-        n = self.shape[0] * self.shape[1]
-        cam = (x_m, y_m)
-        roof_h = np.float32(world.height_m)
         cy, sy = np.float32(math.cos(yaw_rad)), np.float32(math.sin(yaw_rad))
-        dirx = cy * self.cos_psi - sy * self.sin_psi
-        diry = sy * self.cos_psi + cy * self.sin_psi
-        seg_bin, p0, unit, s0 = self._cast_walls(x_m, y_m, yaw_rad)
-        seg = seg_bin[self.bin_of_px]
+        f = _Frame.empty(self.shape[0] * self.shape[1], (x_m, y_m))
+        f.dirx = cy * self.cos_psi - sy * self.sin_psi
+        f.diry = sy * self.cos_psi + cy * self.sin_psi
+        walls = self._cast_walls(x_m, y_m, yaw_rad)
+        seg = walls.seg_of_bin[self.bin_of_px]
         has_wall = seg >= 0
         seg[~has_wall] = 0
-        ux, uy = unit[seg, 0], unit[seg, 1]
+        ux, uy = walls.unit[seg, 0], walls.unit[seg, 1]
         with np.errstate(divide="ignore", invalid="ignore"):
-            rho_w = (p0[seg, 0] * uy - p0[seg, 1] * ux) / (dirx * uy - diry * ux)
+            rho_w = (walls.p0[seg, 0] * uy - walls.p0[seg, 1] * ux) / (f.dirx * uy - f.diry * ux)
         rho_w[~(has_wall & (rho_w > 0.01))] = np.inf
         z_w = np.float32(self.rig.params.height_m) + rho_w * self.slope
-        is_wall = (z_w >= 0.0) & (z_w <= roof_h)
-        hx, hy, hz = np.zeros(n, np.float32), np.zeros(n, np.float32), np.zeros(n, np.float32)
-        dist = np.full(n, np.inf, np.float32)
-        cos_inc, albedo, emission = np.zeros(n, np.float32), np.zeros(n, np.float32), np.zeros(n, np.float32)
-        ox, oy = np.float32(x_m), np.float32(y_m)
+        is_wall = (z_w >= 0.0) & (z_w <= np.float32(world.height_m))
         for plane in (self.floor, self.roof):
-            hit = ~is_wall[plane.px] & (plane.rho < np.minimum(rho_w[plane.px], np.float32(pr.max_range_m)))
-            j = np.flatnonzero(hit)
+            j = np.flatnonzero(~is_wall[plane.px] & (plane.rho < np.minimum(rho_w[plane.px], pr.max_range_m)))
             pix = plane.px[j]
             vx, vy = plane.xy[j, 0], plane.xy[j, 1]
-            rx, ry = cy * vx - sy * vy, sy * vx + cy * vy
-            hx[pix], hy[pix] = rx, ry
-            dist[pix], cos_inc[pix] = plane.dist[j], plane.cos[j]
+            f.hx[pix], f.hy[pix] = cy * vx - sy * vy, sy * vx + cy * vy
+            f.dist[pix], f.cos[pix] = plane.dist[j], plane.cos[j]
             if plane is self.floor:
-                albedo[pix] = shading.floor_albedo(
-                    world,
-                    rx + ox,
-                    ry + oy,
-                    plane.rho[j],
-                    self.floor_lv_fine[j],
-                    self.floor_lv_mid[j],
-                    cam,
-                    pr.rut_depth,
-                    pr.max_range_m,
-                )
+                self._shade_floor(f, pix, j)
             else:
-                hz[pix] = roof_h
-                albedo[pix], emission[pix] = shading.roof_albedo(
-                    world,
-                    rx + ox,
-                    ry + oy,
-                    plane.footprint[j],
-                    self.roof_lv[j],
-                    cam,
-                    pr.light_emission,
-                    pr.max_range_m,
-                )
+                self._shade_roof(f, pix, j)
         wi = np.flatnonzero(is_wall)
         if wi.size:
-            r, k = rho_w[wi], seg[wi]
-            dxw, dyw = dirx[wi], diry[wi]
-            hx[wi], hy[wi], hz[wi] = r * dxw, r * dyw, z_w[wi]
-            dist[wi] = r / self.rh[wi]
-            cos_inc[wi] = np.abs(unit[k, 1] * dxw - unit[k, 0] * dyw) * self.rh[wi]
-            s = s0[k] + (hx[wi] - p0[k, 0]) * unit[k, 0] + (hy[wi] - p0[k, 1]) * unit[k, 1]
-            footprint = (
-                dist[wi] * np.float32(self.pix_rad) / np.sqrt(np.maximum(cos_inc[wi], np.float32(0.05)))
-            )
-            albedo[wi] = shading.wall_albedo(world, s, z_w[wi], footprint.astype(np.float32))
-        d_clip = np.maximum(dist, np.float32(pr.near_clip_m))
-        light = np.float32(pr.headlight) * self.beam * cos_inc / (d_clip * d_clip)
+            self._shade_walls(f, wi, rho_w[wi], z_w[wi], seg[wi], walls)
+        d_clip = np.maximum(f.dist, np.float32(pr.near_clip_m))
+        light = np.float32(pr.headlight) * self.beam * f.cos / (d_clip * d_clip)
+        ox, oy = np.float32(x_m), np.float32(y_m)
         light += shading.light_from_roof_lights(
-            world, hx + ox, hy + oy, hz, cam, pr.light_power, pr.max_range_m
+            world, f.hx + ox, f.hy + oy, f.hz, f.cam, pr.light_power, pr.max_range_m
         )
-        return (albedo * light).reshape(self.shape), emission.reshape(self.shape)
+        return (f.albedo * light).reshape(self.shape), f.emission.reshape(self.shape)
+
+    def _shade_floor(self, f: _Frame, pix: NDArray[np.int64], j: NDArray[np.int64]) -> None:
+        pr, world = self.params, self.world
+        wx, wy = f.hx[pix] + np.float32(f.cam[0]), f.hy[pix] + np.float32(f.cam[1])
+        lv = Levels.of(self.floor_lv_fine[j])
+        f.albedo[pix] = shading.floor_albedo(
+            world,
+            wx,
+            wy,
+            self.floor.rho[j],
+            lv,
+            Levels.of(self.floor_lv_mid[j]),
+            f.cam,
+            pr.rut_depth,
+            pr.max_range_m,
+        )
+        rh = self.rh[pix]
+        gx, gy = world.floor_slope_x.sample(wx, wy, lv), world.floor_slope_y.sample(wx, wy, lv)
+        f.cos[pix] = shading.bumped_cos(f.cos[pix], gx, gy, f.dirx[pix] * rh, f.diry[pix] * rh, pr.bump)
+
+    def _shade_roof(self, f: _Frame, pix: NDArray[np.int64], j: NDArray[np.int64]) -> None:
+        pr = self.params
+        wx, wy = f.hx[pix] + np.float32(f.cam[0]), f.hy[pix] + np.float32(f.cam[1])
+        f.hz[pix] = np.float32(self.world.height_m)
+        f.albedo[pix], f.emission[pix] = shading.roof_albedo(
+            self.world,
+            wx,
+            wy,
+            self.roof.footprint[j],
+            Levels.of(self.roof_lv[j]),
+            f.cam,
+            pr.light_emission,
+            pr.max_range_m,
+        )
+
+    def _shade_walls(
+        self, f: _Frame, wi: NDArray[np.int64], rho: F32, z: F32, k: NDArray[np.int64], walls: _Walls
+    ) -> None:
+        """Wall pixels ``wi`` at horizontal distance ``rho`` and height ``z`` on culled segments ``k``."""
+        world, unit = self.world, walls.unit
+        rh = self.rh[wi]
+        dx, dy = f.dirx[wi], f.diry[wi]
+        f.hx[wi], f.hy[wi], f.hz[wi] = rho * dx, rho * dy, z
+        f.dist[wi] = rho / rh
+        cos_flat = np.abs(unit[k, 1] * dx - unit[k, 0] * dy) * rh
+        s = walls.s0[k] + (f.hx[wi] - walls.p0[k, 0]) * unit[k, 0] + (f.hy[wi] - walls.p0[k, 1]) * unit[k, 1]
+        footprint = f.dist[wi] * np.float32(self.pix_rad) / np.sqrt(np.maximum(cos_flat, np.float32(0.05)))
+        footprint = footprint.astype(np.float32)
+        lv = Levels.for_footprint(footprint, 0.04, 3)
+        f.albedo[wi] = shading.wall_albedo(world, s, z, lv, Levels.for_footprint(footprint, 0.01, 5))
+        gs, gz = world.wall_slope_s.sample(s, z, lv), world.wall_slope_z.sample(s, z, lv)
+        along = (dx * unit[k, 0] + dy * unit[k, 1]) * rh
+        f.cos[wi] = shading.bumped_cos(cos_flat, gs, gz, along, self.slope[wi] * rh, self.params.bump)
 
     def render(
         self, x_m: float, y_m: float, yaw_rad: float, exposure: float, noise_seed: int | list[int]

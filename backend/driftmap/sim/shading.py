@@ -12,12 +12,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
-from driftmap.sim.textures import F32, level_for
+from driftmap.sim.textures import F32, Levels
 from driftmap.sim.world import World
 
-__all__ = ["floor_albedo", "light_from_roof_lights", "roof_albedo", "wall_albedo"]
+__all__ = ["bumped_cos", "floor_albedo", "light_from_roof_lights", "roof_albedo", "wall_albedo"]
 
 RUT_OFFSET_M = 1.2  # wheel ruts this far either side of the centreline
 RUT_WIDTH_M = 0.3  # and this wide (Gaussian half-width)
@@ -31,8 +30,8 @@ def floor_albedo(
     x: F32,
     y: F32,
     rho: F32,
-    lv_fine: NDArray[np.int8],
-    lv_mid: NDArray[np.int8],
+    lv_fine: Levels,
+    lv_mid: Levels,
     cam_xy: tuple[float, float],
     rut_depth: float,
     max_range_m: float,
@@ -66,7 +65,7 @@ def roof_albedo(
     x: F32,
     y: F32,
     footprint_m: F32,
-    lv: NDArray[np.int8],
+    lv: Levels,
     cam_xy: tuple[float, float],
     emission_gain: float,
     max_range_m: float,
@@ -98,10 +97,11 @@ def roof_albedo(
     return alb, emission
 
 
-def wall_albedo(world: World, s: F32, z: F32, footprint_m: F32) -> F32:
-    """Albedo of wall points at strip arc length ``s`` and height ``z`` (N,), pixel footprint (N,)."""
-    strip = world.strip.sample(s, z, level_for(footprint_m, 0.04, 3))
-    fine = world.wall_fine.sample(s, z, level_for(footprint_m, 0.01, len(world.wall_fine.levels)))
+def wall_albedo(world: World, s: F32, z: F32, lv_4cm: Levels, lv_1cm: Levels) -> F32:
+    """Albedo of wall points at strip arc length ``s`` and height ``z`` (N,), grouped by the pyramid
+    levels of 4 cm (the strip) and 1 cm (the rock grain) textures."""
+    strip = world.strip.sample(s, z, lv_4cm)
+    fine = world.wall_fine.sample(s, z, lv_1cm)
     return np.asarray(strip * fine, dtype=np.float32)
 
 
@@ -128,6 +128,24 @@ def light_from_roof_lights(
         d2 = (x - lights[k, 0]) ** 2 + (y - lights[k, 1]) ** 2 + (z - lz) ** 2
         out += np.float32(power) / (d2 + np.float32(1.0))
     return out
+
+
+def bumped_cos(cos_inc: F32, slope_u: F32, slope_v: F32, ray_u: F32, ray_v: F32, strength: float) -> F32:
+    """Cosine of incidence of the headlight on a bumpy surface, (N,).
+
+    The surface is displaced towards the camera's side by a height field h(u, v) with slopes (h_u, h_v);
+    its normal tilts to n - h_u e_u - h_v e_v, so with the light at the camera (unit ray d)
+    cos = (cos_flat + h_u (d . e_u) + h_v (d . e_v)) / sqrt(1 + h_u^2 + h_v^2).
+
+    Args:
+        cos_inc: (N,) cosine on the flat surface.
+        slope_u, slope_v: (N,) height slopes along the surface axes u, v (metres per metre).
+        ray_u, ray_v: (N,) components of the unit ray along u and v.
+        strength: multiplies the slopes.
+    """
+    gu, gv = slope_u * np.float32(strength), slope_v * np.float32(strength)
+    cos = (cos_inc + gu * ray_u + gv * ray_v) / np.sqrt(np.float32(1.0) + gu * gu + gv * gv)
+    return np.asarray(np.clip(cos, 0.0, 1.0), dtype=np.float32)
 
 
 def _seg_dist(a: F32, b: F32, x: float, y: float) -> F32:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.sim.textures import F32, periodic_noise, remap_linear, sample_by_level
+from driftmap.sim.textures import F32, Levels, periodic_noise, remap_linear, sample_by_level
 
 __all__ = ["BLOCK_COLS", "ROWS", "TEXEL_M", "Patch", "StripAtlas", "StripBuilder"]
 
@@ -63,9 +63,9 @@ class StripAtlas:
         img = self.levels[level]
         return remap_linear(img, xs, ys) * np.float32(SCALE / 255.0)
 
-    def sample(self, s_m: F32, z_m: F32, level: NDArray[np.int8]) -> F32:
-        """Albedo at (N,) wall coordinates, each from its own ``level`` (N,) (0 = 4 cm texels)."""
-        return sample_by_level(self.sample_level, s_m, z_m, level)
+    def sample(self, s_m: F32, z_m: F32, levels: Levels) -> F32:
+        """Albedo at (N,) wall coordinates, each from the level of its group (0 = 4 cm texels)."""
+        return sample_by_level(self.sample_level, s_m, z_m, levels)
 
 
 @dataclass

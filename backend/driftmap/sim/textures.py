@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     "F32",
+    "Levels",
     "MipTexture",
     "floor_fine_texture",
     "floor_mid_texture",
@@ -27,7 +28,9 @@ __all__ = [
     "remap_linear",
     "roof_texture",
     "sample_by_level",
+    "slopes",
     "wall_fine_texture",
+    "wall_relief",
 ]
 
 F32 = NDArray[np.float32]
@@ -120,21 +123,48 @@ class MipTexture:
         y[y < 0] += h
         return remap_linear(img, x, y)
 
-    def sample(self, u_m: F32, v_m: F32, level: NDArray[np.int8]) -> F32:
-        """Samples (N,) at positions (N,) metres, each from its own pyramid ``level`` (N,)."""
-        return sample_by_level(self.sample_level, u_m, v_m, level)
+    def sample(self, u_m: F32, v_m: F32, levels: Levels) -> F32:
+        """Samples (N,) at positions (N,) metres, each from the pyramid level of its group."""
+        return sample_by_level(self.sample_level, u_m, v_m, levels)
 
 
-def sample_by_level(fn: Callable[[F32, F32, int], F32], u: F32, v: F32, level: NDArray[np.int8]) -> F32:
-    """Apply a single-level sampler ``fn`` to the samples of each level present in ``level`` (N,)."""
-    counts = np.bincount(level, minlength=1) if level.size else np.zeros(1, np.int64)
-    present = np.flatnonzero(counts)
-    if len(present) == 1:
-        return fn(u, v, int(present[0]))
+@dataclass(frozen=True, eq=False)
+class Levels:
+    """Sample indices grouped by pyramid level, computed once and shared by every texture sampled at
+    the same points (a group's indices are None when it holds all samples)."""
+
+    groups: tuple[tuple[int, NDArray[np.int64] | None], ...]
+    n: int
+
+    @staticmethod
+    def of(level: NDArray[np.int8]) -> Levels:
+        """Group (N,) levels."""
+        if level.size == 0:
+            return Levels((), 0)
+        counts = np.bincount(level)
+        present = np.flatnonzero(counts)
+        if len(present) == 1:
+            return Levels(((int(present[0]), None),), level.size)
+        order = np.argsort(level, kind="stable")
+        bounds = np.cumsum(counts)
+        return Levels(
+            tuple((int(lv), order[bounds[lv] - counts[lv] : bounds[lv]]) for lv in present), level.size
+        )
+
+    @staticmethod
+    def for_footprint(footprint_m: F32, texel_m: float, n_levels: int) -> Levels:
+        """Group samples by the level whose texels match their pixel footprints (metres)."""
+        return Levels.of(level_for(footprint_m, texel_m, n_levels))
+
+
+def sample_by_level(fn: Callable[[F32, F32, int], F32], u: F32, v: F32, levels: Levels) -> F32:
+    """Apply a single-level sampler ``fn`` to the samples of each level group."""
+    if len(levels.groups) == 1 and levels.groups[0][1] is None:
+        return fn(u, v, levels.groups[0][0])
     out = np.empty(u.shape, np.float32)
-    for lv in present:
-        idx = np.flatnonzero(level == lv)
-        out[idx] = fn(u[idx], v[idx], int(lv))
+    for lv, idx in levels.groups:
+        assert idx is not None
+        out[idx] = fn(u[idx], v[idx], lv)
     return out
 
 
@@ -147,16 +177,44 @@ def level_for(footprint_m: F32, texel_m: float, n_levels: int) -> NDArray[np.int
 # -------------------------------------------------------------------------------------- the texture set
 
 
-def floor_fine_texture(rng: np.random.Generator, size: int = 1024) -> F32:
-    """Gravel and fines at 1 cm texels: stones of 1-6 cm over fractal dust, mean ~0.5."""
+def floor_fine_texture(rng: np.random.Generator, size: int = 1024) -> tuple[F32, F32]:
+    """Gravel and fines at 1 cm texels: (albedo, height in metres), stones of 1-6 cm over dust.
+
+    Stones stand up to ~1.5 cm proud of the fines; their height drives the bump shading that makes
+    them cast light and shade under the headlight.
+    """
     base = 0.35 * periodic_noise(rng, size, size, 1.2)
     stones = (
         0.9 * _blobs(rng, size, size, 9000, 1.2)
         + 0.9 * _blobs(rng, size, size, 2500, 2.5)
         + 0.7 * _blobs(rng, size, size, 500, 5.0)
     )
-    img = 0.5 + 0.12 * base + 0.45 * np.tanh(2.5 * stones)
-    return np.asarray(np.clip(img, 0.02, 1.0), dtype=np.float32)
+    shape = np.tanh(2.5 * stones)
+    img = 0.5 + 0.12 * base + 0.42 * shape
+    height = 0.008 * shape + 0.002 * base
+    return np.asarray(np.clip(img, 0.02, 1.0), dtype=np.float32), np.asarray(height, dtype=np.float32)
+
+
+def slopes(height_m: F32, texel_m: float) -> tuple[F32, F32]:
+    """Periodic central-difference slopes (d/du, d/dv) of a tileable height field (metres per metre)."""
+    gu = (np.roll(height_m, -1, axis=1) - np.roll(height_m, 1, axis=1)) / (2 * texel_m)
+    gv = (np.roll(height_m, -1, axis=0) - np.roll(height_m, 1, axis=0)) / (2 * texel_m)
+    return np.asarray(gu, dtype=np.float32), np.asarray(gv, dtype=np.float32)
+
+
+def wall_relief(rng: np.random.Generator, rows: int = 128, cols: int = 2048) -> F32:
+    """Height (metres, towards the tunnel) of blasted rock at 4 cm texels: blocks and overbreak of
+    0.2-4 m, +-10 cm, and drill half-barrels (grooves along the wall)."""
+    h = 0.06 * periodic_noise(rng, rows, cols, 1.7) + 0.012 * periodic_noise(rng, rows, cols, 1.0)
+    for _ in range(cols // 40):
+        r, c0, length = (
+            int(rng.integers(20, rows - 10)),
+            int(rng.integers(0, cols)),
+            int(rng.integers(40, 95)),
+        )
+        idx = (c0 + np.arange(length)) % cols
+        h[r - 1 : r + 2, idx] -= np.array([[0.01], [0.025], [0.01]])
+    return np.asarray(h, dtype=np.float32)
 
 
 def floor_mid_texture(rng: np.random.Generator, size: int = 1024) -> F32:

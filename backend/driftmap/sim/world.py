@@ -23,7 +23,9 @@ from driftmap.sim.textures import (
     floor_fine_texture,
     floor_mid_texture,
     roof_texture,
+    slopes,
     wall_fine_texture,
+    wall_relief,
 )
 
 __all__ = ["World", "build_world"]
@@ -50,6 +52,10 @@ class World:
     floor_mid: MipTexture  # floor brightness patches, 8 cm texels
     wall_fine: MipTexture  # rock grain, 1 cm texels
     roof: MipTexture  # shotcrete, mesh, bolts, 2 cm texels
+    floor_slope_x: MipTexture  # gravel height slope along world x (bump shading), 1 cm texels
+    floor_slope_y: MipTexture  # ... along world y
+    wall_slope_s: MipTexture  # rock relief slope along the wall arc length, 4 cm texels
+    wall_slope_z: MipTexture  # ... along the height
 
     def to_local(self, xy_grid: FloatArray) -> FloatArray:
         """Grid metres (..., 2) -> local metres (..., 2), float64."""
@@ -99,6 +105,9 @@ def build_world(layout: Layout, seed: int) -> World:
         out[:, :2] -= o
         return out.astype(np.float32)
 
+    floor_albedo, floor_height = floor_fine_texture(rng)
+    fgx, fgy = slopes(floor_height, 0.01)
+    wgs, wgz = slopes(wall_relief(rng), 0.04)
     return World(
         origin_xy=(float(origin[0]), float(origin[1])),
         height_m=layout.height_m,
@@ -111,8 +120,12 @@ def build_world(layout: Layout, seed: int) -> World:
         spots=with_xy(decor.spots),
         roof_marks=with_xy(decor.roof_marks),
         strip=decor.strip,
-        floor_fine=MipTexture.build(floor_fine_texture(rng), 0.01, 6),
+        floor_fine=MipTexture.build(floor_albedo, 0.01, 6),
         floor_mid=MipTexture.build(floor_mid_texture(rng), 0.08, 4),
         wall_fine=MipTexture.build(wall_fine_texture(rng), 0.01, 5),
         roof=MipTexture.build(roof_texture(rng), 0.02, 5),
+        floor_slope_x=MipTexture.build(fgx, 0.01, 6),
+        floor_slope_y=MipTexture.build(fgy, 0.01, 6),
+        wall_slope_s=MipTexture.build(wgs, 0.04, 4),
+        wall_slope_z=MipTexture.build(wgz, 0.04, 4),
     )
