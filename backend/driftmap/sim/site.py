@@ -78,6 +78,20 @@ class SimulationSummary:
     frames_written: int  # frame files written, obscured copies included
     seconds: float  # wall-clock time
 
+    def describe(self) -> str:
+        """A few lines for people: what was written where, and how fast."""
+        kinds = {
+            k: sum(1 for d in self.drives if d.kind == k and d.obscurant is None)
+            for k in ("mapping", "localisation")
+        }
+        copies = sum(1 for d in self.drives if d.obscurant is not None)
+        return (
+            f"{self.size} site (seed {self.seed}): {self.tunnel_length_m:.0f} m of tunnel -> {self.out_dir}\n"
+            f"{kinds['mapping']} mapping and {kinds['localisation']} localisation drives"
+            f"{f' (+{copies} obscured copies)' if copies else ''}; {self.frames_rendered} frames rendered, "
+            f"{self.frames_written} written in {self.seconds:.1f} s ({self.frames_rendered / max(self.seconds, 1e-9):.0f} frames/s)"
+        )
+
 
 @dataclass(frozen=True, eq=False)
 class SitePlan:
