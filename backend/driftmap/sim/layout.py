@@ -205,7 +205,8 @@ def generate_layout(seed: int, size: SiteSize) -> Layout:
             s_hi = s_lo + polyline_length(sides[2]) - 20.0
         else:
             s_lo, s_hi = 12.0, polyline_length(host.poly) - 14.0
-        positions = np.arange(s_lo, s_hi + 1e-6, p.drawpoint_spacing_m)
+        count = int(np.floor(max(s_hi - s_lo, 0.0) / p.drawpoint_spacing_m + 0.25)) + 1
+        positions = np.linspace(s_lo, s_hi, count) if count > 1 else np.array([s_lo])
         for k, s in enumerate(positions):
             side = -1 if host.closed else (1 if k % 2 == 0 else -1)
             dp_count += 1

@@ -2,8 +2,9 @@
 
 Mapping (:func:`plan_mapping`): one drive per face of the planar centreline graph (see
 :mod:`driftmap.sim.routes`), so that together they drive every tunnel once in each direction. The
-vehicle stops for a surveyor's grounding at the start and end, at every main junction it passes and
-at every dead end; at drawpoints it also digs (short back-and-forth strokes) before reversing out.
+vehicle stops for a surveyor's grounding at its start and end, at every dead end (tunnel ends, the
+dump, drawpoints) and at each main junction the first time a mapping drive passes it; at drawpoints
+it also digs (short back-and-forth strokes) before reversing out.
 
 Localisation (:func:`plan_localisation`): load-haul-dump cycles -- reverse out of the dump, drive
 empty (up to 7 m/s) to a drawpoint, dig, reverse out, haul loaded to the dump, tip, and again --
@@ -123,10 +124,12 @@ def plan_mapping(g: Graph, vp: VehicleParams, y_c_m: float, seed: int) -> list[D
     """
     plans = []
     nodes = g.layout.nodes
+    grounded: set[int] = set()  # main junctions already grounded by an earlier drive
     for k, walk in enumerate(g.faces()):
         starts = [i for i, d in enumerate(walk) if g.main_junction(g.tail(d))]
         starts = starts or [i for i, d in enumerate(walk) if nodes[g.tail(d)].kind == "junction"] or [0]
         walk = walk[starts[0] :] + walk[: starts[0]]
+        grounded.add(g.tail(walk[0]))
         b = _Builder(g, vp, y_c_m, np.random.default_rng([seed, 31, k]))
         i, n = 0, len(walk)
         while i < n:
@@ -145,8 +148,9 @@ def plan_mapping(g: Graph, vp: VehicleParams, y_c_m: float, seed: int) -> list[D
                 continue
             last = i == n - 1
             stop = None
-            if not last and g.main_junction(head):
+            if not last and g.main_junction(head) and head not in grounded:
                 stop = Stop(_xy(nodes[head].xy), vp.stop_s, nodes[head].name, True)
+                grounded.add(head)
             b.forward(d, stop)
             i += 1
         end_node = nodes[g.tail(walk[0])]
@@ -170,7 +174,8 @@ def plan_localisation(
         y_c_m: camera ahead of the rear axle.
         seed: site seed.
         index: 0-based drive number (odd drives start loaded at a drawpoint, even ones at the dump).
-        target_frames: stop after the first completed leg reaching this many frames.
+        target_frames: the drive ends after the leg (drive to a drawpoint and dig, or to the dump and
+            tip) that brings it closest to this many frames; it has at least one leg.
     """
     rng = np.random.default_rng([seed, 41, index])
     dump = _leaf_darts(g, "dump")[0]
@@ -179,7 +184,9 @@ def plan_localisation(
     current = dump if index % 2 == 0 or not drawpoints else drawpoints[int(rng.integers(len(drawpoints)))]
     start_dwell = 1.5
     nodes = g.layout.nodes
+    legs = 0
     while True:
+        before = (len(b.runs), len(b.darts), start_dwell + sum(r.duration_s for r in b.runs))
         order = [drawpoints[int(j)] for j in rng.permutation(len(drawpoints))] if current == dump else [dump]
         plan = None
         for goal in order:
@@ -204,8 +211,11 @@ def plan_localisation(
         if not loaded:
             b.dig(goal, vp.dig_strokes)
         current = goal
-        duration = start_dwell + sum(r.duration_s for r in b.runs)
-        if duration * vp.fps >= target_frames:
+        legs += 1
+        frames = (start_dwell + sum(r.duration_s for r in b.runs)) * vp.fps
+        if frames >= target_frames:
+            if legs > 1 and frames - target_frames > target_frames - before[2] * vp.fps:
+                del b.runs[before[0] :], b.darts[before[1] :]  # closer to the target without this leg
             break
     return DrivePlan(
         f"loc-{index + 1:02d}", "localisation", tuple(b.runs), start_dwell, False, tuple(b.darts)

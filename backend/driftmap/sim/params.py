@@ -52,7 +52,7 @@ class SiteSize:
 
 SIZES: dict[str, SiteSize] = {
     "tiny": SiteSize("tiny", LayoutParams(24.0, 15.0, 0, access_length_m=0.0), 400, 1, 100),
-    "small": SiteSize("small", LayoutParams(92.0, 46.0, 1, access_length_m=25.0), 3000, 2, 500),
+    "small": SiteSize("small", LayoutParams(88.0, 44.0, 1, access_length_m=22.0), 3000, 2, 500),
     "medium": SiteSize("medium", LayoutParams(330.0, 100.0, 3, access_length_m=90.0), 12000, 4, 2400),
     "large": SiteSize(
         "large",
