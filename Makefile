@@ -43,9 +43,10 @@ pytest: $(VENV)/.installed-dev
 
 test: lint typecheck imports pytest
 
+BENCHES := bench_import bench_simulate bench_sad kitti_odometry bench_loops bench_posegraph bench_topomap
+
 bench: $(VENV)/.installed-dev
-	$(BIN)/python bench/bench_import.py
-	$(BIN)/python bench/bench_simulate.py
+	@for b in $(BENCHES); do echo "== bench/$$b.py"; $(BIN)/python bench/$$b.py || exit 1; done
 
 clean:
 	rm -rf $(VENV) data .mypy_cache .ruff_cache .pytest_cache
