@@ -16,10 +16,8 @@ import numpy as np
 from driftmap.core.obscurants import LEVELS, apply_level
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.render import Renderer
-from driftmap.sim.rig import CameraRig
-from driftmap.sim.world import World
 
-__all__ = ["Chunk", "encode_png", "exposure_curve", "init_worker", "make_renderer", "render_chunk"]
+__all__ = ["Chunk", "encode_png", "exposure_curve", "init_worker", "render_chunk"]
 
 _PNG_PARAMS = [
     cv2.IMWRITE_PNG_COMPRESSION,
@@ -41,10 +39,6 @@ class Chunk:
     poses: FloatArray  # (n, 3) local x, y (metres, grid - world origin), yaw (radians)
     exposure: FloatArray  # (n,) exposure gain
     variants: tuple[tuple[str, str, tuple[float, float] | None], ...]  # (suffix, level, water centre)
-
-
-def make_renderer(world: World, rig: CameraRig) -> Renderer:
-    return Renderer(world, rig)
 
 
 def init_worker(renderer: Renderer) -> None:

@@ -144,110 +144,18 @@ def generate_layout(seed: int, size: SiteSize) -> Layout:
     """
     p: LayoutParams = size.layout
     rng = np.random.default_rng([seed, 11])
-    L, D = p.loop_length_m, p.loop_depth_m
-    corners = [
-        np.array(c, dtype=np.float64) + rng.uniform(-1.5, 1.5, 2) for c in ((0, 0), (L, 0), (L, D), (0, D))
-    ]
-    sides = [_bendy(corners[i], corners[(i + 1) % 4], p.bend_m, rng) for i in range(4)]
-    loop = np.concatenate([sides[0], *(s[1:] for s in sides[1:])])  # closed, counter-clockwise
-    tunnels: list[_Tunnel] = [_Tunnel(loop, "drive", p.drive_width_m, closed=True, attach=[])]
-    nodes: list[tuple[FloatArray, NodeKind, str]] = []
-
-    def add_node(xy: FloatArray, kind: NodeKind, name: str) -> int:
-        nodes.append((np.asarray(xy, dtype=np.float64), kind, name))
-        return len(nodes) - 1
-
-    def attach(t: _Tunnel, s_m: float) -> int:
-        node = add_node(point_at(t.poly, s_m), "junction", "")
-        assert t.attach is not None
-        t.attach.append((s_m, node))
-        return node
-
-    def spur(
-        t: _Tunnel,
-        s_m: float,
-        side: int,
-        slant_rad: float,
-        length_m: float,
-        kind: EdgeKind,
-        width_m: float,
-        end_kind: NodeKind,
-        name: str,
-    ) -> None:
-        """A dead-end spur off tunnel t at arc s_m; side +1 = left of t's direction, -1 = right."""
-        j = attach(t, s_m)
-        theta = heading_at(t.poly, s_m) + (slant_rad if side > 0 else -math.pi + slant_rad)
-        start = nodes[j][0]
-        end = start + length_m * np.array([math.cos(theta), math.sin(theta)])
-        leaf = add_node(end, end_kind, name)
-        tunnels.append(_Tunnel(np.stack([start, end]), kind, width_m, attach=[(0.0, j), (length_m, leaf)]))
-
-    # production cross-cuts from the south side to the north side of the loop
-    south, north = sides[0], sides[2][::-1]
-    production: list[_Tunnel] = []
-    for i in range(1, p.rungs + 1):
-        x = L * i / (p.rungs + 1) + rng.uniform(-3.0, 3.0)
-        a = np.array([x, np.interp(x, south[:, 0], south[:, 1])])
-        b = np.array([x, np.interp(x, north[:, 0], north[:, 1])])
-        ja, jb = attach(tunnels[0], project(loop, a)[0]), attach(tunnels[0], project(loop, b)[0])
-        poly = np.stack([nodes[ja][0], nodes[jb][0]])
-        rung = _Tunnel(
-            poly, "production", p.production_width_m, attach=[(0.0, ja), (polyline_length(poly), jb)]
-        )
-        tunnels.append(rung)
-        production.append(rung)
-    # drawpoints: herringbone along each production tunnel (or the loop's north side when there is none)
-    dp_count = 0
-    hosts = production or [tunnels[0]]
-    for host in hosts:
-        if host.closed:
-            s_lo = polyline_length(sides[0]) + polyline_length(sides[1]) + 10.0
-            s_hi = s_lo + polyline_length(sides[2]) - 20.0
-        else:
-            s_lo, s_hi = 12.0, polyline_length(host.poly) - 14.0
-        count = int(np.floor(max(s_hi - s_lo, 0.0) / p.drawpoint_spacing_m + 0.25)) + 1
-        positions = np.linspace(s_lo, s_hi, count) if count > 1 else np.array([s_lo])
-        for k, s in enumerate(positions):
-            side = -1 if host.closed else (1 if k % 2 == 0 else -1)
-            dp_count += 1
-            spur(
-                host,
-                float(s),
-                side,
-                math.radians(60.0),
-                p.drawpoint_length_m,
-                "drawpoint",
-                p.drawpoint_width_m,
-                "drawpoint",
-                f"DP{dp_count:02d}",
-            )
-    # the dump off the west side, the access drive off the east side (both outside the loop)
+    level = _Level(p, rng)
+    production = level.production_tunnels()
+    level.drawpoints(production)
+    loop, sides = level.loop.poly, level.sides
     west_mid = polyline_length(loop) - 0.5 * polyline_length(sides[3])
-    spur(
-        tunnels[0],
-        west_mid,
-        -1,
-        math.radians(80.0),
-        p.dump_length_m,
-        "dump",
-        p.drawpoint_width_m,
-        "dump",
-        "DUMP",
+    level.spur(
+        level.loop, west_mid, -1, _Spur("dump", "dump", "DUMP", p.dump_length_m, p.drawpoint_width_m, 80.0)
     )
     if p.access_length_m > 0:
         east_mid = polyline_length(sides[0]) + 0.5 * polyline_length(sides[1])
-        spur(
-            tunnels[0],
-            east_mid,
-            -1,
-            math.radians(90.0),
-            p.access_length_m,
-            "access",
-            p.drive_width_m,
-            "end",
-            "ACCESS",
-        )
-
+        access = _Spur("access", "end", "ACCESS", p.access_length_m, p.drive_width_m, 90.0)
+        level.spur(level.loop, east_mid, -1, access)
     # to the mine grid: rotate about the local origin and translate
     angle = rng.uniform(0.0, 2.0 * math.pi)
     origin = np.array([rng.uniform(11_000.0, 17_000.0), rng.uniform(51_000.0, 57_000.0)]).round(2)
@@ -256,10 +164,102 @@ def generate_layout(seed: int, size: SiteSize) -> Layout:
     def to_grid(xy: FloatArray) -> FloatArray:
         return np.asarray(xy @ rot.T + origin, dtype=np.float64)
 
-    out_nodes, out_edges = _build_graph(tunnels, nodes, to_grid)
+    out_nodes, out_edges = _build_graph(level.tunnels, level.nodes, to_grid)
     outline = _outline(out_nodes, out_edges)
     rings = [np.asarray(outline.exterior.coords), *(np.asarray(r.coords) for r in outline.interiors)]
     return Layout(seed, size.name, tuple(out_nodes), tuple(out_edges), p.height_m, outline, tuple(rings))
+
+
+@dataclass(frozen=True)
+class _Spur:
+    """A dead-end side drive: what it is, how long and wide, and its slant off the host tunnel."""
+
+    kind: EdgeKind
+    end_kind: NodeKind
+    name: str
+    length_m: float
+    width_m: float
+    slant_deg: float  # from the direction of the face walk that enters it (see the module docstring)
+
+
+class _Level:
+    """A level under construction in a local frame (metres, loop's south-west corner near 0, 0)."""
+
+    def __init__(self, p: LayoutParams, rng: np.random.Generator) -> None:
+        self.p, self.rng = p, rng
+        L, D = p.loop_length_m, p.loop_depth_m
+        corners = [
+            np.array(c, dtype=np.float64) + rng.uniform(-1.5, 1.5, 2)
+            for c in ((0, 0), (L, 0), (L, D), (0, D))
+        ]
+        self.sides = [_bendy(corners[i], corners[(i + 1) % 4], p.bend_m, rng) for i in range(4)]
+        ring = np.concatenate([self.sides[0], *(s[1:] for s in self.sides[1:])])  # closed, counter-clockwise
+        self.loop = _Tunnel(ring, "drive", p.drive_width_m, closed=True, attach=[])
+        self.tunnels: list[_Tunnel] = [self.loop]
+        self.nodes: list[tuple[FloatArray, NodeKind, str]] = []
+        self.drawpoint_count = 0
+
+    def add_node(self, xy: FloatArray, kind: NodeKind, name: str) -> int:
+        self.nodes.append((np.asarray(xy, dtype=np.float64), kind, name))
+        return len(self.nodes) - 1
+
+    def attach(self, t: _Tunnel, s_m: float) -> int:
+        """A junction on tunnel t at arc length s_m."""
+        node = self.add_node(point_at(t.poly, s_m), "junction", "")
+        assert t.attach is not None
+        t.attach.append((s_m, node))
+        return node
+
+    def spur(self, t: _Tunnel, s_m: float, side: int, spec: _Spur) -> None:
+        """A spur off tunnel t at arc s_m; side +1 = left of t's direction (slanting forward along it),
+        -1 = right (slanting backward along t, i.e. forward for the face walked the other way)."""
+        j = self.attach(t, s_m)
+        slant = math.radians(spec.slant_deg)
+        theta = heading_at(t.poly, s_m) + (slant if side > 0 else slant - math.pi)
+        start = self.nodes[j][0]
+        end = start + spec.length_m * np.array([math.cos(theta), math.sin(theta)])
+        leaf = self.add_node(end, spec.end_kind, spec.name)
+        attach = [(0.0, j), (spec.length_m, leaf)]
+        self.tunnels.append(_Tunnel(np.stack([start, end]), spec.kind, spec.width_m, attach=attach))
+
+    def production_tunnels(self) -> list[_Tunnel]:
+        """Straight cross-cuts from the loop's south side to its north side."""
+        p, loop = self.p, self.loop.poly
+        south, north = self.sides[0], self.sides[2][::-1]
+        out = []
+        for i in range(1, p.rungs + 1):
+            x = p.loop_length_m * i / (p.rungs + 1) + self.rng.uniform(-3.0, 3.0)
+            a = np.array([x, np.interp(x, south[:, 0], south[:, 1])])
+            b = np.array([x, np.interp(x, north[:, 0], north[:, 1])])
+            ja, jb = self.attach(self.loop, project(loop, a)[0]), self.attach(self.loop, project(loop, b)[0])
+            poly = np.stack([self.nodes[ja][0], self.nodes[jb][0]])
+            attach = [(0.0, ja), (polyline_length(poly), jb)]
+            rung = _Tunnel(poly, "production", p.production_width_m, attach=attach)
+            self.tunnels.append(rung)
+            out.append(rung)
+        return out
+
+    def drawpoints(self, production: list[_Tunnel]) -> None:
+        """Herringbone drawpoints along each production tunnel (on the loop's north side if none)."""
+        p = self.p
+        for host in production or [self.loop]:
+            if host.closed:
+                s_lo = polyline_length(self.sides[0]) + polyline_length(self.sides[1]) + 10.0
+                s_hi = s_lo + polyline_length(self.sides[2]) - 20.0
+            else:
+                s_lo, s_hi = 12.0, polyline_length(host.poly) - 14.0
+            count = int(np.floor(max(s_hi - s_lo, 0.0) / p.drawpoint_spacing_m + 0.25)) + 1
+            positions = np.linspace(s_lo, s_hi, count) if count > 1 else np.array([s_lo])
+            for k, s in enumerate(positions):
+                self.drawpoint_count += 1
+                side = -1 if host.closed else (1 if k % 2 == 0 else -1)
+                name = f"DP{self.drawpoint_count:02d}"
+                self.spur(
+                    host,
+                    float(s),
+                    side,
+                    _Spur("drawpoint", "drawpoint", name, p.drawpoint_length_m, p.drawpoint_width_m, 60.0),
+                )
 
 
 def _build_graph(

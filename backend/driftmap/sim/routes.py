@@ -17,8 +17,6 @@ import heapq
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.layout import Layout
 
@@ -196,6 +194,3 @@ class Graph:
         """A junction of three or more tunnels other than drawpoints (where surveyors ground)."""
         kinds = [self.layout.edges[d.edge].kind for d in self.out[node]]
         return len(kinds) >= 3 and sum(k != "drawpoint" for k in kinds) >= 3
-
-    def node_xy(self, node: int) -> FloatArray:
-        return np.asarray(self.layout.nodes[node].xy, dtype=np.float64)

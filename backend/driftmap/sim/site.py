@@ -37,6 +37,7 @@ from driftmap.sim import frames as frame_worker
 from driftmap.sim.layout import Layout, generate_layout
 from driftmap.sim.motion import DrivePlan, plan_localisation, plan_mapping
 from driftmap.sim.params import VEHICLE_DEFAULT, site_size
+from driftmap.sim.render import Renderer
 from driftmap.sim.rig import CameraRig
 from driftmap.sim.routes import Graph
 from driftmap.sim.survey import write_survey_dxf
@@ -199,7 +200,7 @@ def simulate_site(
     write_survey_dxf(layout, out_dir / "survey.dxf")
     report("building world", 0.02)
     world = build_world(layout, seed)
-    renderer = frame_worker.make_renderer(world, rig)
+    renderer = Renderer(world, rig)
     camera = rig.camera_model
     total = sum(len(p.t) for p in poses)
     tasks = list(_tasks(plans, poses, world.origin_xy, seed, obscurants, rig.size_px))
@@ -266,7 +267,7 @@ def _tasks(
 
 
 def _run(
-    tasks: list[frame_worker.Chunk], renderer: Any, n_workers: int
+    tasks: list[frame_worker.Chunk], renderer: Renderer, n_workers: int
 ) -> Iterator[tuple[frame_worker.Chunk, dict[str, list[bytes]]]]:
     """Render tasks in order, on a pool of forked processes when more than one worker is asked for.
 
