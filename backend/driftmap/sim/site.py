@@ -275,7 +275,7 @@ def _run(
     not pickled; the workers leave OpenCV's thread settings alone (changing them in a forked child
     deadlocks on the thread pool copied from the parent).
     """
-    if n_workers <= 1 or len(tasks) <= 1:
+    if n_workers <= 1 or len(tasks) <= 1 or multiprocessing.current_process().daemon:  # daemons can't fork
         frame_worker.init_worker(renderer)
         for task in tasks:
             yield task, frame_worker.render_chunk(task)
