@@ -19,6 +19,7 @@ from driftmap.sim import patches
 from driftmap.sim.geometry import FloatArray, heading_at, point_at
 from driftmap.sim.layout import Edge, Layout
 from driftmap.sim.strip import TEXEL_M, Patch, StripAtlas, StripBuilder
+from driftmap.sim.textures import F32
 
 __all__ = ["Decor", "WallPieces", "decorate"]
 
@@ -127,19 +128,39 @@ def decorate(
     """
     p = _pieces(layout, seg_p0, seg_p1, seg_s0)
     sb = StripBuilder(total_s_m, rng)
-    edges = {e.id: e for e in layout.edges}
     aliased: dict[int, tuple[float, float]] = {}
     for e in layout.edges:
         if e.kind == "drive" and e.length_m >= 45.0 and rng.random() < 0.75:
             aliased[e.id] = (14.0, e.length_m - 14.0)
-    # materials: runs of rock / shotcrete along the strip; services and aliasing per piece
+    _materials_and_services(layout, p, sb, aliased, rng)
+    _signs(layout, p, sb, rng)
+    _marks(layout, p, sb, aliased, rng)
+    _faces(layout, p, sb, rng)
+    lights, spots, marks = _roof_and_floor(layout, aliased, rng)
+    return Decor(sb.build(), lights, spots, marks, aliased)
+
+
+def _paste(sb: StripBuilder, picture: tuple[F32, F32], s_center_m: float, z_m: float) -> None:
+    img, alpha = picture
+    sb.patches.append(Patch(s_center_m + img.shape[1] * TEXEL_M / 2, z_m, img, alpha))
+
+
+def _materials_and_services(
+    layout: Layout,
+    p: WallPieces,
+    sb: StripBuilder,
+    aliased: dict[int, tuple[float, float]],
+    rng: np.random.Generator,
+) -> None:
+    """Runs of rock and shotcrete along the strip; cables on drives, vent ducts in production tunnels;
+    the periodic template in aliased stretches."""
     s = 0.0
-    while s < total_s_m:
+    while s < sb.total_m:
         run = float(rng.uniform(4.0, 25.0))
         sb.brightness[sb.cols(s, s + run)] = rng.choice([0.30, 0.36, 0.46, 0.55])
         s += run
     for i in range(len(p.s0)):
-        e = edges[int(p.edge[i])]
+        e = layout.edges[int(p.edge[i])]
         cols = sb.cols(p.s0[i], p.s1[i])
         if e.id in aliased and aliased[e.id][0] <= p.t[i] <= aliased[e.id][1]:
             sb.aliased[cols] = True
@@ -149,11 +170,9 @@ def decorate(
         if e.kind in ("production", "access") and p.side[i] < 0 and 3.0 < p.t[i] < e.length_m - 3.0:
             sb.duct[cols] = True
 
-    def paste(img_alpha: tuple[np.ndarray, np.ndarray], s_center: float, z: float) -> None:
-        img, alpha = img_alpha
-        sb.patches.append(Patch(s_center + img.shape[1] * TEXEL_M / 2, z, img, alpha))
 
-    names = {n.id: n.name for n in layout.nodes}
+def _signs(layout: Layout, p: WallPieces, sb: StripBuilder, rng: np.random.Generator) -> None:
+    """Junction signs on the approaching driver's right, drawpoint brows and name plates, DUMP signs."""
     for e in layout.edges:
         for end, t, side in ((e.b, e.length_m - 9.0, -1), (e.a, 9.0, 1)):
             node = layout.nodes[end]
@@ -162,19 +181,28 @@ def decorate(
             ws = _wall_s(p, e, t, side)
             if ws is not None:
                 arrow = int(rng.choice([-1, 1]))
-                paste(patches.text_sign([names[end]], 1.0, 0.6, arrow=arrow), ws, 2.1)
+                _paste(sb, patches.text_sign([node.name], 1.0, 0.6, arrow=arrow), ws, 2.1)
         if e.kind == "drawpoint":
             for side in (1, -1):
                 ws = _wall_s(p, e, 3.0, side)
                 if ws is not None:
-                    paste(patches.hazard_stripes(0.6, 5.0), ws, 0.0)
-                    paste(patches.text_sign([names[e.b]], 0.9, 0.5), ws - side * 1.0, 2.3)
+                    _paste(sb, patches.hazard_stripes(0.6, 5.0), ws, 0.0)
+                    _paste(sb, patches.text_sign([layout.nodes[e.b].name], 0.9, 0.5), ws - side * 1.0, 2.3)
         if e.kind == "dump":
             for side in (1, -1):
                 ws = _wall_s(p, e, 4.0, side)
                 if ws is not None:
-                    paste(patches.text_sign(["DUMP"], 1.6, 0.7, bg=1.3), ws, 2.4)
-    # random signs, survey marks and reflectors outside aliased stretches
+                    _paste(sb, patches.text_sign(["DUMP"], 1.6, 0.7, bg=1.3), ws, 2.4)
+
+
+def _marks(
+    layout: Layout,
+    p: WallPieces,
+    sb: StripBuilder,
+    aliased: dict[int, tuple[float, float]],
+    rng: np.random.Generator,
+) -> None:
+    """Random signs and survey marks, and reflectors every 12 m on drives, outside aliased stretches."""
     survey = 1
     for e in layout.edges:
         if e.kind == "drawpoint":
@@ -185,22 +213,18 @@ def decorate(
             while t < e.length_m - 5.0:
                 ws = _wall_s(p, e, t, side)
                 if ws is not None and not a0 <= t <= a1:
-                    kind = rng.random()
-                    if kind < 0.45:
+                    if rng.random() < 0.45:
                         text = _SIGN_TEXTS[int(rng.integers(len(_SIGN_TEXTS)))]
-                        paste(patches.text_sign(list(text), 0.9, 0.6), ws, float(rng.uniform(1.8, 2.6)))
+                        _paste(sb, patches.text_sign(list(text), 0.9, 0.6), ws, float(rng.uniform(1.8, 2.6)))
                     else:
-                        paste(patches.survey_mark(f"{survey}"), ws, float(rng.uniform(1.3, 1.9)))
+                        _paste(sb, patches.survey_mark(f"{survey}"), ws, float(rng.uniform(1.3, 1.9)))
                         survey += 1
                 t += float(rng.uniform(18.0, 45.0))
             if e.kind in ("drive", "access"):
                 for t in np.arange(6.0, e.length_m - 3.0, 12.0):
                     ws = _wall_s(p, e, float(t), side)
                     if ws is not None and not a0 <= t <= a1:
-                        paste(patches.reflector(), ws, 1.25)
-    _faces(layout, p, sb, rng)
-    lights, spots, marks = _roof_and_floor(layout, aliased, rng)
-    return Decor(sb.build(), lights, spots, marks, aliased)
+                        _paste(sb, patches.reflector(), ws, 1.25)
 
 
 def _faces(layout: Layout, p: WallPieces, sb: StripBuilder, rng: np.random.Generator) -> None:
