@@ -1,7 +1,14 @@
 """The synthetic mine: layout, survey DXF, renderer, vehicle motion and the site writer.
 
-:func:`simulate_site` writes a complete site (survey.dxf, site.json, drive folders with ground truth)
-for a seed and a size ("tiny", "small", "medium", "large"); the same seed gives the same bytes.
+:func:`simulate_site` writes a complete site (survey.dxf, site.json, drive folders with ground truth
+and obscured copies) for a seed and a size ("tiny", "small", "medium", "large"); the same seed gives
+the same bytes. :func:`plan_site` returns the layout and every drive's frame poses without rendering.
+
+Modules: ``params`` (sizes, camera, vehicle), ``layout`` (tunnel network), ``survey`` (DXF),
+``routes`` and ``motion`` (where the vehicle drives), ``trajectory`` (how: timing, wander, frame
+poses), ``rig`` (pinhole camera and its drive.json block), ``textures``, ``strip``, ``patches``,
+``decor`` and ``world`` (what the tunnel looks like), ``shading`` and ``render`` (the ray caster),
+``frames`` (rendering work units) and ``site`` (the writer).
 """
 
 from driftmap.sim.params import SIZES

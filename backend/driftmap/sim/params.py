@@ -50,6 +50,8 @@ class SiteSize:
     min_localisation_frames: int  # localisation frames guaranteed even if mapping eats the budget
 
 
+# Centreline length and frames (seeds vary them a little): tiny ~105 m / ~1,300 frames (mapping alone
+# takes most of it), small ~370 m / ~3,400, medium ~1.46 km / ~12,500, large ~5.7 km / ~50,000.
 SIZES: dict[str, SiteSize] = {
     "tiny": SiteSize("tiny", LayoutParams(24.0, 15.0, 0, access_length_m=0.0), 400, 1, 100),
     "small": SiteSize("small", LayoutParams(88.0, 44.0, 1, access_length_m=22.0), 3000, 2, 500),
