@@ -1,0 +1,291 @@
+"""Online localisation against a stored map (paper 000 III-B): one frame in, one place estimate out.
+
+:class:`Localiser` holds the map (:class:`LocaliserMap`) and the belief; :meth:`Localiser.step` runs one HMM
+step of :mod:`driftmap.core.hmm` and returns an :class:`Estimate` (eq. 11 best node, eq. 12 match flag).
+The batch CLI and the live server use it the same way; the live server keeps :meth:`Localiser.state` in its
+shared store between frames and calls :meth:`Localiser.restore` on the next.
+
+Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i)) is below
+``lost_confidence`` or the best score is not distinct, i.e. d_best is above ``lost_distinct_ratio`` times
+the median d over the evaluated nodes and a few rotating probe nodes (an unrelated place's typical score).
+After ``lost_frames`` lost frames in a row the belief becomes uniform, so the next frame searches the whole
+map. With ``single_image=True`` there is no filter: every node is compared and b(i) = argmin d.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_array
+
+from driftmap.core import hmm
+from driftmap.core.images import preprocess
+from driftmap.core.params import IMAGES_DEFAULT, SAD_DEFAULT, ImageParams, SadParams
+from driftmap.core.topomap import TopoMap
+from driftmap.errors import BadInputError
+
+__all__ = ["Estimate", "Localiser", "LocaliserMap", "LocaliserState", "build_localiser_map"]
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+_PROBE_STRIDE = 7919  # a prime: probe k of frame s is node (s * n_probe + k) * stride mod M
+
+
+@dataclass(frozen=True, eq=False)
+class LocaliserMap:
+    """What the localiser needs of a stored map.
+
+    Attributes:
+        thumbs: (S, H, W) float32 pre-processed reference thumbnails, node j's in ``node_ptr[j]:node_ptr[j+1]``.
+        node_ptr: (M + 1,) int64 offsets of each node's thumbnails.
+        centres_m: (M, 2) float64 node centres, survey frame, metres.
+        adjacency_m: (M, M) float64 symmetric sparse shortest-path lengths A(x, y), metres.
+        max_adjacency_m: longest path stored in ``adjacency_m``, metres.
+    """
+
+    thumbs: NDArray[np.float32]
+    node_ptr: I64
+    centres_m: F64
+    adjacency_m: csr_array
+    max_adjacency_m: float
+
+    def __post_init__(self) -> None:
+        m = self.centres_m.shape[0]
+        if self.thumbs.ndim != 3 or self.thumbs.dtype != np.float32:
+            raise BadInputError(f"thumbs must be (S, H, W) float32, got {self.thumbs.shape}", field="thumbs")
+        if self.centres_m.shape != (m, 2) or m == 0:
+            raise BadInputError(
+                f"centres_m must be (M, 2), M > 0, got {self.centres_m.shape}", field="centres_m"
+            )
+        if self.node_ptr.shape != (m + 1,):
+            raise BadInputError(f"node_ptr must be ({m + 1},), got {self.node_ptr.shape}", field="node_ptr")
+        hmm._check_ptr(self.node_ptr, self.thumbs.shape[0])
+        if self.adjacency_m.shape != (m, m):
+            raise BadInputError(f"adjacency_m must be ({m}, {m})", field="adjacency_m")
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes M."""
+        return int(self.centres_m.shape[0])
+
+
+def build_localiser_map(topomap: TopoMap, thumbs_by_flat_frame_index: NDArray[np.float32]) -> LocaliserMap:
+    """The localiser's map from a :class:`TopoMap` and the thumbnails of its frames.
+
+    Args:
+        topomap: the stored map; each node's chosen frames become its references.
+        thumbs_by_flat_frame_index: (F, H, W) float32 pre-processed thumbnails indexed by the map's flat
+            frame index (every frame of every chain; only the chosen ones are read).
+
+    Returns:
+        The :class:`LocaliserMap`.
+    """
+    thumbs = np.asarray(thumbs_by_flat_frame_index, dtype=np.float32)
+    if thumbs.ndim != 3 or thumbs.shape[0] != topomap.frame_ids.shape[0]:
+        raise BadInputError(
+            f"need ({topomap.frame_ids.shape[0]}, H, W) thumbnails, got {thumbs.shape}",
+            field="thumbs_by_flat_frame_index",
+        )
+    return LocaliserMap(
+        thumbs=np.ascontiguousarray(thumbs[topomap.chosen]),
+        node_ptr=np.asarray(topomap.chosen_ptr, dtype=np.int64),
+        centres_m=np.asarray(topomap.centres_m, dtype=np.float64),
+        adjacency_m=topomap.adjacency_m,
+        max_adjacency_m=float(topomap.params.max_adjacency_m),
+    )
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The place estimate of one frame.
+
+    Attributes:
+        node: b(i), the best node (eq. 11).
+        x_m: its centre's x, survey frame, metres.
+        y_m: its centre's y, survey frame, metres.
+        score: X_i(b(i)) in [0, 1]; single-image mode: 1 - d_best / median d over the map.
+        matched: eq. 12, ``score >= x_thresh``.
+        lost: this frame counted as lost (the filter re-initialises after ``lost_frames`` in a row).
+        evaluated_nodes: number of nodes compared with the query this frame.
+        ms: wall time of the step, milliseconds.
+    """
+
+    node: int
+    x_m: float
+    y_m: float
+    score: float
+    matched: bool
+    lost: bool
+    evaluated_nodes: int
+    ms: float
+
+
+@dataclass(frozen=True, eq=False)
+class LocaliserState:
+    """The localiser's belief between frames, small enough for a shared store.
+
+    Attributes:
+        belief: (M,) float64 X_{i-1}, sums to 1.
+        last_t_s: timestamp of the last frame, seconds; NaN before the first.
+        lost_count: lost frames in a row so far.
+        steps: frames processed (drives the probe rotation).
+    """
+
+    belief: F64
+    last_t_s: float
+    lost_count: int
+    steps: int
+
+    def to_arrays(self) -> dict[str, NDArray[np.generic]]:
+        """Named arrays (scalars as 0-d) for the store."""
+        return {
+            "belief": np.asarray(self.belief, dtype=np.float64),
+            "last_t_s": np.asarray(self.last_t_s, dtype=np.float64),
+            "lost_count": np.asarray(self.lost_count, dtype=np.int64),
+            "steps": np.asarray(self.steps, dtype=np.int64),
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, NDArray[np.generic]]) -> LocaliserState:
+        """Rebuild a state from :meth:`to_arrays` output."""
+        try:
+            return cls(
+                belief=np.array(arrays["belief"], dtype=np.float64),
+                last_t_s=float(arrays["last_t_s"]),
+                lost_count=int(arrays["lost_count"]),
+                steps=int(arrays["steps"]),
+            )
+        except KeyError as exc:
+            raise BadInputError("stored localiser state is missing an array", field=str(exc.args[0])) from exc
+
+
+class Localiser:
+    """Stateful HMM localiser: map and belief in, one frame at a time, estimates out.
+
+    Args:
+        lmap: the map.
+        params: filter parameters (:data:`driftmap.core.hmm.DEFAULT`, :data:`~driftmap.core.hmm.PAPER`).
+        sad_params: SAD shift ranges.
+        image_params: pre-processing applied to frames that are not already thumbnails.
+        single_image: no temporal filter (for ``--no-temporal`` comparisons).
+        start_node: known start node; None starts with a global (uniform) belief.
+        start_radius_m: spread the start over nodes within this of the start node, metres.
+    """
+
+    def __init__(
+        self,
+        lmap: LocaliserMap,
+        params: hmm.HmmParams = hmm.DEFAULT,
+        sad_params: SadParams = SAD_DEFAULT,
+        image_params: ImageParams = IMAGES_DEFAULT,
+        *,
+        single_image: bool = False,
+        start_node: int | None = None,
+        start_radius_m: float = 0.0,
+    ) -> None:
+        self.map = lmap
+        self.params = params
+        self.sad_params = sad_params
+        self.image_params = image_params
+        self.single_image = single_image
+        self.transitions = hmm.TransitionModel(lmap.adjacency_m, lmap.max_adjacency_m, params)
+        self._all = np.arange(lmap.n_nodes, dtype=np.int64)
+        self._state = LocaliserState(hmm.initial_belief(lmap.n_nodes), float("nan"), 0, 0)
+        self.reset(start_node, start_radius_m)
+
+    def reset(self, start_node: int | None = None, start_radius_m: float = 0.0) -> None:
+        """Start again: peaked at ``start_node`` (within ``start_radius_m`` metres) or global when None."""
+        belief = hmm.initial_belief(self.map.n_nodes, start_node, self.map.centres_m, start_radius_m)
+        self._state = LocaliserState(belief, float("nan"), 0, 0)
+
+    def state(self) -> LocaliserState:
+        """The current state (a copy)."""
+        s = self._state
+        return LocaliserState(s.belief.copy(), s.last_t_s, s.lost_count, s.steps)
+
+    def restore(self, state: LocaliserState) -> None:
+        """Continue from a saved state of a localiser on the same map."""
+        if state.belief.shape != (self.map.n_nodes,):
+            raise BadInputError(
+                f"belief must be ({self.map.n_nodes},), got {state.belief.shape}", field="belief"
+            )
+        self._state = LocaliserState(state.belief.copy(), state.last_t_s, state.lost_count, state.steps)
+
+    def thumbnail(self, frame: NDArray[np.generic]) -> NDArray[np.float32]:
+        """(H, W) float32 query thumbnail: a floating frame of the map's thumbnail shape is taken as is."""
+        shape = self.map.thumbs.shape[1:]
+        if frame.dtype.kind == "f" and frame.shape == shape:
+            return np.asarray(frame, dtype=np.float32)
+        thumb = preprocess(np.asarray(frame), self.image_params)
+        if thumb.shape != shape:
+            raise BadInputError(f"frame pre-processes to {thumb.shape}, the map holds {shape}", field="frame")
+        return thumb
+
+    def _probes(self, steps: int) -> I64:
+        n, m = self.params.n_probe, self.map.n_nodes
+        return ((steps * n + np.arange(n, dtype=np.int64)) * _PROBE_STRIDE) % m
+
+    def step(self, frame: NDArray[np.generic], t_s: float) -> Estimate:
+        """Localise one frame.
+
+        Args:
+            frame: (H, W) uint8 grey frame (or colour (H, W, 3)), pre-processed with ``image_params``; or an
+                already pre-processed (h, w) float32 thumbnail of the map's thumbnail shape.
+            t_s: the frame's timestamp, seconds; the gap to the previous frame sets A_t.
+
+        Returns:
+            The :class:`Estimate`.
+        """
+        t0 = time.perf_counter()
+        query = self.thumbnail(frame)
+        lm, p, s = self.map, self.params, self._state
+        if self.single_image:
+            d = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, self._all, self.sad_params)
+            best = int(np.argmin(d))
+            score = self._distinctness(d, float(d[best]))
+            self._state = LocaliserState(s.belief, t_s, 0, s.steps + 1)
+            return self._estimate(best, score, False, lm.n_nodes, t0)
+
+        gap_s = t_s - s.last_t_s if np.isfinite(s.last_t_s) else 0.0
+        prior = s.belief if not np.isfinite(s.last_t_s) else self.transitions.predict(s.belief, gap_s)
+        nodes = hmm.select_states(prior, p.n_t)
+        probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
+        d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params)
+        d = d_all[: nodes.size]
+        gamma = hmm.observation(d, p.p_t, p.epsilon)
+        belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
+        best = int(np.argmax(belief))
+        score = float(belief[best])
+        d_best = float(d.min()) if d.size else float("inf")
+        ratio = 1.0 - self._distinctness(d_all, d_best)
+        lost = p.lost_frames > 0 and (score < p.lost_confidence or ratio > p.lost_distinct_ratio)
+        lost_count = s.lost_count + 1 if lost else 0
+        if p.lost_frames > 0 and lost_count >= p.lost_frames:
+            belief, lost_count = hmm.initial_belief(lm.n_nodes), 0  # re-initialise globally
+        self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1)
+        return self._estimate(best, score, lost, int(d_all.size), t0)
+
+    @staticmethod
+    def _distinctness(d: NDArray[np.floating], d_best: float) -> float:
+        """1 - d_best / median of the finite scores: 0 when the best is typical, near 1 when it stands out."""
+        finite = d[np.isfinite(d)]
+        if finite.size == 0 or not np.isfinite(d_best):
+            return 0.0
+        med = float(np.median(finite))
+        return 1.0 - d_best / med if med > 0 else 0.0
+
+    def _estimate(self, node: int, score: float, lost: bool, evaluated: int, t0: float) -> Estimate:
+        x_m, y_m = self.map.centres_m[node]
+        return Estimate(
+            node=node,
+            x_m=float(x_m),
+            y_m=float(y_m),
+            score=score,
+            matched=score >= self.params.x_thresh,
+            lost=lost,
+            evaluated_nodes=evaluated,
+            ms=(time.perf_counter() - t0) * 1e3,
+        )
