@@ -16,6 +16,7 @@ from driftmap.core.saliency import (
     build_salient_database,
     combine_masks,
     entropy_mask,
+    frame_saliency,
     masked_sad,
     patch_entropy,
     saliency_score,
@@ -29,6 +30,7 @@ from driftmap.errors import BadInputError
 SEED = 7
 ENTROPY_TOL_BITS = 0.1  # a 64x64 uniform patch falls this short of log2(256) at most
 SAD_TOL = 1e-6
+NOISE_SALIENCY_MAX = 0.05  # SS / SS_m left on a flat frame with 1 grey level of noise
 
 
 def _textured_patch_image(rng: np.random.Generator) -> np.ndarray:
@@ -105,6 +107,15 @@ class TestEntropyMask:
         mask = entropy_mask(img, 10, SesameParams(r_threshold=0.5))
         assert mask[:, 20:].all() and not mask[:, :20].any()
 
+    def test_default_floor_drops_noisy_flat_frame(self) -> None:
+        rng = np.random.default_rng(SEED)
+        noisy = np.clip(30 + rng.normal(0, 1, (2, 120, 160)), 0, 255).astype(np.uint8)
+        paper, _ = frame_saliency(noisy, PAPER)
+        default, masks = frame_saliency(noisy, DEFAULT)
+        assert paper.min() > 0.3  # the relative threshold alone keeps part of the noise
+        assert default.max() < NOISE_SALIENCY_MAX < DEFAULT.saliency_min
+        assert masks.mean() < NOISE_SALIENCY_MAX
+
 
 class TestHierarchy:
     def test_pixel_dropped_only_when_plain_at_every_scale(self) -> None:
@@ -122,6 +133,13 @@ class TestHierarchy:
         assert full.shape == (76, 160)
         assert np.array_equal(full[20:40, 60:80], np.ones((20, 20), dtype=bool))
         assert masks[12, 28] and not masks[2, 2]
+
+    def test_frame_saliency_fraction_and_thumbnail(self) -> None:
+        img = _textured_patch_image(np.random.default_rng(SEED))
+        sal, masks = frame_saliency(np.stack([img, img]), PAPER, ImageParams(size_px=(64, 32)))
+        assert sal.shape == (2,) and masks.shape == (2, 32, 64)
+        assert sal[0] == pytest.approx(20 * 20 / (160 * 76))
+        assert np.array_equal(masks[0], sesame_masks(img, PAPER, ImageParams(size_px=(64, 32))))
 
     def test_switches(self) -> None:
         img = _textured_patch_image(np.random.default_rng(SEED))

@@ -26,7 +26,7 @@ into :func:`driftmap.core.topomap.build_topomap` as its ``FrameSelector``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import cv2
@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.images import crop, downsample, to_gray
-from driftmap.core.params import SAD_DEFAULT, ImageParams, SadParams
+from driftmap.core.params import IMAGES_DEFAULT, SAD_DEFAULT, ImageParams, SadParams
 from driftmap.core.sad import sad_one_to_many
 from driftmap.core.topomap import FrameSelector, NodeFrames
 from driftmap.errors import BadInputError
@@ -46,6 +46,7 @@ __all__ = [
     "build_salient_database",
     "combine_masks",
     "entropy_mask",
+    "frame_saliency",
     "masked_sad",
     "patch_entropy",
     "saliency_score",
@@ -92,7 +93,9 @@ class SesameParams:
 
 
 PAPER = SesameParams()
-DEFAULT = SesameParams(min_entropy_bits=0.5)  # sensor noise on a blank wall is not saliency
+# Sensor noise of a few grey levels on a blank or black frame has 1-2 bits per patch and would pass the
+# relative threshold; a 2-bit floor drops it (measured: no change on simulated tunnel frames).
+DEFAULT = SesameParams(min_entropy_bits=2.0)
 
 
 def _as_stack_u8(images: NDArray[np.generic], name: str) -> tuple[NDArray[np.uint8], bool]:
@@ -217,10 +220,16 @@ def sesame_masks(
     else:
         mask = np.ones(small.shape, dtype=bool)
     out_size = image_params.size_px if image_params is not None and image_params.size_px else (rx, ry)
-    if tuple(out_size) != (rx, ry):
-        u8 = mask.astype(np.uint8)
-        mask = np.stack([cv2.resize(m, tuple(out_size), interpolation=cv2.INTER_NEAREST) for m in u8]) > 0
+    mask = _resize_nearest(mask, out_size)
     return np.asarray(mask[0] if single else mask)
+
+
+def _resize_nearest(masks: BoolArr, size_px: tuple[int, int]) -> BoolArr:
+    """``(N, H, W)`` bool masks resized with nearest-neighbour to ``size_px = (w, h)``."""
+    if masks.shape[-2:] == (size_px[1], size_px[0]):
+        return masks
+    u8 = masks.astype(np.uint8)
+    return np.stack([cv2.resize(m, tuple(size_px), interpolation=cv2.INTER_NEAREST) for m in u8]) > 0
 
 
 def saliency_score(masks: BoolArr) -> F64:
@@ -241,6 +250,29 @@ def saliency_score(masks: BoolArr) -> F64:
 def saliency_score_max(size_px: tuple[int, int]) -> float:
     """``SS_m = 255 R_x R_y`` (eq. 9) for a mask of ``size_px = (R_x, R_y)`` pixels."""
     return 255.0 * size_px[0] * size_px[1]
+
+
+def frame_saliency(
+    images: NDArray[np.generic],
+    params: SesameParams = DEFAULT,
+    image_params: ImageParams = IMAGES_DEFAULT,
+) -> tuple[F64, BoolArr]:
+    """Everything SESAME needs of a stack of frames: ``SS / SS_m`` at ``R_x x R_y`` and the thumbnail masks.
+
+    Args:
+        images: ``(N, H, W)`` uint8 gray frames (or ``(N, H, W, 3)`` BGR).
+        params: mask parameters.
+        image_params: crop and thumbnail size of the compared images.
+
+    Returns:
+        ``(saliency, masks)``: float64 ``(N,)`` salient fraction ``SS / SS_m`` (eq. 8-9) in [0, 1], and
+        bool ``(N, h, w)`` masks at ``image_params.size_px`` (``R_x x R_y`` when that is None).
+    """
+    full = sesame_masks(images, params, replace(image_params, size_px=None))
+    if full.ndim != 3:
+        raise BadInputError(f"need a stack (N, H, W), got shape {np.shape(images)}", field="images")
+    saliency = saliency_score(full) / saliency_score_max(params.mask_size_px)
+    return saliency, _resize_nearest(full, image_params.size_px or params.mask_size_px)
 
 
 def masked_sad(
