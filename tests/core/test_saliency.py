@@ -24,7 +24,7 @@ from driftmap.core.saliency import (
     salient_frame_selector,
     sesame_masks,
 )
-from driftmap.core.topomap import NodeFrames
+from driftmap.core.topomap import NodeFrames, build_topomap
 from driftmap.errors import BadInputError
 
 SEED = 7
@@ -243,3 +243,26 @@ class TestParams:
     def test_rejects_bad_threshold(self) -> None:
         with pytest.raises(BadInputError):
             SesameParams(r_threshold=1.5)
+
+
+class TestTopomapIntegration:
+    def test_build_topomap_with_salient_selector(self) -> None:
+        rng = np.random.default_rng(SEED)
+        x = np.arange(0.0, 20.0, 0.25)
+        n = x.size
+        pose = np.stack([x, np.zeros(n), np.zeros(n)], axis=1)
+        views = rng.normal(size=(n, 32, 64)).astype(np.float32)  # one view per position
+        thumbs = np.concatenate([views, views + 0.01])  # the second drive sees the same views
+        sal = rng.uniform(0.3, 1.0, 2 * n)
+        chain_ptr = np.array([0, n, 2 * n], dtype=np.int64)
+        select = salient_frame_selector(sal, thumbs, chain_ptr, params=PAPER)
+        topo = build_topomap([pose, pose.copy()], select_frames=select)
+        assert topo.chosen.size >= topo.n_nodes
+        for node in range(topo.n_nodes):
+            chosen = topo.chosen[topo.chosen_ptr[node] : topo.chosen_ptr[node + 1]]  # flat frames
+            assert chosen.size <= topo.params.frames_per_node
+            assert np.all(sal[chosen] > PAPER.saliency_min)
+            position = chosen % n
+            assert np.unique(position).size == position.size  # one frame per unique view
+            for flat in chosen:  # of the two drives' frames of a view, the more salient is kept
+                assert sal[flat] >= sal[(flat + n) % (2 * n)]
