@@ -1,0 +1,193 @@
+"""The stateful HMM localiser (paper 000 III-B) on hand-made corridors whose answer is known."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from driftmap.core import hmm
+from driftmap.core.adjacency import shortest_paths
+from driftmap.core.images import patch_normalise
+from driftmap.core.localiser import Estimate, Localiser, LocaliserMap, LocaliserState, build_localiser_map
+from driftmap.core.topomap import TopoMapParams, build_topomap
+
+SPACING_M = 5.0
+FRAMES_PER_NODE = 3
+DT_S = 0.5  # frame interval: A_t = max(7.5 m floor, 3.5 m) reaches one node per frame
+NOISE = 12.0  # grey-level std of query noise (texture std 40): same-place d about half an unrelated one
+F32 = NDArray[np.float32]
+
+
+def textures(n: int, seed: int = 0) -> F32:
+    """(n, 32, 64) raw float32 grey textures, distinct per node, smooth enough to survive small shifts."""
+    rng = np.random.default_rng(seed)
+    raw = rng.normal(0.0, 1.0, (n, 32, 64)).astype(np.float32)
+    out = np.stack([cv2.GaussianBlur(r, (0, 0), 1.2) for r in raw])
+    return np.asarray(128 + 40 * out / out.std(axis=(1, 2), keepdims=True), dtype=np.float32)
+
+
+def view(tex: F32, rng: np.random.Generator) -> F32:
+    """A noisy, pre-processed view of a raw texture."""
+    return patch_normalise(tex + rng.normal(0.0, NOISE, tex.shape).astype(np.float32))
+
+
+def chain_map(tex: F32, seed: int = 1) -> LocaliserMap:
+    """A straight corridor: node j at (5 j, 0), FRAMES_PER_NODE noisy views each."""
+    n = tex.shape[0]
+    rng = np.random.default_rng(seed)
+    thumbs = np.stack([view(tex[j], rng) for j in range(n) for _ in range(FRAMES_PER_NODE)])
+    edges = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
+    return LocaliserMap(
+        thumbs=thumbs,
+        node_ptr=np.arange(0, FRAMES_PER_NODE * n + 1, FRAMES_PER_NODE, dtype=np.int64),
+        centres_m=np.column_stack([np.arange(n) * SPACING_M, np.zeros(n)]),
+        adjacency_m=shortest_paths(n, edges, np.full(n - 1, SPACING_M), 50.0),
+        max_adjacency_m=50.0,
+    )
+
+
+def run(loc: Localiser, tex: F32, path: list[int], seed: int = 2, t0_s: float = 0.0) -> list[Estimate]:
+    rng = np.random.default_rng(seed)
+    return [loc.step(view(tex[j], rng), t0_s + k * DT_S) for k, j in enumerate(path)]
+
+
+@pytest.fixture(scope="module")
+def corridor3() -> tuple[F32, LocaliserMap]:
+    tex = textures(3)
+    return tex, chain_map(tex)
+
+
+@pytest.fixture(scope="module")
+def corridor40() -> tuple[F32, LocaliserMap]:
+    tex = textures(40, seed=5)
+    return tex, chain_map(tex, seed=6)
+
+
+class TestThreeNodeCorridor:
+    def test_filter_follows_the_walk(self, corridor3: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor3
+        path = [0, 0, 1, 1, 2, 2]
+        est = run(Localiser(lmap, start_node=0), tex, path)
+        assert [e.node for e in est] == path
+        assert all(e.matched and not e.lost for e in est)
+        assert (est[-1].x_m, est[-1].y_m) == (10.0, 0.0)
+
+    def test_misleading_frame_fools_single_image_not_the_filter(
+        self, corridor3: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor3
+        rng = np.random.default_rng(3)
+        misleading = patch_normalise(0.42 * tex[0] + 0.58 * tex[2])  # at node 0, looks more like node 2
+        frames = [view(tex[0], rng), view(tex[0], rng), misleading, view(tex[0], rng), view(tex[1], rng)]
+        single = Localiser(lmap, single_image=True)
+        filtered = Localiser(lmap, start_node=0)
+        s = [single.step(f, k * DT_S).node for k, f in enumerate(frames)]
+        h = [filtered.step(f, k * DT_S).node for k, f in enumerate(frames)]
+        assert s == [0, 0, 2, 0, 1]
+        assert h == [0, 0, 0, 0, 1]
+
+    def test_single_image_compares_every_node(self, corridor3: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor3
+        est = run(Localiser(lmap, single_image=True), tex, [1])[0]
+        assert est.node == 1 and est.evaluated_nodes == 3 and 0 < est.score <= 1
+
+    def test_raw_uint8_frame_is_preprocessed(self, corridor3: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor3
+        frame = np.clip(cv2.resize(tex[2], (128, 64)), 0, 255).astype(np.uint8)  # camera frame, 2x size
+        assert Localiser(lmap, single_image=True).step(frame, 0.0).node == 2
+
+
+class TestPruning:
+    def test_only_top_prior_states_and_probes_are_compared(
+        self, corridor40: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor40
+        params = hmm.HmmParams(n_t=4, n_probe=3)
+        est = run(Localiser(lmap, params, start_node=10), tex, [10, 11, 12])
+        assert [e.node for e in est] == [10, 11, 12]
+        assert all(e.evaluated_nodes <= 7 for e in est)
+
+    def test_global_init_evaluates_everything_then_narrows(
+        self, corridor40: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor40
+        est = run(Localiser(lmap, hmm.HmmParams(n_t=6)), tex, list(range(20, 26)))
+        assert est[0].evaluated_nodes == 40
+        assert all(e.evaluated_nodes <= 6 + hmm.DEFAULT.n_probe for e in est[1:])
+        assert [e.node for e in est[2:]] == list(range(22, 26))  # found within a couple of frames
+
+
+class TestBeyondThePaper:
+    def test_kidnap_is_detected_and_relocalised(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        params = hmm.HmmParams(n_t=5, lost_frames=3)
+        loc = Localiser(lmap, params, start_node=0)
+        before = run(loc, tex, list(range(10)))
+        assert [e.node for e in before] == list(range(10)) and not any(e.lost for e in before)
+        after = run(loc, tex, list(range(30, 38)), t0_s=10 * DT_S)  # teleported 100 m away
+        assert any(e.lost for e in after[:3])
+        assert [e.node for e in after[-3:]] == [35, 36, 37]
+        assert not any(e.lost for e in after[-3:])
+
+    def test_paper_preset_never_reinitialises(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        loc = Localiser(lmap, hmm.HmmParams(n_t=5, n_probe=0, lost_frames=0), start_node=0)
+        run(loc, tex, list(range(5)))
+        after = run(loc, tex, list(range(30, 36)), t0_s=5 * DT_S)
+        assert not any(e.lost for e in after) and all(e.node < 20 for e in after)
+
+    def test_stopped_vehicle_stays_put(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        loc = Localiser(lmap, start_node=5)
+        run(loc, tex, [5, 6, 7])
+        frame = view(tex[7], np.random.default_rng(9))
+        est = [loc.step(frame, 3 * DT_S + k * DT_S) for k in range(20)]  # the same frame, over and over
+        assert all(e.node == 7 and e.matched for e in est)
+
+    def test_reversing(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        path = [*range(10, 17), *range(15, 8, -1)]
+        est = run(Localiser(lmap, start_node=10), tex, path)
+        assert [e.node for e in est] == path
+
+    def test_dropped_frames_widen_the_reach(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        frame = view(tex[15], np.random.default_rng(4))
+        nodes = []
+        for gap_s in (DT_S, 3.0):  # 3 s at 7 m/s: A_t = 21 m, four nodes on in one step
+            loc = Localiser(lmap, hmm.HmmParams(n_t=12, lost_frames=0), start_node=10)
+            run(loc, tex, [10, 11])
+            nodes.append(loc.step(frame, DT_S + gap_s).node)
+        assert nodes[0] != 15 and nodes[1] == 15
+
+
+class TestState:
+    def test_save_restore_gives_identical_estimates(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        loc = Localiser(lmap, start_node=3)
+        run(loc, tex, [3, 4, 5, 6])
+        saved = LocaliserState.from_arrays(loc.state().to_arrays())
+        twin = Localiser(lmap)
+        twin.restore(saved)
+        path = [7, 8, 9, 30, 31]
+        a = run(loc, tex, path, seed=11, t0_s=2.0)
+        b = run(twin, tex, path, seed=11, t0_s=2.0)
+        strip = [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes) for e in a]
+        assert strip == [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes) for e in b]
+        np.testing.assert_array_equal(loc.state().belief, twin.state().belief)
+
+
+class TestBuildLocaliserMap:
+    def test_takes_each_nodes_chosen_frames(self) -> None:
+        xs = np.arange(0.0, 30.0, 0.5)
+        poses = np.column_stack([xs, np.zeros_like(xs), np.zeros_like(xs)])
+        topo = build_topomap([poses], params=TopoMapParams(frames_per_node=2))
+        flat_thumbs = np.zeros((xs.size, 32, 64), dtype=np.float32)
+        flat_thumbs[:, 0, 0] = np.arange(xs.size)  # tag each thumbnail with its flat frame index
+        lmap = build_localiser_map(topo, flat_thumbs)
+        assert lmap.n_nodes == topo.n_nodes
+        for j in range(topo.n_nodes):
+            tags = lmap.thumbs[lmap.node_ptr[j] : lmap.node_ptr[j + 1], 0, 0].astype(np.int64)
+            np.testing.assert_array_equal(tags, topo.chosen[topo.chosen_ptr[j] : topo.chosen_ptr[j + 1]])
