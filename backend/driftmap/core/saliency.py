@@ -67,7 +67,7 @@ class SesameParams:
     mask_size_px: tuple[int, int] = (160, 76)  # (R_x, R_y): image size the entropy masks are computed at
     patch_sizes_px: tuple[int, ...] = (5, 10, 20)  # Len(p) of each mask level, pixels of mask_size_px
     bins: int = 256  # histogram bins of eq. 5 (256 intensities of an 8-bit image)
-    r_threshold: float = 0.5  # relative entropy threshold in (0, 1) between the image's min and max patch
+    r_threshold: float = 0.5  # relative entropy threshold in [0, 1) between the image's min and max patch
     relative_to: Literal["range", "max"] = "range"  # threshold H_min + r (H_max - H_min), or r * H_max
     min_entropy_bits: float = 0.0  # absolute floor: a patch at or below this is never salient, bits
     use_mask: bool = True  # False: every pixel is salient (plain holistic SAD)
@@ -77,14 +77,10 @@ class SesameParams:
     saliency_min: float = 0.5  # S_th: least SS / SS_m of a frame admitted to the database, fraction
 
     def __post_init__(self) -> None:
-        if min(self.mask_size_px) <= 0:
-            raise BadInputError(f"must be positive, got {self.mask_size_px}", field="mask_size_px")
-        if not self.patch_sizes_px or min(self.patch_sizes_px) < 2:
-            raise BadInputError(f"need sizes >= 2, got {self.patch_sizes_px}", field="patch_sizes_px")
-        if not 2 <= self.bins <= 256:
-            raise BadInputError(f"must be in [2, 256], got {self.bins}", field="bins")
-        if not 0.0 <= self.r_threshold < 1.0:
-            raise BadInputError(f"must be in [0, 1), got {self.r_threshold}", field="r_threshold")
+        if min(self.mask_size_px) <= 0 or not self.patch_sizes_px or min(self.patch_sizes_px) < 2:
+            raise BadInputError(f"need sizes > 0 and >= 2, got {self.mask_size_px}", field="patch_sizes_px")
+        if not (2 <= self.bins <= 256 and 0.0 <= self.r_threshold < 1.0):
+            raise BadInputError(f"need bins in [2, 256], r in [0, 1); got {self.bins}", field="r_threshold")
         if self.relative_to not in ("range", "max"):
             raise BadInputError(f"must be range or max, got {self.relative_to!r}", field="relative_to")
         for name in ("min_entropy_bits", "adjacency_m", "similarity", "saliency_min"):
@@ -100,10 +96,8 @@ DEFAULT = SesameParams(min_entropy_bits=2.0)
 
 def _as_stack_u8(images: NDArray[np.generic], name: str) -> tuple[NDArray[np.uint8], bool]:
     arr = np.asarray(images)
-    if arr.dtype != np.uint8:
-        raise BadInputError(f"must be uint8 (8-bit gray), got {arr.dtype}", field=name)
-    if arr.ndim not in (2, 3) or 0 in arr.shape:
-        raise BadInputError(f"must be (H, W) or (N, H, W), got shape {arr.shape}", field=name)
+    if arr.dtype != np.uint8 or arr.ndim not in (2, 3) or 0 in arr.shape:
+        raise BadInputError(f"must be uint8 (H, W) or (N, H, W), got {arr.dtype} {arr.shape}", field=name)
     single = arr.ndim == 2
     return (arr[None] if single else arr), single
 
@@ -327,12 +321,11 @@ def build_salient_database(
     sal = np.asarray(saliency, dtype=np.float64)
     th = np.asarray(thumbs, dtype=np.float32)
     c = sal.shape[0]
-    if xy.shape != (c, 2) or th.ndim != 3 or th.shape[0] != c or sal.ndim != 1:
+    bad_masks = masks is not None and np.shape(masks) != th.shape
+    if xy.shape != (c, 2) or th.ndim != 3 or th.shape[0] != c or sal.ndim != 1 or bad_masks:
         raise BadInputError(
-            f"need xy (C, 2), saliency (C,), thumbs (C, h, w); got {xy.shape}, {sal.shape}, {th.shape}"
+            f"need xy (C, 2), saliency (C,), thumbs and masks (C, h, w); got {xy.shape}, {th.shape}"
         )
-    if masks is not None and np.shape(masks) != th.shape:
-        raise BadInputError(f"masks must be {th.shape}, got {np.shape(masks)}", field="masks")
     unique: list[int] = []
     for i in range(c):
         novel = True
@@ -381,15 +374,10 @@ def salient_frame_selector(
     ptr = np.asarray(chain_ptr, dtype=np.int64)
     n = sal.shape[0]
     if sal.ndim != 1 or thumbs.ndim != 3 or thumbs.shape[0] != n or ptr.ndim != 1 or ptr[-1] != n:
-        raise BadInputError(
-            f"need saliency (F,), thumbs (F, h, w), chain_ptr ending at F; got {sal.shape}, {thumbs.shape}, "
-            f"{ptr.shape}",
-            field="saliency_scores_by_flat_frame",
-        )
+        msg = f"need saliency (F,), thumbs (F, h, w), chain_ptr ending at F; got {sal.shape}, {thumbs.shape}"
+        raise BadInputError(msg, field="saliency_scores_by_flat_frame")
     masks = None if masks_by_flat_frame is None else np.asarray(masks_by_flat_frame, dtype=bool)
-    good = (
-        np.ones(n, dtype=bool) if good_by_flat_frame is None else np.asarray(good_by_flat_frame, dtype=bool)
-    )
+    good = np.ones(n, dtype=bool) if good_by_flat_frame is None else np.asarray(good_by_flat_frame, bool)
     if good.shape != (n,) or (masks is not None and masks.shape != thumbs.shape):
         raise BadInputError(
             "good (F,) and masks (F, h, w) must match the frames", field="masks_by_flat_frame"
