@@ -107,7 +107,7 @@ class Estimate:
         x_m: its centre's x, survey frame, metres.
         y_m: its centre's y, survey frame, metres.
         score: X_i(b(i)) in [0, 1]; single-image mode: 1 - d_best / median d over the map.
-        matched: eq. 12, ``score >= x_thresh``.
+        matched: eq. 12, ``score >= x_thresh``, and the frame is not lost.
         lost: this frame counted as lost (the filter re-initialises after ``lost_frames`` in a row).
         evaluated_nodes: number of nodes compared with the query this frame.
         ms: wall time of the step, milliseconds.
@@ -284,7 +284,7 @@ class Localiser:
             x_m=float(x_m),
             y_m=float(y_m),
             score=score,
-            matched=score >= self.params.x_thresh,
+            matched=score >= self.params.x_thresh and not lost,
             lost=lost,
             evaluated_nodes=evaluated,
             ms=(time.perf_counter() - t0) * 1e3,

@@ -1,0 +1,119 @@
+"""Benchmark of the HMM localiser (driftmap.core.localiser) on one core: pruned filter vs full comparison.
+
+A synthetic 2,000-node map (a 50 x 40 grid of tunnels, 5 m spacing, 3 frames a node, 64x32 patch-normalised
+thumbnails) is localised against a drive of a few hundred frames at 10 Hz snaking along the grid (about
+6 m/s), starting with a global (unknown) belief. Prints the median and 95th-percentile milliseconds per
+frame and the fraction of frames on the right node for the filter as driftmap runs it (top ``n_t`` prior
+states plus probes) and for the full-comparison baseline (every node, every frame, no pruning), and the
+ratio of their medians. Target: median <= 10 ms per frame.
+
+Usage: ``.venv/bin/python bench/bench_localise.py [--frames 300] [--baseline-frames 60]``
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ[_var] = "1"  # one core: must be set before numpy is imported
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
+
+from driftmap.core import hmm  # noqa: E402
+from driftmap.core.adjacency import shortest_paths  # noqa: E402
+from driftmap.core.images import patch_normalise  # noqa: E402
+from driftmap.core.localiser import Localiser, LocaliserMap  # noqa: E402
+
+COLS, ROWS = 50, 40  # grid nodes: 2,000
+SPACING_M = 5.0
+FRAMES_PER_NODE = 3
+DT_S = 0.1  # 10 Hz
+FRAMES_PER_NODE_STEP = 8  # the vehicle moves one node every 8 frames: 6.25 m/s
+NOISE = 12.0  # query noise, grey levels (textures have std 40)
+
+
+def grid_map(rng: np.random.Generator) -> tuple[LocaliserMap, NDArray[np.float32]]:
+    """The synthetic map and the (M, 32, 64) raw textures its thumbnails were made from."""
+    m = COLS * ROWS
+    raw = rng.normal(0.0, 1.0, (m, 32, 64)).astype(np.float32)
+    tex = np.stack([cv2.GaussianBlur(r, (0, 0), 1.2) for r in raw])
+    tex = np.asarray(128 + 40 * tex / tex.std(axis=(1, 2), keepdims=True), dtype=np.float32)
+    views = tex[:, None] + rng.normal(0.0, NOISE, (m, FRAMES_PER_NODE, 32, 64)).astype(np.float32)
+    thumbs = patch_normalise(views.reshape(-1, 32, 64))
+    ids = np.arange(m).reshape(ROWS, COLS)
+    edges = np.concatenate(
+        [
+            np.stack([ids[:, :-1].ravel(), ids[:, 1:].ravel()], 1),
+            np.stack([ids[:-1].ravel(), ids[1:].ravel()], 1),
+        ]
+    ).astype(np.int64)
+    col, row = np.divmod(np.arange(m), COLS)[::-1]
+    lmap = LocaliserMap(
+        thumbs=thumbs,
+        node_ptr=np.arange(0, FRAMES_PER_NODE * m + 1, FRAMES_PER_NODE, dtype=np.int64),
+        centres_m=np.column_stack([col * SPACING_M, row * SPACING_M]).astype(np.float64),
+        adjacency_m=shortest_paths(m, edges, np.full(edges.shape[0], SPACING_M), 50.0),
+        max_adjacency_m=50.0,
+    )
+    return lmap, tex
+
+
+def snake(n_nodes: int) -> list[int]:
+    """Nodes of a drive along the grid rows, turning at the ends (boustrophedon)."""
+    out: list[int] = []
+    for r in range(ROWS):
+        cols = range(COLS) if r % 2 == 0 else range(COLS - 1, -1, -1)
+        out.extend(r * COLS + c for c in cols)
+        if len(out) >= n_nodes:
+            break
+    return out[:n_nodes]
+
+
+def drive(loc: Localiser, tex: NDArray[np.float32], frames: int, seed: int) -> tuple[list[float], float]:
+    """Per-frame milliseconds (first, global frame excluded) and the fraction of frames on the right node."""
+    rng = np.random.default_rng(seed)
+    path = snake(frames // FRAMES_PER_NODE_STEP + 1)
+    ms, right = [], 0
+    for k in range(frames):
+        node = path[k // FRAMES_PER_NODE_STEP]
+        query = patch_normalise(tex[node] + rng.normal(0.0, NOISE, tex.shape[1:]).astype(np.float32))
+        est = loc.step(query, k * DT_S)
+        right += est.node == node
+        if k:
+            ms.append(est.ms)
+    return ms, right / frames
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--frames", type=int, default=300, help="frames localised by the pruned filter")
+    parser.add_argument("--baseline-frames", type=int, default=60, help="frames for the full comparison")
+    args = parser.parse_args()
+    cv2.setNumThreads(1)
+    lmap, tex = grid_map(np.random.default_rng(0))
+    m = lmap.n_nodes
+    print(
+        f"{m} nodes x {FRAMES_PER_NODE} frames, 64x32 thumbnails, {COLS}x{ROWS} grid, {SPACING_M:g} m spacing"
+    )
+    runs = {
+        f"pruned (n_t={hmm.DEFAULT.n_t}, probes={hmm.DEFAULT.n_probe})": (hmm.DEFAULT, args.frames),
+        "full comparison": (hmm.HmmParams(n_t=m, n_probe=0, lost_frames=0), args.baseline_frames),
+    }
+    medians = []
+    print(f"{'filter':>28} {'frames':>6} {'median ms':>9} {'p95 ms':>7} {'on node':>7}")
+    for name, (params, frames) in runs.items():
+        ms, right = drive(Localiser(lmap, params), tex, frames, seed=1)
+        med = statistics.median(ms)
+        medians.append(med)
+        p95 = float(np.percentile(ms, 95))
+        print(f"{name:>28} {frames:>6} {med:>9.2f} {p95:>7.2f} {right:>7.1%}")
+    print(f"full / pruned median time: {medians[1] / medians[0]:.1f}x (target: pruned <= 10 ms/frame)")
+
+
+if __name__ == "__main__":
+    main()
