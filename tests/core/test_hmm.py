@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.typing import NDArray
 from scipy.sparse import csr_array
 
@@ -79,6 +81,16 @@ class TestObservation:
 
     def test_equal_scores_tell_nothing(self) -> None:
         np.testing.assert_allclose(hmm.observation(np.array([2.0, 2.0]), 0.5, EPS), [1.0, 1.0])
+
+    @settings(max_examples=50, deadline=None)
+    @given(st.lists(st.floats(0.0, 10.0), min_size=2, max_size=30), st.floats(0.0, 1.0))
+    def test_range_best_and_order(self, values: list[float], p_t: float) -> None:
+        d = np.asarray(values)
+        gamma = hmm.observation(d, p_t, EPS)
+        assert np.all((gamma == EPS) | ((gamma >= p_t) & (gamma <= 1.0)))
+        assert gamma[int(np.argmin(d))] == 1.0
+        kept = gamma > EPS
+        assert np.all(np.diff(gamma[kept][np.argsort(d[kept])]) <= 0)  # smaller d, larger gamma
 
     def test_node_without_frames_is_a_poor_match(self) -> None:
         gamma = hmm.observation(np.array([1.0, np.inf, 2.0]), 0.5, EPS)

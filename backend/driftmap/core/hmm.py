@@ -37,6 +37,7 @@ __all__ = [
     "PAPER",
     "HmmParams",
     "TransitionModel",
+    "check_node_ptr",
     "compare_nodes",
     "hmm_update",
     "initial_belief",
@@ -93,7 +94,8 @@ PAPER = HmmParams(n_probe=0, lost_frames=0, lost_confidence=0.0)
 DEFAULT = HmmParams()
 
 
-def _check_ptr(node_ptr: I64, n_frames: int) -> None:
+def check_node_ptr(node_ptr: I64, n_frames: int) -> None:
+    """Raise :class:`BadInputError` unless (M + 1,) ``node_ptr`` runs non-decreasing from 0 to ``n_frames``."""
     if node_ptr.ndim != 1 or node_ptr.size < 1 or node_ptr[0] != 0 or node_ptr[-1] != n_frames:
         raise BadInputError(f"node_ptr must run from 0 to {n_frames}", field="node_ptr")
     if np.any(np.diff(node_ptr) < 0):

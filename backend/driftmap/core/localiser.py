@@ -62,7 +62,7 @@ class LocaliserMap:
             )
         if self.node_ptr.shape != (m + 1,):
             raise BadInputError(f"node_ptr must be ({m + 1},), got {self.node_ptr.shape}", field="node_ptr")
-        hmm._check_ptr(self.node_ptr, self.thumbs.shape[0])
+        hmm.check_node_ptr(self.node_ptr, self.thumbs.shape[0])
         if self.adjacency_m.shape != (m, m):
             raise BadInputError(f"adjacency_m must be ({m}, {m})", field="adjacency_m")
 
