@@ -37,7 +37,7 @@ def simulate(
 
     with user_errors(), stage_progress("simulating") as report:
         summary = simulate_site(out, seed=seed, size=size, obscurants=obscurants, progress=report)
-    console.print(summary.describe() if hasattr(summary, "describe") else summary)
+    console.print(summary.describe())
 
 
 @db_app.command("upgrade")

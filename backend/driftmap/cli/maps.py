@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -13,7 +14,7 @@ from driftmap.cli.common import console, open_storage, stage_progress, user_erro
 from driftmap.config import get_settings
 from driftmap.core.mapping import FAST, PAPER, MappingParams
 from driftmap.core.odometry import dead_reckon
-from driftmap.core.params import ODOMETRY_DEFAULT
+from driftmap.core.params import ODOMETRY_DEFAULT, OdometryModel
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import PoseRow, write_poses_csv
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
@@ -25,6 +26,7 @@ from driftmap.services import sites as site_service
 map_app = typer.Typer(help="Map versions: build, show, export.", no_args_is_help=True)
 report_app = typer.Typer(help="Evaluation reports against ground truth.", no_args_is_help=True)
 
+MODELS: dict[str, OdometryModel] = {"auto": "auto", "linear": "linear", "homography": "homography"}
 PRESETS: dict[str, MappingParams] = {"paper": PAPER, "fast": FAST}
 PresetOption = Annotated[str, typer.Option("--preset", help="Parameter preset: paper or fast.")]
 
@@ -41,17 +43,17 @@ def odometry(
     model: Annotated[str, typer.Option(help="auto, linear (eq. 1-2) or homography (bird's-eye).")] = "auto",
 ) -> None:
     """Dead-reckon one drive with ground-plane visual odometry (from its first true pose when known)."""
-    from dataclasses import replace
-
     with user_errors():
-        if model not in ("auto", "linear", "homography"):
-            raise BadInputError(f"unknown model {model!r}", field="--model")
+        if model not in MODELS:
+            raise BadInputError(f"unknown model {model!r}; choose {', '.join(MODELS)}", field="--model")
         folder = read_drive_folder(drive_dir)
         first = folder.frames[0]
         start = (first.x_m, first.y_m, first.yaw_rad) if first.has_truth else (0.0, 0.0, 0.0)
         frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
-        params = replace(ODOMETRY_DEFAULT, model=model)  # type: ignore[arg-type]
-        result = dead_reckon(frames, folder.meta.camera, params, start)  # type: ignore[arg-type]
+        params = replace(ODOMETRY_DEFAULT, model=MODELS[model])
+        result = dead_reckon(
+            frames, folder.meta.camera, params, (start[0] or 0.0, start[1] or 0.0, start[2] or 0.0)
+        )
         rows = [
             PoseRow(folder.meta.name, f.frame, float(p[0]), float(p[1]), float(p[2]))
             for f, p in zip(folder.frames, result.wTi, strict=True)
