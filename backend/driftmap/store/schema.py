@@ -1,0 +1,14 @@
+"""The whole schema: importing this module registers every model module on ``Base.metadata``.
+
+Model modules split by domain (map data in :mod:`driftmap.store.models`, jobs, users and vehicles in their
+own modules) all derive from :class:`driftmap.store.models.Base`; Alembic and the schema test read
+:data:`metadata` from here so no table is forgotten.
+"""
+
+from __future__ import annotations
+
+from driftmap.store import models
+
+metadata = models.Base.metadata
+
+__all__ = ["metadata"]
