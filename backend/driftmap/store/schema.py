@@ -7,7 +7,10 @@ own modules) all derive from :class:`driftmap.store.models.Base`; Alembic and th
 
 from __future__ import annotations
 
-from driftmap.store import models
+from driftmap.store import (
+    job_models,  # noqa: F401 (registers the jobs table)
+    models,
+)
 
 metadata = models.Base.metadata
 

@@ -1,0 +1,50 @@
+"""The ``jobs`` table: one row per background job, the single source of truth on its state.
+
+The huey queue only carries job ids; a worker reads the row, marks it running, reports progress and a
+heartbeat on it in short transactions, and writes its final status and result. Timestamps are UTC.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import JSON, DateTime, Float, ForeignKey, Integer, String, Text
+from sqlalchemy.orm import Mapped, mapped_column
+
+from driftmap.store.models import Base, utc_now
+
+JOB_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
+"""Every value of :attr:`Job.status`; the last three are final."""
+
+
+class Job(Base):
+    """A background job (``map.build``, ``drive.localise``, ``drive.import``, ``site.simulate``).
+
+    ``progress`` runs from 0 to 1 within the named ``stage``; ``attempts`` counts how many times a worker
+    started it; ``heartbeat_at`` is refreshed by the running worker so that a stale one can be re-queued.
+    A cancel request on a running job sets ``cancel_requested_at``; the worker stops at its next progress
+    report.
+    """
+
+    __tablename__ = "jobs"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    kind: Mapped[str] = mapped_column(String(50), index=True)
+    site_id: Mapped[int | None] = mapped_column(
+        ForeignKey("sites.id", ondelete="CASCADE"), index=True, nullable=True
+    )
+    args: Mapped[dict[str, Any]] = mapped_column(JSON)
+    status: Mapped[str] = mapped_column(String(20), index=True, default="queued")
+    progress: Mapped[float] = mapped_column(Float, default=0.0)
+    stage: Mapped[str] = mapped_column(String(200), default="")
+    error: Mapped[str | None] = mapped_column(Text, nullable=True)
+    result: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    created_by: Mapped[str] = mapped_column(String(200), default="")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    cancel_requested_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    worker_id: Mapped[str | None] = mapped_column(String(200), nullable=True)
