@@ -19,6 +19,16 @@ class Settings(BaseSettings):
     """SQLAlchemy URL; when unset, ``sqlite:///<data_dir>/driftmap.sqlite3``."""
     redis_url: str | None = None
     """Redis URL for the job queue; when unset, an SQLite-backed queue under ``data_dir``."""
+    secret_key: str | None = None
+    """Key signing login tokens; when unset, a random key kept in ``<data_dir>/secret_key``."""
+    token_ttl_s: float = 12 * 3600.0
+    """Lifetime of a login token, seconds."""
+    stale_after_s: float = 10.0
+    """A vehicle with no position for this long is shown as stale, seconds."""
+    max_upload_bytes: int = 4 * 1024**3
+    """Largest accepted upload (drive zip, video, DXF), bytes."""
+    max_frame_bytes: int = 8 * 1024**2
+    """Largest accepted live frame image, bytes."""
 
     def resolved_database_url(self) -> str:
         """The database URL in force: the configured one or the embedded SQLite file."""

@@ -50,3 +50,14 @@ class NotFoundError(DriftmapError):
 
 class ConflictError(DriftmapError):
     """The request clashes with what is stored (a duplicate name, a stale version)."""
+
+
+class PayloadTooLargeError(BadInputError):
+    """An upload larger than the configured limit (HTTP 413)."""
+
+
+class BadRequestError(BadInputError):
+    """A request the server cannot read at all: wrong content type, missing body (HTTP 400).
+
+    Plain :class:`BadInputError` means the request was read but its content is unusable (HTTP 422).
+    """

@@ -8,6 +8,7 @@ own modules) all derive from :class:`driftmap.store.models.Base`; Alembic and th
 from __future__ import annotations
 
 from driftmap.store import (
+    access_models,  # noqa: F401 (registers users, vehicles, positions, live states)
     job_models,  # noqa: F401 (registers the jobs table)
     models,
 )

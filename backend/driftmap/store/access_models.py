@@ -1,0 +1,103 @@
+"""Who may use the server and what the vehicles report: users, vehicles, position history, live state.
+
+Positions are survey-frame metres (x east, y north) of the node centre the localiser chose, ``t_s`` is the
+vehicle's own frame timestamp in seconds, ``received_at`` the server's UTC clock. A position's ``id`` is
+the sequence number the live WebSocket uses to resume.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from sqlalchemy import (
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    LargeBinary,
+    String,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import Mapped, mapped_column
+
+from driftmap.store.models import Base, utc_now
+
+
+class User(Base):
+    """A person who logs in; ``role`` is one of admin, surveyor, viewer."""
+
+    __tablename__ = "users"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    username: Mapped[str] = mapped_column(String(100), unique=True)
+    password_hash: Mapped[str] = mapped_column(String(200))
+    """argon2id hash in PHC string format."""
+    role: Mapped[str] = mapped_column(String(20))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+
+
+class Vehicle(Base):
+    """A vehicle of a site that posts camera frames with its own API token (stored as a SHA-256)."""
+
+    __tablename__ = "vehicles"
+    __table_args__ = (UniqueConstraint("site_id", "name", name="uq_vehicles_site_id_name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    token_sha256: Mapped[str] = mapped_column(String(64))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    token_rotated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+
+class VehiclePosition(Base):
+    """One localisation estimate of a vehicle (a processed live frame)."""
+
+    __tablename__ = "vehicle_positions"
+    __table_args__ = (Index("ix_vehicle_positions_vehicle_id_t_s", "vehicle_id", "t_s"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    vehicle_id: Mapped[int] = mapped_column(ForeignKey("vehicles.id", ondelete="CASCADE"))
+    map_version_id: Mapped[int | None] = mapped_column(
+        ForeignKey("map_versions.id", ondelete="SET NULL"), nullable=True
+    )
+    t_s: Mapped[float] = mapped_column(Float)
+    node: Mapped[int] = mapped_column(Integer)
+    x_m: Mapped[float] = mapped_column(Float)
+    y_m: Mapped[float] = mapped_column(Float)
+    yaw_rad: Mapped[float | None] = mapped_column(Float, nullable=True)
+    confidence: Mapped[float] = mapped_column(Float)
+    matched: Mapped[bool] = mapped_column(Boolean)
+    lost: Mapped[bool] = mapped_column(Boolean)
+    received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+
+class VehicleLiveState(Base):
+    """A vehicle's localiser between frames, shared by every API process.
+
+    ``revision`` is SQLAlchemy's version counter: two processes that both advance the same vehicle cannot
+    both commit, so frames are never double-processed. ``state_npz`` is the ``.npz`` of
+    :meth:`driftmap.core.localiser.LocaliserState.to_arrays` for ``map_version_id``.
+    """
+
+    __tablename__ = "vehicle_live_states"
+
+    vehicle_id: Mapped[int] = mapped_column(ForeignKey("vehicles.id", ondelete="CASCADE"), primary_key=True)
+    map_version_id: Mapped[int | None] = mapped_column(
+        ForeignKey("map_versions.id", ondelete="SET NULL"), nullable=True
+    )
+    last_t_s: Mapped[float | None] = mapped_column(Float, nullable=True)
+    """Timestamp of the last processed frame, seconds; a frame at or before it is out of order."""
+    state_npz: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True)
+    processed: Mapped[int] = mapped_column(Integer, default=0)
+    skipped: Mapped[int] = mapped_column(Integer, default=0)
+    """Frames dropped on purpose because a newer frame of the vehicle was waiting (overload)."""
+    out_of_order: Mapped[int] = mapped_column(Integer, default=0)
+    """Frames refused because their ``t`` was not after ``last_t_s``."""
+    revision: Mapped[int] = mapped_column(Integer, default=0)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+
+    __mapper_args__ = {"version_id_col": revision}  # noqa: RUF012 (SQLAlchemy reads it as a class attribute)
