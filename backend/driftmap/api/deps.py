@@ -1,0 +1,186 @@
+"""Request dependencies: settings, storage, a database session per request, and who is calling.
+
+Credentials come as ``Authorization: Bearer <token>``, or the ``driftmap_token`` cookie set at login; a
+WebSocket may also pass ``?token=`` (browsers cannot set headers on WebSockets). A token is either a
+user's login token or a vehicle token (``dmv_...``).
+
+Roles: ``viewer`` reads (GET); ``surveyor`` also edits groundings, imports drives and builds maps; ``admin``
+may do everything (users, vehicles, sites). A vehicle token may only post frames for its own vehicle.
+No credentials give 401, the wrong role or a vehicle token elsewhere 403.
+
+Routers declare their rule with ``dependencies=[Depends(VIEWER)]``, ``Depends(SURVEYOR)``,
+``Depends(ADMIN)`` or a :data:`VehicleDep` parameter; the role test reads these from every route.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Annotated
+
+from fastapi import Depends, HTTPException, Path, Request, WebSocket, status
+from sqlalchemy.orm import Session
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import HTTPConnection
+
+from driftmap.config import Settings
+from driftmap.services import security
+from driftmap.store.access_models import User, Vehicle
+from driftmap.store.storage import Storage
+
+TOKEN_COOKIE = "driftmap_token"
+WS_CLOSE_UNAUTHORIZED = 4401
+WS_CLOSE_FORBIDDEN = 4403
+
+
+class Role(StrEnum):
+    """What a user may do; see the module docstring."""
+
+    admin = "admin"
+    surveyor = "surveyor"
+    viewer = "viewer"
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who is calling: a logged-in user (with a role) or a vehicle (with its site)."""
+
+    kind: str  # "user" or "vehicle"
+    id: int
+    name: str
+    role: Role | None = None
+    site_id: int | None = None
+
+
+def _settings(request: HTTPConnection) -> Settings:
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+def _storage(request: HTTPConnection) -> Storage:
+    storage: Storage = request.app.state.storage
+    return storage
+
+
+SettingsDep = Annotated[Settings, Depends(_settings)]
+StorageDep = Annotated[Storage, Depends(_storage)]
+
+
+def _session(storage: StorageDep) -> Iterator[Session]:
+    with storage.db.session() as session:
+        yield session
+
+
+SessionDep = Annotated[Session, Depends(_session, scope="function")]
+"""A session committed when the handler returns (before the response is sent), rolled back if it raises."""
+
+
+def token_of(conn: HTTPConnection, *, allow_query: bool = False) -> str | None:
+    """The bearer token, cookie token or (WebSockets only) ``?token=`` of a request."""
+    header = conn.headers.get("authorization", "")
+    scheme, _, value = header.partition(" ")
+    if scheme.lower() == "bearer" and value.strip():
+        return value.strip()
+    cookie = conn.cookies.get(TOKEN_COOKIE)
+    if cookie:
+        return cookie
+    if allow_query:
+        return conn.query_params.get("token") or None
+    return None
+
+
+def principal_of(conn: HTTPConnection, *, allow_query: bool = False) -> Principal | None:
+    """Who the credentials of ``conn`` belong to; None when there are none or they are not valid."""
+    token = token_of(conn, allow_query=allow_query)
+    if token is None:
+        return None
+    storage = _storage(conn)
+    vehicle_id = security.vehicle_id_of_token(token)
+    with storage.db.session() as session:
+        if vehicle_id is not None:
+            vehicle = session.get(Vehicle, vehicle_id)
+            if vehicle is None or vehicle.token_sha256 != security.token_sha256(token):
+                return None
+            return Principal("vehicle", vehicle.id, vehicle.name, site_id=vehicle.site_id)
+        key: bytes = conn.app.state.secret_key
+        user_id = security.read_token(key, token)
+        user = session.get(User, user_id) if user_id is not None else None
+        if user is None:
+            return None
+        return Principal("user", user.id, user.username, role=Role(user.role))
+
+
+def _unauthorized() -> HTTPException:
+    return HTTPException(
+        status.HTTP_401_UNAUTHORIZED,
+        "not authenticated: log in or send a token",
+        {"WWW-Authenticate": "Bearer"},
+    )
+
+
+def _current_principal(request: Request) -> Principal | None:
+    return principal_of(request)
+
+
+def _current_user(principal: Annotated[Principal | None, Depends(_current_principal)]) -> Principal:
+    if principal is None:
+        raise _unauthorized()
+    if principal.kind != "user":
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "a vehicle token may only post its own frames")
+    return principal
+
+
+CurrentUserDep = Annotated[Principal, Depends(_current_user)]
+"""The logged-in user (any role); 401 without credentials, 403 for a vehicle token."""
+
+
+def require_roles(*roles: Role) -> Callable[[Principal], Principal]:
+    """A dependency that lets through users with one of ``roles`` (admins always); 403 for others.
+
+    Use as ``dependencies=[Depends(require_roles(Role.surveyor))]`` or through :data:`VIEWER`,
+    :data:`SURVEYOR`, :data:`ADMIN`.
+    """
+    allowed = frozenset({*roles, Role.admin})
+
+    def check(user: CurrentUserDep) -> Principal:
+        if user.role not in allowed:
+            names = ", ".join(sorted(allowed))
+            raise HTTPException(status.HTTP_403_FORBIDDEN, f"this needs one of the roles: {names}")
+        return user
+
+    check.allowed_roles = allowed  # type: ignore[attr-defined]  # read by the role-matrix test
+    return check
+
+
+VIEWER = require_roles(Role.viewer, Role.surveyor)
+"""Read access: every logged-in user."""
+SURVEYOR = require_roles(Role.surveyor)
+"""Survey work: groundings, drive imports, map builds (and admins)."""
+ADMIN = require_roles()
+"""Administration: users, vehicles, sites."""
+
+ViewerDep = Annotated[Principal, Depends(VIEWER)]
+SurveyorDep = Annotated[Principal, Depends(SURVEYOR)]
+AdminDep = Annotated[Principal, Depends(ADMIN)]
+
+
+def _vehicle(
+    vehicle_id: Annotated[int, Path(description="The vehicle's id.")],
+    principal: Annotated[Principal | None, Depends(_current_principal)],
+) -> Principal:
+    if principal is None:
+        raise _unauthorized()
+    if principal.kind != "vehicle" or principal.id != vehicle_id:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, f"only vehicle {vehicle_id}'s own token may post here")
+    return principal
+
+
+_vehicle.vehicle_only = True  # type: ignore[attr-defined]  # read by the role-matrix test
+VehicleDep = Annotated[Principal, Depends(_vehicle)]
+"""The vehicle of the path's ``vehicle_id``, authenticated by its own token."""
+
+
+async def websocket_principal(websocket: WebSocket) -> Principal | None:
+    """Who opened ``websocket`` (header, cookie or ``?token=``); looked up in a worker thread."""
+    return await run_in_threadpool(principal_of, websocket, allow_query=True)
