@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from driftmap.cli import data, maps
+from driftmap.cli import data, localise, maps
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -20,6 +20,7 @@ app.add_typer(maps.map_app, name="map")
 app.add_typer(maps.report_app, name="report")
 app.command()(data.simulate)
 app.command()(maps.odometry)
+app.command()(localise.localise)
 
 
 @app.callback()

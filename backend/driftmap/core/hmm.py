@@ -108,6 +108,7 @@ def compare_nodes(
     node_ptr: I64,
     nodes: I64,
     sad_params: SadParams = SAD_DEFAULT,
+    mask: NDArray[np.bool_] | None = None,
 ) -> F32:
     """Node difference scores of eq. 4 for the requested nodes only.
 
@@ -118,6 +119,8 @@ def compare_nodes(
         node_ptr: (M + 1,) int64 offsets of each node's frames in ``thumbs``.
         nodes: (n,) int64 node indices to compare; only their frames are touched.
         sad_params: shift ranges of the SAD.
+        mask: optional (H, W) bool SESAME salient mask of the query (paper 001 eq. 6): only salient query
+            pixels count, normalised by their number in the overlap; None compares every pixel.
 
     Returns:
         (n,) float32 d(i, j): the minimum over node j's frames of the shifted SAD (intensity units of the
@@ -142,7 +145,10 @@ def compare_nodes(
         seg = np.cumsum(count) - count
         flat = np.repeat(start - seg, count) + np.arange(total, dtype=np.int64)
         refs = thumbs[flat]
-    d = sad_one_to_many(query, refs, sad_params).d
+    if mask is None:
+        d = sad_one_to_many(query, refs, sad_params).d
+    else:
+        d = sad_one_to_many(query, refs, sad_params, mask=mask).d
     out[has] = np.minimum.reduceat(d, np.cumsum(count) - count)
     return out
 

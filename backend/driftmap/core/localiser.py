@@ -10,6 +10,11 @@ Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i))
 the median d over the evaluated nodes and a few rotating probe nodes (an unrelated place's typical score).
 After ``lost_frames`` lost frames in a row the belief becomes uniform, so the next frame searches the whole
 map. With ``single_image=True`` there is no filter: every node is compared and b(i) = argmin d.
+
+SESAME (paper 001, eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
+from the raw frame and only salient query pixels count in every node comparison, normalised by their number
+in the overlap. A query with almost no salient pixel (a black or washed-out frame) falls back to the plain
+holistic SAD, so it still gets scores.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from scipy.sparse import csr_array
 from driftmap.core import hmm
 from driftmap.core.images import preprocess
 from driftmap.core.params import IMAGES_DEFAULT, SAD_DEFAULT, ImageParams, SadParams
+from driftmap.core.saliency import SesameParams, sesame_masks
 from driftmap.core.topomap import TopoMap
 from driftmap.errors import BadInputError
 
@@ -32,6 +38,7 @@ __all__ = ["Estimate", "Localiser", "LocaliserMap", "LocaliserState", "build_loc
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 _PROBE_STRIDE = 7919  # a prime: probe k of frame s is node (s * n_probe + k) * stride mod M
+_MIN_SALIENT_FRACTION = 0.02  # a query mask with fewer salient pixels than this is replaced by no mask
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +51,7 @@ class LocaliserMap:
         centres_m: (M, 2) float64 node centres, survey frame, metres.
         adjacency_m: (M, M) float64 symmetric sparse shortest-path lengths A(x, y), metres.
         max_adjacency_m: longest path stored in ``adjacency_m``, metres.
+        image_params: the pre-processing that made ``thumbs``; query frames get the same.
     """
 
     thumbs: NDArray[np.float32]
@@ -51,6 +59,7 @@ class LocaliserMap:
     centres_m: F64
     adjacency_m: csr_array
     max_adjacency_m: float
+    image_params: ImageParams = IMAGES_DEFAULT
 
     def __post_init__(self) -> None:
         m = self.centres_m.shape[0]
@@ -72,13 +81,18 @@ class LocaliserMap:
         return int(self.centres_m.shape[0])
 
 
-def build_localiser_map(topomap: TopoMap, thumbs_by_flat_frame_index: NDArray[np.float32]) -> LocaliserMap:
+def build_localiser_map(
+    topomap: TopoMap,
+    thumbs_by_flat_frame_index: NDArray[np.float32],
+    image_params: ImageParams = IMAGES_DEFAULT,
+) -> LocaliserMap:
     """The localiser's map from a :class:`TopoMap` and the thumbnails of its frames.
 
     Args:
         topomap: the stored map; each node's chosen frames become its references.
         thumbs_by_flat_frame_index: (F, H, W) float32 pre-processed thumbnails indexed by the map's flat
             frame index (every frame of every chain; only the chosen ones are read).
+        image_params: the pre-processing that made the thumbnails.
 
     Returns:
         The :class:`LocaliserMap`.
@@ -95,6 +109,7 @@ def build_localiser_map(topomap: TopoMap, thumbs_by_flat_frame_index: NDArray[np
         centres_m=np.asarray(topomap.centres_m, dtype=np.float64),
         adjacency_m=topomap.adjacency_m,
         max_adjacency_m=float(topomap.params.max_adjacency_m),
+        image_params=image_params,
     )
 
 
@@ -169,8 +184,9 @@ class Localiser:
         lmap: the map.
         params: filter parameters (:data:`driftmap.core.hmm.DEFAULT`, :data:`~driftmap.core.hmm.PAPER`).
         sad_params: SAD shift ranges.
-        image_params: pre-processing applied to frames that are not already thumbnails.
+        image_params: pre-processing applied to frames that are not already thumbnails; None: the map's.
         single_image: no temporal filter (for ``--no-temporal`` comparisons).
+        sesame: SESAME mask parameters (paper 001 eq. 6); None compares whole images (holistic SAD).
         start_node: known start node; None starts with a global (uniform) belief.
         start_radius_m: spread the start over nodes within this of the start node, metres.
     """
@@ -180,17 +196,19 @@ class Localiser:
         lmap: LocaliserMap,
         params: hmm.HmmParams = hmm.DEFAULT,
         sad_params: SadParams = SAD_DEFAULT,
-        image_params: ImageParams = IMAGES_DEFAULT,
+        image_params: ImageParams | None = None,
         *,
         single_image: bool = False,
+        sesame: SesameParams | None = None,
         start_node: int | None = None,
         start_radius_m: float = 0.0,
     ) -> None:
         self.map = lmap
         self.params = params
         self.sad_params = sad_params
-        self.image_params = image_params
+        self.image_params = lmap.image_params if image_params is None else image_params
         self.single_image = single_image
+        self.sesame = sesame
         self.transitions = hmm.TransitionModel(lmap.adjacency_m, lmap.max_adjacency_m, params)
         self._all = np.arange(lmap.n_nodes, dtype=np.int64)
         self._state = LocaliserState(hmm.initial_belief(lmap.n_nodes), float("nan"), 0, 0)
@@ -224,26 +242,45 @@ class Localiser:
             raise BadInputError(f"frame pre-processes to {thumb.shape}, the map holds {shape}", field="frame")
         return thumb
 
+    def query_mask(self, frame: NDArray[np.generic]) -> NDArray[np.bool_] | None:
+        """(h, w) bool SESAME salient mask of a raw frame at the thumbnail size; None without SESAME.
+
+        None too for a frame that is already a thumbnail (no raw pixels to take entropy of) and for a frame
+        with fewer than 2 % salient pixels (it is compared whole instead).
+        """
+        if self.sesame is None or frame.dtype != np.uint8:
+            return None
+        mask = sesame_masks(np.asarray(frame), self.sesame, self.image_params)
+        if mask.shape != self.map.thumbs.shape[1:] or mask.mean() < _MIN_SALIENT_FRACTION:
+            return None
+        return np.asarray(mask, dtype=bool)
+
     def _probes(self, steps: int) -> I64:
         n, m = self.params.n_probe, self.map.n_nodes
         return ((steps * n + np.arange(n, dtype=np.int64)) * _PROBE_STRIDE) % m
 
-    def step(self, frame: NDArray[np.generic], t_s: float) -> Estimate:
+    def step(self, frame: NDArray[np.generic], t_s: float, mask: NDArray[np.bool_] | None = None) -> Estimate:
         """Localise one frame.
 
         Args:
             frame: (H, W) uint8 grey frame (or colour (H, W, 3)), pre-processed with ``image_params``; or an
                 already pre-processed (h, w) float32 thumbnail of the map's thumbnail shape.
             t_s: the frame's timestamp, seconds; the gap to the previous frame sets A_t.
+            mask: (h, w) bool salient mask of the query at the thumbnail size; None computes it from a raw
+                frame when ``sesame`` is set (:meth:`query_mask`).
 
         Returns:
             The :class:`Estimate`.
         """
         t0 = time.perf_counter()
         query = self.thumbnail(frame)
+        if mask is None:
+            mask = self.query_mask(frame)
+        elif mask.shape != query.shape:
+            raise BadInputError(f"mask must be {query.shape}, got {mask.shape}", field="mask")
         lm, p, s = self.map, self.params, self._state
         if self.single_image:
-            d = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, self._all, self.sad_params)
+            d = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, self._all, self.sad_params, mask)
             best = int(np.argmin(d))
             score = self._distinctness(d, float(d[best]))
             self._state = LocaliserState(s.belief, t_s, 0, s.steps + 1)
@@ -253,7 +290,7 @@ class Localiser:
         prior = s.belief if not np.isfinite(s.last_t_s) else self.transitions.predict(s.belief, gap_s)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
-        d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params)
+        d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
         d = d_all[: nodes.size]
         gamma = hmm.observation(d, p.p_t, p.epsilon)
         belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)

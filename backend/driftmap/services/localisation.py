@@ -1,0 +1,189 @@
+"""Localisation against a stored map version: load the localiser's map, run recorded frames through it.
+
+The batch CLI (``driftmap localise``), the evaluation report and the live server share these functions:
+:func:`load_localiser_map` turns a stored map version into a :class:`~driftmap.core.localiser.LocaliserMap`
+(reference thumbnails of every node's chosen frames, node centres, sparse adjacency), :func:`make_localiser`
+configures a :class:`~driftmap.core.localiser.Localiser` (SESAME masks and the temporal filter switchable)
+and :func:`localise_frames` runs a sequence of frames through it.
+
+Reference thumbnails come from the version's localisation database blob when the build stored one (its
+SHA-256 under ``stats["localiser_db_sha256"]``, see :mod:`driftmap.services.maps`); otherwise they are made
+again from the stored frames of the version's node frames, with the pre-processing the version was built with.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from driftmap.core import hmm
+from driftmap.core.images import preprocess
+from driftmap.core.localiser import Estimate, Localiser, LocaliserMap
+from driftmap.core.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
+from driftmap.core.saliency import SesameParams
+from driftmap.errors import BadInputError
+from driftmap.formats.csv_exports import LocalisationRow
+from driftmap.formats.frame_images import decode_gray
+from driftmap.services.maps import get_map_version, load_topomap
+from driftmap.store.blobs import BlobStore
+from driftmap.store.models import Frame, MapNodeFrame, MapVersion, Site
+
+__all__ = [
+    "LOCALISER_DB_KEY",
+    "estimate_rows",
+    "image_params_of",
+    "load_localiser_map",
+    "load_version_localiser_map",
+    "localise_frames",
+    "make_localiser",
+    "sesame_params_of",
+]
+
+log = logging.getLogger(__name__)
+ProgressFn = Callable[[str, float], None]
+LOCALISER_DB_KEY = "localiser_db_sha256"  # MapVersion.stats key of the localisation database blob
+
+
+def _tuples(value: Any) -> Any:
+    """JSON lists back to tuples (dataclass fields of the params are tuples)."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+
+
+def image_params_of(version: MapVersion) -> ImageParams:
+    """The place-recognition pre-processing a map version was built with (default when not recorded)."""
+    stored = (version.params or {}).get("images")
+    if not isinstance(stored, dict):
+        return IMAGES_DEFAULT
+    known = {k: _tuples(v) for k, v in stored.items() if k in ImageParams.__dataclass_fields__}
+    return replace(IMAGES_DEFAULT, **known)
+
+
+def sesame_params_of(version: MapVersion) -> SesameParams:
+    """The SESAME mask parameters a map version's database was built with (driftmap's default when none)."""
+    stored = ((version.params or {}).get("database") or {}).get("sesame")
+    if not isinstance(stored, dict):
+        return SESAME_DEFAULT
+    known = {k: _tuples(v) for k, v in stored.items() if k in SesameParams.__dataclass_fields__}
+    return replace(SESAME_DEFAULT, **known)
+
+
+def _stored_database(
+    blobs: BlobStore, version: MapVersion
+) -> tuple[NDArray[np.float32], NDArray[np.int64]] | None:
+    sha = (version.stats or {}).get(LOCALISER_DB_KEY)
+    if not isinstance(sha, str) or not blobs.exists(sha):
+        return None
+    with np.load(io.BytesIO(blobs.get(sha))) as arrays:
+        return np.asarray(arrays["thumbs"], dtype=np.float32), np.asarray(arrays["node_ptr"], dtype=np.int64)
+
+
+def _thumbs_from_frames(
+    session: Session, blobs: BlobStore, version: MapVersion, n_nodes: int, image_params: ImageParams
+) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+    rows = session.execute(
+        select(MapNodeFrame.node, Frame.blob_sha256)
+        .join(Frame, MapNodeFrame.frame_id == Frame.id)
+        .where(MapNodeFrame.map_version_id == version.id)
+        .order_by(MapNodeFrame.node, MapNodeFrame.rank)
+    ).all()
+    h, w = (image_params.size_px or (0, 0))[::-1]
+    thumbs = [preprocess(decode_gray(blobs.get(sha), f"blob {sha}"), image_params) for _node, sha in rows]
+    counts = np.bincount(np.array([n for n, _ in rows], dtype=np.int64), minlength=n_nodes)
+    stack = np.stack(thumbs) if thumbs else np.zeros((0, h, w), dtype=np.float32)
+    return stack.astype(np.float32), np.r_[0, np.cumsum(counts)].astype(np.int64)
+
+
+def load_version_localiser_map(session: Session, blobs: BlobStore, version: MapVersion) -> LocaliserMap:
+    """The :class:`LocaliserMap` of one stored map version (see the module docstring for the sources)."""
+    topomap = load_topomap(blobs, version)
+    image_params = image_params_of(version)
+    stored = _stored_database(blobs, version)
+    if stored is None:
+        log.info("map version %s has no localisation database blob; decoding its node frames", version.id)
+        stored = _thumbs_from_frames(session, blobs, version, topomap.n_nodes, image_params)
+    thumbs, node_ptr = stored
+    if node_ptr.shape != (topomap.n_nodes + 1,):
+        raise BadInputError(
+            f"map version {version.version}: database has {node_ptr.size - 1} nodes, map {topomap.n_nodes}",
+            field="node_ptr",
+        )
+    return LocaliserMap(
+        thumbs=np.ascontiguousarray(thumbs),
+        node_ptr=node_ptr,
+        centres_m=np.asarray(topomap.centres_m, dtype=np.float64),
+        adjacency_m=topomap.adjacency_m,
+        max_adjacency_m=float(topomap.params.max_adjacency_m),
+        image_params=image_params,
+    )
+
+
+def load_localiser_map(
+    session: Session, blobs: BlobStore, site: Site, version: int | None = None
+) -> LocaliserMap:
+    """The localiser's map of ``site``'s map version ``version`` (latest when None).
+
+    Raises:
+        NotFoundError: the site has no (such) map version.
+    """
+    return load_version_localiser_map(session, blobs, get_map_version(session, site, version))
+
+
+def make_localiser(
+    lmap: LocaliserMap,
+    *,
+    sesame: SesameParams | None = SESAME_DEFAULT,
+    temporal: bool = True,
+    params: hmm.HmmParams = hmm.DEFAULT,
+) -> Localiser:
+    """A :class:`Localiser` on ``lmap``: SESAME masks unless ``sesame`` is None, HMM filter unless not temporal."""
+    return Localiser(lmap, params, single_image=not temporal, sesame=sesame)
+
+
+def localise_frames(
+    localiser: Localiser,
+    frames: Iterable[NDArray[np.generic]],
+    t_s: Sequence[float] | NDArray[np.float64],
+    progress: ProgressFn | None = None,
+) -> list[Estimate]:
+    """Run frames through ``localiser`` in time order, one :class:`Estimate` per frame.
+
+    Args:
+        localiser: the localiser; its state carries over from earlier calls.
+        frames: (H, W) uint8 grey frames (or colour), as recorded.
+        t_s: (N,) frame timestamps, seconds, one per frame.
+        progress: called with ("localise", fraction done) now and then.
+
+    Raises:
+        BadInputError: fewer or more frames than timestamps.
+    """
+    times = np.asarray(t_s, dtype=np.float64)
+    out: list[Estimate] = []
+    n = times.shape[0]
+    for k, frame in enumerate(frames):
+        if k >= n:
+            raise BadInputError(f"more frames than the {n} timestamps", field="frames")
+        out.append(localiser.step(frame, float(times[k])))
+        if progress is not None and k % 50 == 0:
+            progress("localise", k / max(n, 1))
+    if len(out) != n:
+        raise BadInputError(f"{len(out)} frames for {n} timestamps", field="frames")
+    if progress is not None:
+        progress("localise", 1.0)
+    return out
+
+
+def estimate_rows(frame_numbers: Sequence[int], estimates: Sequence[Estimate]) -> list[LocalisationRow]:
+    """The localisation CSV rows (formats.md ``frame,node,x,y,score,matched``) of a run."""
+    return [
+        LocalisationRow(int(f), e.node, e.x_m, e.y_m, e.score, e.matched)
+        for f, e in zip(frame_numbers, estimates, strict=True)
+    ]
