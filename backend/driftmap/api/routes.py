@@ -9,13 +9,15 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from driftmap.api import auth, health, users, vehicles
+from driftmap.api import auth, health, live, positions, users, vehicles
 
 ROUTERS: list[APIRouter] = [
     health.router,
     auth.router,
     users.router,
     vehicles.router,
+    live.router,
+    positions.router,
 ]
 
 OPEN_PATHS: frozenset[str] = frozenset({"/api/health", "/api/auth/login", "/api/auth/logout"})

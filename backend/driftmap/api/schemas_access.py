@@ -67,3 +67,78 @@ class VehicleRead(BaseModel):
 class VehicleWithToken(VehicleRead):
     token: str
     """The vehicle's API token: shown once, stored only as a hash."""
+
+
+class FrameEstimate(BaseModel):
+    """The answer to one posted frame.
+
+    ``status`` is ``processed`` (the estimate fields are set), ``skipped`` (a newer frame of the vehicle
+    arrived while this one waited: dropped on purpose under overload) or ``out_of_order`` (its ``t`` was not
+    after the vehicle's last accepted frame). The counts are the vehicle's totals.
+    """
+
+    model_config = ConfigDict(from_attributes=True)
+
+    vehicle_id: int
+    t: float
+    status: str
+    node: int | None = None
+    x: float | None = None
+    """Survey-frame metres (east) of the node centre."""
+    y: float | None = None
+    """Survey-frame metres (north) of the node centre."""
+    confidence: float | None = None
+    """The HMM belief of the chosen node, 0-1."""
+    matched: bool | None = None
+    lost: bool | None = None
+    map_version: int | None = None
+    seq: int | None = None
+    """Sequence number of the stored position (for ``/api/live?since=``)."""
+    processed: int
+    skipped: int
+    out_of_order: int
+    ms: float | None = None
+    """Localiser step time, milliseconds."""
+
+
+class PositionRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    seq: int
+    vehicle_id: int
+    vehicle: str
+    site_id: int
+    t: float
+    """The frame's time on the vehicle's clock, seconds."""
+    node: int
+    x: float
+    y: float
+    yaw: float | None
+    confidence: float
+    matched: bool
+    lost: bool
+    map_version: int | None
+    received_at: datetime
+
+
+class VehicleLatestRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    vehicle_id: int
+    vehicle: str
+    site_id: int
+    stale: bool
+    """No position for longer than the server's ``stale_after_s`` (or none yet)."""
+    position: PositionRead | None
+
+
+class LiveStateRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    vehicle_id: int
+    map_version_id: int | None
+    last_t_s: float | None
+    processed: int
+    skipped: int
+    out_of_order: int
+    updated_at: datetime

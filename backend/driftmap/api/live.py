@@ -1,0 +1,242 @@
+"""Live localisation: vehicles post frames (HTTP or a WebSocket stream), watchers follow ``/api/live``.
+
+``POST /api/vehicles/{id}/frames?t=SECONDS`` takes the JPEG or PNG bytes as the body (``Content-Type:
+image/jpeg`` or ``image/png``) and answers with a :class:`~driftmap.api.schemas_access.FrameEstimate`.
+
+``/api/vehicles/{id}/stream`` (WebSocket, the vehicle's token as bearer header or ``?token=``): each binary
+message is one frame: ``t`` as an 8-byte big-endian IEEE float64 (seconds), then the JPEG/PNG bytes. The
+server answers each frame with one JSON text message, a FrameEstimate, or ``{"status": "error", "t",
+"code", "detail", "field"}`` for a frame it cannot use (the stream stays open).
+
+``/api/live`` (WebSocket, any logged-in user; ``?token=`` for browsers without the cookie): first
+``{"type": "snapshot", "seq", "stale_after_s", "vehicles": [...]}``, every vehicle with its last position;
+with ``?since=SEQ`` then every ``{"type": "position", ...}`` after SEQ up to the snapshot (to resume after a
+reconnect); then live ``position`` messages, and ``{"type": "stale", "vehicle_id", "received_at"}`` when a
+vehicle stops reporting for ``stale_after_s``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import struct
+from datetime import datetime
+from typing import Any
+
+from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect
+
+from driftmap.api.deps import (
+    WS_CLOSE_FORBIDDEN,
+    WS_CLOSE_UNAUTHORIZED,
+    Principal,
+    VehicleDep,
+    websocket_principal,
+)
+from driftmap.api.error_handlers import error_body, status_of
+from driftmap.api.live_service import LiveService, position_message
+from driftmap.api.schemas_access import FrameEstimate
+from driftmap.errors import BadRequestError, DriftmapError, PayloadTooLargeError
+from driftmap.services import positions as position_service
+from driftmap.services.live import as_utc
+from driftmap.store.models import utc_now
+
+router = APIRouter(tags=["live"])
+IMAGE_TYPES = ("image/jpeg", "image/png")
+_IMAGE_BODY = {"schema": {"type": "string", "format": "binary"}}
+
+
+def _live(app_state: Any) -> LiveService:
+    live: LiveService = app_state.live
+    return live
+
+
+async def _read_body(request: Request, limit: int) -> bytes:
+    declared = request.headers.get("content-length")
+    if declared is not None and declared.isdigit() and int(declared) > limit:
+        raise PayloadTooLargeError(f"frame of {declared} bytes is over the {limit} byte limit", field="body")
+    chunks, total = [], 0
+    async for chunk in request.stream():
+        total += len(chunk)
+        if total > limit:
+            raise PayloadTooLargeError(f"frame is over the {limit} byte limit", field="body")
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+@router.post(
+    "/vehicles/{vehicle_id}/frames",
+    openapi_extra={"requestBody": {"required": True, "content": dict.fromkeys(IMAGE_TYPES, _IMAGE_BODY)}},
+)
+async def post_frame(
+    vehicle: VehicleDep,
+    request: Request,
+    t: float = Query(description="The frame's time on the vehicle's clock, seconds; must increase."),
+) -> FrameEstimate:
+    """Localise one camera frame of this vehicle (its own token only) on its site's latest map."""
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type not in IMAGE_TYPES:
+        raise BadRequestError(
+            f"send the frame as the body with Content-Type image/jpeg or image/png, not {content_type or 'none'!r}",
+            field="content-type",
+        )
+    data = await _read_body(request, request.app.state.settings.max_frame_bytes)
+    if not data:
+        raise BadRequestError("the request has no body: send the JPEG or PNG bytes", field="body")
+    live = _live(request.app.state)
+    frame = await live.decode(data)
+    outcome = await live.submit(vehicle.id, vehicle.name, vehicle.site_id or 0, t, frame)
+    return FrameEstimate.model_validate(outcome)
+
+
+async def _authorise(websocket: WebSocket, vehicle_id: int | None) -> Principal | None:
+    """Accept ``websocket``; close it again unless its credentials fit (a user; or vehicle ``vehicle_id``)."""
+    principal = await websocket_principal(websocket)
+    await websocket.accept()
+    if principal is None:
+        await websocket.close(WS_CLOSE_UNAUTHORIZED, "not authenticated: send a token")
+        return None
+    allowed = (
+        principal.kind == "user"
+        if vehicle_id is None
+        else principal.kind == "vehicle" and principal.id == vehicle_id
+    )
+    if not allowed:
+        await websocket.close(WS_CLOSE_FORBIDDEN, "these credentials may not open this stream")
+        return None
+    return principal
+
+
+@router.websocket("/vehicles/{vehicle_id}/stream")
+async def vehicle_stream(websocket: WebSocket, vehicle_id: int) -> None:
+    """A vehicle's continuous frame stream (see the module docstring for the framing)."""
+    principal = await _authorise(websocket, vehicle_id)
+    if principal is None:
+        return
+    live = _live(websocket.app.state)
+    limit = websocket.app.state.settings.max_frame_bytes
+    send_lock = asyncio.Lock()
+    pending: set[asyncio.Task[None]] = set()
+
+    async def send(message: dict[str, Any]) -> None:
+        async with send_lock:
+            with contextlib.suppress(WebSocketDisconnect, RuntimeError):
+                await websocket.send_json(message)
+
+    async def answer(t: float, submitted: asyncio.Task[Any]) -> None:
+        try:
+            outcome = await submitted
+            await send(FrameEstimate.model_validate(outcome).model_dump(mode="json"))
+        except DriftmapError as exc:
+            await send({"status": "error", "t": t, "code": status_of(exc), **error_body(exc)})
+
+    try:
+        while True:
+            message = await websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                break
+            data = message.get("bytes")
+            t = float("nan")
+            try:
+                if data is None or len(data) < 9:
+                    raise BadRequestError(
+                        "send binary messages: t as 8-byte big-endian float64, then the image",
+                        field="message",
+                    )
+                if len(data) - 8 > limit:
+                    raise PayloadTooLargeError(f"frame is over the {limit} byte limit", field="message")
+                (t,) = struct.unpack(">d", data[:8])
+                frame = await live.decode(data[8:])
+            except DriftmapError as exc:
+                await send({"status": "error", "t": t, "code": status_of(exc), **error_body(exc)})
+                continue
+            submitted = asyncio.create_task(
+                live.submit(principal.id, principal.name, principal.site_id or 0, t, frame)
+            )
+            task = asyncio.create_task(answer(t, submitted))
+            pending.add(task)
+            task.add_done_callback(pending.discard)
+    finally:
+        if pending:
+            await asyncio.gather(*pending, return_exceptions=True)
+
+
+def _snapshot(websocket: WebSocket) -> tuple[dict[str, Any], int]:
+    storage = websocket.app.state.storage
+    stale_after_s = websocket.app.state.settings.stale_after_s
+    with storage.db.session() as session:
+        seq = position_service.last_seq(session)
+        vehicles = position_service.latest(session, stale_after_s)
+    rows = [
+        {
+            "vehicle_id": v.vehicle_id,
+            "vehicle": v.vehicle,
+            "site_id": v.site_id,
+            "stale": v.stale,
+            "position": position_message(v.position) if v.position is not None else None,
+        }
+        for v in vehicles
+    ]
+    return {"type": "snapshot", "seq": seq, "stale_after_s": stale_after_s, "vehicles": rows}, seq
+
+
+def _since(websocket: WebSocket, seq: int, upto: int | None = None) -> list[dict[str, Any]]:
+    with websocket.app.state.storage.db.session() as session:
+        views = position_service.since(session, seq)
+    return [position_message(v) for v in views if upto is None or v.seq <= upto]
+
+
+@router.websocket("/live")
+async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
+    """Positions of every vehicle as they arrive: a snapshot, then updates (see the module docstring)."""
+    if await _authorise(websocket, None) is None:
+        return
+    live = _live(websocket.app.state)
+    stale_after_s = float(websocket.app.state.settings.stale_after_s)
+    subscription = live.hub.subscribe()
+    receiver = asyncio.create_task(_until_disconnect(websocket))
+    try:
+        snapshot, last_sent = await asyncio.to_thread(_snapshot, websocket)
+        await websocket.send_json(snapshot)
+        heard: dict[int, datetime] = {}
+        for row in snapshot["vehicles"]:
+            if row["position"] is not None:
+                heard[row["vehicle_id"]] = datetime.fromisoformat(row["position"]["received_at"])
+        stale = {row["vehicle_id"] for row in snapshot["vehicles"] if row["stale"]}
+        if since is not None:
+            for message in await asyncio.to_thread(_since, websocket, since, last_sent):
+                await websocket.send_json(message)
+        backlog: list[dict[str, Any]] = []
+        while not receiver.done():
+            if subscription.overflowed:
+                subscription.drain()
+                backlog = await asyncio.to_thread(_since, websocket, last_sent)
+            if not backlog:
+                with contextlib.suppress(TimeoutError):
+                    backlog.append(await asyncio.wait_for(subscription.queue.get(), 1.0))
+            for message in backlog:
+                if message["type"] != "position" or message["seq"] <= last_sent:
+                    continue
+                await websocket.send_json(message)
+                last_sent = message["seq"]
+                heard[message["vehicle_id"]] = datetime.fromisoformat(message["received_at"])
+                stale.discard(message["vehicle_id"])
+            backlog = []
+            now = utc_now()
+            for vehicle_id, at in heard.items():
+                if vehicle_id not in stale and (now - as_utc(at)).total_seconds() > stale_after_s:
+                    stale.add(vehicle_id)
+                    await websocket.send_json(
+                        {"type": "stale", "vehicle_id": vehicle_id, "received_at": at.isoformat()}
+                    )
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        live.hub.unsubscribe(subscription)
+        receiver.cancel()
+
+
+async def _until_disconnect(websocket: WebSocket) -> None:
+    """Read (and ignore) what a watcher sends until it disconnects."""
+    with contextlib.suppress(WebSocketDisconnect, RuntimeError):
+        while (await websocket.receive())["type"] != "websocket.disconnect":
+            pass

@@ -1,0 +1,57 @@
+"""Position history and the latest position of every vehicle (any logged-in user)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Depends, Query
+
+from driftmap.api.deps import VIEWER, SessionDep, SettingsDep
+from driftmap.api.schemas_access import LiveStateRead, PositionRead, VehicleLatestRead
+from driftmap.errors import BadInputError, NotFoundError
+from driftmap.services import positions as position_service
+from driftmap.services import vehicles as vehicle_service
+from driftmap.store.access_models import VehicleLiveState
+
+router = APIRouter(tags=["positions"], dependencies=[Depends(VIEWER)])
+
+
+@router.get("/vehicles/{vehicle_id}/positions")
+def vehicle_positions(
+    vehicle_id: int,
+    session: SessionDep,
+    start: float | None = Query(None, description="Earliest frame time t, seconds (vehicle clock)."),
+    end: float | None = Query(None, description="Latest frame time t, seconds."),
+    limit: int = Query(10000, ge=1, le=100000),
+) -> list[PositionRead]:
+    """A vehicle's position history between ``start`` and ``end``, in time order."""
+    vehicle_service.get_vehicle(session, vehicle_id)
+    if start is not None and end is not None and end < start:
+        raise BadInputError(f"end ({end}) is before start ({start})", field="end")
+    rows = position_service.history(session, vehicle_id, start, end, limit)
+    return [PositionRead.model_validate(r) for r in rows]
+
+
+@router.get("/vehicles/{vehicle_id}/live-state")
+def vehicle_live_state(vehicle_id: int, session: SessionDep) -> LiveStateRead:
+    """A vehicle's frame counts: processed, skipped under overload, refused as out of order."""
+    vehicle_service.get_vehicle(session, vehicle_id)
+    state = session.get(VehicleLiveState, vehicle_id)
+    if state is None:
+        raise NotFoundError(f"vehicle {vehicle_id} has not posted a frame yet")
+    return LiveStateRead.model_validate(state)
+
+
+@router.get("/positions/latest")
+def latest_positions(
+    session: SessionDep, settings: SettingsDep, site_id: int | None = None
+) -> list[VehicleLatestRead]:
+    """Every vehicle's last known position with its ``stale`` flag."""
+    rows = position_service.latest(session, settings.stale_after_s, site_id)
+    return [VehicleLatestRead.model_validate(r) for r in rows]
+
+
+@router.get("/positions")
+def positions_since(
+    session: SessionDep, since: int = Query(0, ge=0, description="Positions with a higher seq than this.")
+) -> list[PositionRead]:
+    """Every vehicle's positions after sequence number ``since`` (polling clients resume with it)."""
+    return [PositionRead.model_validate(r) for r in position_service.since(session, since)]

@@ -1,0 +1,236 @@
+"""Live localisation of vehicles: one frame in, one estimate out, the HMM state kept in the database.
+
+:func:`localise_live_frame` is the synchronous step the server runs in a worker thread, one frame of one
+vehicle at a time (the caller serialises a vehicle's frames). It localises on the latest map version of the
+vehicle's site, stores the estimate as a :class:`~driftmap.store.access_models.VehiclePosition` and the
+localiser's belief in the vehicle's :class:`~driftmap.store.access_models.VehicleLiveState`, whose version
+counter makes two processes that advance the same vehicle fail instead of double-processing a frame.
+A frame whose ``t`` is not after the last processed one is refused and counted, never processed.
+"""
+
+from __future__ import annotations
+
+import io
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+from sqlalchemy.orm.exc import StaleDataError
+
+from driftmap.core.localiser import Localiser, LocaliserMap, LocaliserState
+from driftmap.errors import BadInputError, ConflictError, NotFoundError
+from driftmap.services.localisation import load_version_localiser_map, make_localiser
+from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosition
+from driftmap.store.blobs import BlobStore
+from driftmap.store.db import Database
+from driftmap.store.models import MapVersion, Site, utc_now
+
+FrameStatus = Literal["processed", "skipped", "out_of_order"]
+
+
+class LiveMaps:
+    """Localiser maps by map version id, loaded once per process (the ``capacity`` most recent kept)."""
+
+    def __init__(self, capacity: int = 4) -> None:
+        self.capacity = capacity
+        self._maps: OrderedDict[int, LocaliserMap] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, session: Session, blobs: BlobStore, version: MapVersion) -> LocaliserMap:
+        """The :class:`LocaliserMap` of ``version``, from the cache or loaded now."""
+        with self._lock:
+            found = self._maps.get(version.id)
+            if found is None:
+                found = load_version_localiser_map(session, blobs, version)
+                self._maps[version.id] = found
+                while len(self._maps) > self.capacity:
+                    self._maps.popitem(last=False)
+            self._maps.move_to_end(version.id)
+            return found
+
+
+@dataclass
+class LiveSlot:
+    """A vehicle's localiser kept between frames in one process; valid while the stored revision matches."""
+
+    map_version_id: int
+    localiser: Localiser
+    revision: int
+
+
+@dataclass(frozen=True)
+class FrameOutcome:
+    """What became of one posted frame; counts are the vehicle's totals after it."""
+
+    vehicle_id: int
+    vehicle: str
+    site_id: int
+    t: float
+    status: FrameStatus
+    processed: int
+    skipped: int
+    out_of_order: int
+    seq: int | None = None
+    """The stored position's id (the live stream's sequence number) when processed."""
+    node: int | None = None
+    x: float | None = None
+    y: float | None = None
+    confidence: float | None = None
+    matched: bool | None = None
+    lost: bool | None = None
+    map_version: int | None = None
+    received_at: datetime | None = None
+    ms: float | None = None
+    """Localiser step time, milliseconds."""
+
+
+def as_utc(moment: datetime) -> datetime:
+    """``moment`` as aware UTC (SQLite returns naive datetimes that were stored as UTC)."""
+    return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
+
+
+def decode_state(data: bytes) -> LocaliserState:
+    """A stored localiser state."""
+    with np.load(io.BytesIO(data)) as arrays:
+        return LocaliserState.from_arrays({k: arrays[k] for k in arrays.files})
+
+
+def encode_state(state: LocaliserState) -> bytes:
+    """The ``.npz`` bytes of a localiser state."""
+    buffer = io.BytesIO()
+    np.savez(buffer, **state.to_arrays())  # type: ignore[arg-type]
+    return buffer.getvalue()
+
+
+def latest_map_version(session: Session, site_id: int) -> MapVersion:
+    """The newest map version of a site; ConflictError when the site has none yet."""
+    version = session.scalars(
+        select(MapVersion).where(MapVersion.site_id == site_id).order_by(MapVersion.version.desc()).limit(1)
+    ).first()
+    if version is None:
+        site = session.get(Site, site_id)
+        name = site.name if site is not None else str(site_id)
+        raise ConflictError(f"site {name!r} has no map yet: build one before vehicles can be localised")
+    return version
+
+
+def _live_state(session: Session, vehicle_id: int) -> VehicleLiveState:
+    state = session.get(VehicleLiveState, vehicle_id)
+    if state is None:
+        state = VehicleLiveState(vehicle_id=vehicle_id, processed=0, skipped=0, out_of_order=0)
+        session.add(state)
+    return state
+
+
+def _outcome(vehicle: Vehicle, state: VehicleLiveState, t_s: float, status: FrameStatus) -> FrameOutcome:
+    return FrameOutcome(
+        vehicle.id,
+        vehicle.name,
+        vehicle.site_id,
+        t_s,
+        status,
+        state.processed,
+        state.skipped,
+        state.out_of_order,
+    )
+
+
+def localise_live_frame(
+    db: Database,
+    blobs: BlobStore,
+    maps: LiveMaps,
+    vehicle_id: int,
+    t_s: float,
+    frame: NDArray[np.uint8],
+    skipped_before: int,
+    slot: LiveSlot | None,
+) -> tuple[FrameOutcome, LiveSlot | None]:
+    """Localise one frame of a vehicle and store the estimate and the new state (one transaction).
+
+    Args:
+        db: the database.
+        blobs: the blob store (map blobs).
+        maps: the process's map cache.
+        vehicle_id: the vehicle.
+        t_s: the frame's timestamp on the vehicle's clock, seconds.
+        frame: (H, W) uint8 grey frame.
+        skipped_before: frames of this vehicle dropped on purpose since the last stored one (added to its count).
+        slot: this process's localiser of the vehicle from the previous frame, or None.
+
+    Returns:
+        The outcome and the slot to pass with the vehicle's next frame.
+    """
+    if not np.isfinite(t_s):
+        raise BadInputError(f"t must be a finite number of seconds, got {t_s}", field="t")
+    try:
+        with db.session() as session:
+            vehicle = session.get(Vehicle, vehicle_id)
+            if vehicle is None:
+                raise NotFoundError(f"no vehicle with id {vehicle_id}")
+            version = latest_map_version(session, vehicle.site_id)
+            state = _live_state(session, vehicle_id)
+            state.skipped += skipped_before
+            stored_revision = state.revision
+            if state.last_t_s is not None and t_s <= state.last_t_s:
+                state.out_of_order += 1
+                session.flush()
+                if slot is not None and slot.revision == stored_revision:
+                    slot.revision = state.revision  # the belief did not change, the slot stays valid
+                return _outcome(vehicle, state, t_s, "out_of_order"), slot
+            if slot is None or slot.map_version_id != version.id or slot.revision != stored_revision:
+                localiser = make_localiser(maps.get(session, blobs, version))
+                if state.map_version_id == version.id and state.state_npz is not None:
+                    localiser.restore(decode_state(state.state_npz))
+                slot = LiveSlot(version.id, localiser, -1)
+            estimate = slot.localiser.step(frame, t_s)
+            received_at = utc_now()
+            state.map_version_id = version.id
+            state.last_t_s = t_s
+            state.state_npz = encode_state(slot.localiser.state())
+            state.processed += 1
+            position = VehiclePosition(
+                vehicle_id=vehicle_id,
+                map_version_id=version.id,
+                t_s=t_s,
+                node=estimate.node,
+                x_m=estimate.x_m,
+                y_m=estimate.y_m,
+                confidence=estimate.score,
+                matched=estimate.matched,
+                lost=estimate.lost,
+                received_at=received_at,
+            )
+            session.add(position)
+            session.flush()
+            slot.revision = state.revision
+            outcome = FrameOutcome(
+                vehicle.id,
+                vehicle.name,
+                vehicle.site_id,
+                t_s,
+                "processed",
+                state.processed,
+                state.skipped,
+                state.out_of_order,
+                seq=position.id,
+                node=estimate.node,
+                x=estimate.x_m,
+                y=estimate.y_m,
+                confidence=estimate.score,
+                matched=estimate.matched,
+                lost=estimate.lost,
+                map_version=version.version,
+                received_at=received_at,
+                ms=estimate.ms,
+            )
+    except StaleDataError as exc:
+        raise ConflictError(
+            f"vehicle {vehicle_id}'s state was advanced by another server process; frame t={t_s} not processed"
+        ) from exc
+    return outcome, slot

@@ -1,0 +1,141 @@
+"""Vehicle positions: history by time range, the latest of every vehicle, and updates since a sequence.
+
+A position's ``seq`` is its row id: it only grows, so a client that saw ``seq`` N resumes with every
+position whose ``seq`` is above N.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+
+from sqlalchemy import Row, Select, func, select
+from sqlalchemy.orm import Session
+
+from driftmap.services.live import as_utc
+from driftmap.store.access_models import Vehicle, VehiclePosition
+from driftmap.store.models import MapVersion, utc_now
+
+
+@dataclass(frozen=True)
+class PositionView:
+    """One position of one vehicle, as the API shows it."""
+
+    seq: int
+    vehicle_id: int
+    vehicle: str
+    site_id: int
+    t: float
+    node: int
+    x: float
+    y: float
+    yaw: float | None
+    confidence: float
+    matched: bool
+    lost: bool
+    map_version: int | None
+    received_at: datetime
+
+
+@dataclass(frozen=True)
+class VehicleLatest:
+    """A vehicle with its last known position (None before its first) and whether that is stale."""
+
+    vehicle_id: int
+    vehicle: str
+    site_id: int
+    stale: bool
+    position: PositionView | None
+
+
+def _query() -> Select[VehiclePosition, str, int, int]:
+    return (
+        select(VehiclePosition, Vehicle.name, Vehicle.site_id, MapVersion.version)
+        .join(Vehicle, VehiclePosition.vehicle_id == Vehicle.id)
+        .outerjoin(MapVersion, VehiclePosition.map_version_id == MapVersion.id)
+    )
+
+
+def _view(row: Row[VehiclePosition, str, int, int]) -> PositionView:
+    p, name, site_id, version = row.tuple()
+    return PositionView(
+        seq=p.id,
+        vehicle_id=p.vehicle_id,
+        vehicle=name,
+        site_id=site_id,
+        t=p.t_s,
+        node=p.node,
+        x=p.x_m,
+        y=p.y_m,
+        yaw=p.yaw_rad,
+        confidence=p.confidence,
+        matched=p.matched,
+        lost=p.lost,
+        map_version=version,
+        received_at=as_utc(p.received_at),
+    )
+
+
+def history(
+    session: Session,
+    vehicle_id: int,
+    start_s: float | None = None,
+    end_s: float | None = None,
+    limit: int = 10000,
+) -> list[PositionView]:
+    """A vehicle's positions with ``start_s <= t <= end_s`` (vehicle clock, seconds), in ``t`` order."""
+    query = _query().where(VehiclePosition.vehicle_id == vehicle_id)
+    if start_s is not None:
+        query = query.where(VehiclePosition.t_s >= start_s)
+    if end_s is not None:
+        query = query.where(VehiclePosition.t_s <= end_s)
+    rows = session.execute(query.order_by(VehiclePosition.t_s).limit(limit)).all()
+    return [_view(row) for row in rows]
+
+
+def since(session: Session, seq: int, limit: int = 10000) -> list[PositionView]:
+    """Positions of every vehicle with a sequence number above ``seq``, oldest first."""
+    rows = session.execute(
+        _query().where(VehiclePosition.id > seq).order_by(VehiclePosition.id).limit(limit)
+    ).all()
+    return [_view(row) for row in rows]
+
+
+def last_seq(session: Session) -> int:
+    """The highest sequence number stored (0 before any position)."""
+    return session.scalar(select(func.max(VehiclePosition.id))) or 0
+
+
+def is_stale(position: PositionView | None, stale_after_s: float, now: datetime | None = None) -> bool:
+    """Whether a vehicle whose last position is ``position`` counts as stale now."""
+    if position is None:
+        return True
+    return ((now or utc_now()) - position.received_at).total_seconds() > stale_after_s
+
+
+def latest(session: Session, stale_after_s: float, site_id: int | None = None) -> list[VehicleLatest]:
+    """Every vehicle (of one site when given) with its last known position and stale flag."""
+    newest = (
+        select(VehiclePosition.vehicle_id, func.max(VehiclePosition.id).label("id"))
+        .group_by(VehiclePosition.vehicle_id)
+        .subquery()
+    )
+    positions = {
+        view.vehicle_id: view
+        for view in (
+            _view(row) for row in session.execute(_query().join(newest, VehiclePosition.id == newest.c.id))
+        )
+    }
+    vehicles = select(Vehicle).order_by(Vehicle.id)
+    if site_id is not None:
+        vehicles = vehicles.where(Vehicle.site_id == site_id)
+    now = utc_now()
+    out = []
+    for vehicle in session.scalars(vehicles):
+        position = positions.get(vehicle.id)
+        out.append(
+            VehicleLatest(
+                vehicle.id, vehicle.name, vehicle.site_id, is_stale(position, stale_after_s, now), position
+            )
+        )
+    return out
