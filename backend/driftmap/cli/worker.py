@@ -1,0 +1,32 @@
+"""``driftmap worker``: run background jobs (map builds, imports, localisation, simulation)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from driftmap.config import get_settings
+from driftmap.jobs.worker import WorkerTimings, run_worker
+
+
+def worker(
+    workers: Annotated[int, typer.Option("--workers", "-w", min=1, help="Jobs run at once (threads).")] = 1,
+    heartbeat: Annotated[
+        float, typer.Option(help="Seconds between heartbeats of a running job.", min=0.1)
+    ] = WorkerTimings.heartbeat_s,
+    stale_after: Annotated[
+        float, typer.Option(help="Re-queue a running job with no heartbeat for this many seconds.", min=0.5)
+    ] = WorkerTimings.stale_after_s,
+    reap_every: Annotated[
+        float, typer.Option(help="Seconds between two looks for stale jobs.", min=0.1)
+    ] = WorkerTimings.reap_every_s,
+) -> None:
+    """Run a job worker until interrupted (Ctrl-C lets running jobs finish; SIGTERM re-queues them)."""
+    if stale_after <= 2 * heartbeat:
+        raise typer.BadParameter("must exceed two heartbeats", param_hint="--stale-after")
+    run_worker(
+        get_settings(),
+        workers=workers,
+        timings=WorkerTimings(heartbeat_s=heartbeat, stale_after_s=stale_after, reap_every_s=reap_every),
+    )
