@@ -1,0 +1,106 @@
+"""``driftmap serve`` (the API and, on the embedded default, one job worker beside it) and ``driftmap user``."""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import subprocess
+import sys
+from types import FrameType
+from typing import Annotated
+
+import typer
+
+from driftmap.cli.common import console, err_console, open_storage, user_errors
+from driftmap.config import get_settings
+from driftmap.services import users as user_service
+
+log = logging.getLogger(__name__)
+user_app = typer.Typer(help="Users of the server and their roles.", no_args_is_help=True)
+WORKER_STOP_TIMEOUT_S = 20.0
+
+
+@user_app.command("add")
+def user_add(
+    name: Annotated[str, typer.Argument(help="The user name to log in with.")],
+    role: Annotated[str, typer.Option(help="admin, surveyor (groundings, imports, builds) or viewer.")],
+    password_stdin: Annotated[
+        bool, typer.Option("--password-stdin", help="Read the password from the first line of stdin.")
+    ] = False,
+) -> None:
+    """Create a user (asks for the password unless --password-stdin)."""
+    if password_stdin:
+        password = sys.stdin.readline().rstrip("\r\n")
+    else:
+        password = typer.prompt("Password", hide_input=True, confirmation_prompt=True)
+    with user_errors():
+        storage = open_storage()
+        try:
+            with storage.db.session() as session:
+                user = user_service.create_user(session, name, password, role)
+                console.print(f"user {user.username!r} ({user.role}) created with id {user.id}")
+        finally:
+            storage.close()
+
+
+@user_app.command("list")
+def user_list() -> None:
+    """Every user with its role."""
+    storage = open_storage()
+    try:
+        with storage.db.session() as session:
+            for user in user_service.list_users(session):
+                console.print(f"{user.id}\t{user.username}\t{user.role}")
+    finally:
+        storage.close()
+
+
+def _start_worker() -> subprocess.Popen[bytes]:
+    process = subprocess.Popen([sys.executable, "-m", "driftmap", "worker"], env=dict(os.environ))
+    err_console.print(f"driftmap: worker process {process.pid} started")
+    return process
+
+
+def _stop_worker(process: subprocess.Popen[bytes]) -> None:
+    """SIGTERM (the worker re-queues its running jobs), then kill if it does not stop in time."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(WORKER_STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    err_console.print(f"driftmap: worker process {process.pid} stopped")
+
+
+def _exit_on_sigterm(signum: int, _frame: FrameType | None) -> None:
+    raise SystemExit(128 + signum)
+
+
+def serve(
+    host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port.")] = 8000,
+    worker: Annotated[
+        bool,
+        typer.Option("--worker/--no-worker", help="Start one job worker beside the API (embedded queue)."),
+    ] = True,
+) -> None:
+    """Run the web server; without DRIFTMAP_REDIS_URL also one job worker process beside it."""
+    import uvicorn
+
+    from driftmap.api.app import create_app
+
+    settings = get_settings()
+    with user_errors():
+        app = create_app(settings)  # opens and upgrades the database before the worker starts
+    process = _start_worker() if worker and settings.redis_url is None else None
+    # uvicorn re-raises SIGTERM after its graceful shutdown; turn it into SystemExit so the worker is stopped.
+    signal.signal(signal.SIGTERM, _exit_on_sigterm)
+    try:
+        uvicorn.run(app, host=host, port=port, log_level="info", ws_max_size=2 * settings.max_frame_bytes)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if process is not None:
+            _stop_worker(process)
