@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, Response, status
 
-from driftmap.api.deps import TOKEN_COOKIE, CurrentUserDep, SessionDep, SettingsDep
+from driftmap.api.deps import TOKEN_COOKIE, SessionDep, SettingsDep, ViewerDep
 from driftmap.api.schemas_access import LoginRequest, Me, TokenRead
 from driftmap.services import security
 from driftmap.services import users as user_service
@@ -33,6 +33,6 @@ def logout(response: Response) -> None:
 
 
 @router.get("/me")
-def me(user: CurrentUserDep) -> Me:
+def me(user: ViewerDep) -> Me:
     """The logged-in user."""
     return Me(kind=user.kind, id=user.id, name=user.name, role=user.role)
