@@ -16,6 +16,7 @@ import numpy as np
 from driftmap.core.obscurants import LEVELS, apply_level
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.render import Renderer
+from driftmap.sim.ride import apply_ride
 
 __all__ = ["Chunk", "encode_png", "exposure_curve", "init_worker", "render_chunk"]
 
@@ -38,6 +39,7 @@ class Chunk:
     seed: int  # site seed
     poses: FloatArray  # (n, 3) local x, y (metres, grid - world origin), yaw (radians)
     exposure: FloatArray  # (n,) exposure gain
+    ride: FloatArray  # (n, 4) camera pitch, roll and mount yaw (radians), vertical motion blur (pixels)
     variants: tuple[tuple[str, str, tuple[float, float] | None], ...]  # (suffix, level, water centre)
 
 
@@ -64,6 +66,8 @@ def render_chunk(chunk: Chunk) -> dict[str, list[bytes]]:
         img = r.render(
             float(x), float(y), float(yaw), float(chunk.exposure[k]), [chunk.seed, 71, chunk.drive, frame]
         )
+        pitch, roll, yaw_mount, blur = chunk.ride[k]
+        img = apply_ride(img, r.rig, float(pitch), float(roll), float(yaw_mount), float(blur))
         out[""].append(encode_png(img))
         for name, level, centre in chunk.variants:
             rng = np.random.default_rng([chunk.seed, 73, chunk.drive, frame, list(LEVELS).index(level)])

@@ -129,8 +129,9 @@ def plan_mapping(g: Graph, vp: VehicleParams, y_c_m: float, seed: int) -> list[D
         starts = [i for i, d in enumerate(walk) if g.main_junction(g.tail(d))]
         starts = starts or [i for i, d in enumerate(walk) if nodes[g.tail(d)].kind == "junction"] or [0]
         walk = walk[starts[0] :] + walk[: starts[0]]
-        grounded.add(g.tail(walk[0]))
         b = _Builder(g, vp, y_c_m, np.random.default_rng([seed, 31, k]))
+        if not _leave_base(g, vp, b, walk[0], grounded):
+            grounded.add(g.tail(walk[0]))
         i, n = 0, len(walk)
         while i < n:
             d = walk[i]
@@ -157,6 +158,30 @@ def plan_mapping(g: Graph, vp: VehicleParams, y_c_m: float, seed: int) -> list[D
         b.finish_forward(vp.mapping_speed_mps, Stop(_xy(end_node.xy), vp.stop_s, end_node.name, True))
         plans.append(DrivePlan(f"map-{k + 1:02d}", "mapping", tuple(b.runs), vp.stop_s, True, tuple(b.darts)))
     return plans
+
+
+def _leave_base(g: Graph, vp: VehicleParams, b: _Builder, first: Dart, grounded: set[int]) -> bool:
+    """Start the drive parked at the dump and drive to the tail of ``first``; False if there is no route.
+
+    Every mapping drive leaves from the same base, as a real survey vehicle leaves its parking bay, so the
+    access tunnels are driven again in the same direction by later drives: loop closures tie the drives
+    together there. Main junctions on the way are grounded only the first time a drive passes them.
+    """
+    dumps = _leaf_darts(g, "dump")
+    plan = g.plan_from_leaf(dumps[0], first) if dumps and g.tail(first) != g.tail(dumps[0]) else None
+    if plan is None:
+        return False
+    e_r, access = plan
+    b.reverse_out(dumps[0], e_r)
+    nodes = g.layout.nodes
+    for d in access[:-1]:
+        head = g.head(d)
+        stop = None
+        if g.main_junction(head) and head not in grounded:
+            stop = Stop(_xy(nodes[head].xy), vp.stop_s, nodes[head].name, True)
+            grounded.add(head)
+        b.forward(d, stop)
+    return True
 
 
 def _leaf_darts(g: Graph, kind: str) -> list[Dart]:

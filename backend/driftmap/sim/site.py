@@ -34,10 +34,12 @@ from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 from driftmap.sim import frames as frame_worker
+from driftmap.sim.geometry import FloatArray
 from driftmap.sim.layout import Layout, generate_layout
 from driftmap.sim.motion import DrivePlan, plan_localisation, plan_mapping
 from driftmap.sim.params import VEHICLE_DEFAULT, site_size
 from driftmap.sim.render import Renderer
+from driftmap.sim.ride import RIDE_DEFAULT, RideParams, calibrated_rig, floor_px_per_m, ride_motion
 from driftmap.sim.rig import CameraRig
 from driftmap.sim.routes import Graph
 from driftmap.sim.survey import write_survey_dxf
@@ -163,6 +165,7 @@ def simulate_site(
     progress: Callable[[str, float], None] | None = None,
     workers: int | None = None,
     max_frames_per_drive: int | None = None,
+    ride: RideParams = RIDE_DEFAULT,
 ) -> SimulationSummary:
     """Generate the synthetic site ``size`` for ``seed`` and write it to ``out_dir``.
 
@@ -174,6 +177,7 @@ def simulate_site(
         progress: called with (what is happening, fraction done in [0, 1]).
         workers: rendering processes (default: up to 2, the CPU count).
         max_frames_per_drive: keep only the first frames of every drive (quick previews and tests).
+        ride: camera bounce, motion blur and per-drive calibration error (:data:`RIDE_NONE`: a perfect rig).
 
     Raises:
         BadInputError: a bad seed or size.
@@ -201,9 +205,12 @@ def simulate_site(
     report("building world", 0.02)
     world = build_world(layout, seed)
     renderer = Renderer(world, rig)
-    camera = rig.camera_model
+    cameras = [
+        calibrated_rig(rig, np.random.default_rng([seed, 79, i]), ride).camera_model
+        for i in range(len(plans))
+    ]
     total = sum(len(p.t) for p in poses)
-    tasks = list(_tasks(plans, poses, world.origin_xy, seed, obscurants, rig.size_px))
+    tasks = list(_tasks(plans, poses, world.origin_xy, seed, obscurants, rig, ride))
     summaries: list[DriveSummary] = []
     pending: dict[int, dict[str, list[bytes]]] = {}
     done_frames = 0
@@ -216,9 +223,14 @@ def simulate_site(
         report(f"rendering {plans[task.drive].name}", 0.05 + 0.93 * done_frames / max(total, 1))
         if task.last:
             summaries += _write_drive(
-                out_dir, plans[task.drive], poses[task.drive], camera, vp.fps, pending.pop(task.drive)
+                out_dir,
+                plans[task.drive],
+                poses[task.drive],
+                cameras[task.drive],
+                vp.fps,
+                pending.pop(task.drive),
             )
-    _write_site_json(out_dir, seed, size, layout, camera, vp.fps, summaries)
+    _write_site_json(out_dir, seed, size, layout, rig.camera_model, vp.fps, summaries)
     report("done", 1.0)
     return SimulationSummary(
         out_dir=out_dir,
@@ -238,11 +250,21 @@ def _tasks(
     origin: tuple[float, float],
     seed: int,
     obscurants: bool,
-    size_px: tuple[int, int],
+    rig: CameraRig,
+    ride_params: RideParams,
 ) -> Iterator[frame_worker.Chunk]:
+    size_px = rig.size_px
+    blur_px_per_mps = ride_params.exposure_s * floor_px_per_m(rig)
     for i, (plan, p) in enumerate(zip(plans, poses, strict=True)):
         local = p.xy - np.asarray(origin)
         exposure = frame_worker.exposure_curve(p.t, np.random.default_rng([seed, 61, i]))
+        speed = _speeds(p)
+        ride = np.column_stack(
+            [
+                ride_motion(p.t, speed, np.random.default_rng([seed, 83, i]), ride_params),
+                speed * blur_px_per_mps,
+            ]
+        )
         variants: list[tuple[str, str, tuple[float, float] | None]] = []
         if obscurants and plan.kind == "localisation":
             for name in OBSCURANT_NAMES:
@@ -262,8 +284,17 @@ def _tasks(
                 seed=seed,
                 poses=np.column_stack([local[start:stop], p.yaw[start:stop]]),
                 exposure=exposure[start:stop],
+                ride=ride[start:stop],
                 variants=tuple(variants),
             )
+
+
+def _speeds(p: FramePoses) -> FloatArray:
+    """(n,) speed of the camera's floor point at each frame, metres per second (0 for one frame)."""
+    if len(p.t) < 2:
+        return np.zeros(len(p.t))
+    step = np.hypot(*np.diff(p.xy, axis=0).T) / np.maximum(np.diff(p.t), 1e-6)
+    return np.asarray(np.concatenate([step[:1], (step[:-1] + step[1:]) / 2, step[-1:]]))
 
 
 def _run(
