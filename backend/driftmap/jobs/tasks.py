@@ -29,6 +29,7 @@ from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.services import uploads
 from driftmap.services.jobs import JobCancelled
+from driftmap.services.uploads import relabelled
 from driftmap.sim import simulate_site
 from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, MapVersion, Site
@@ -74,8 +75,7 @@ def map_build(ctx: JobContext) -> None:
             "version": version.version,
             "stats": map_service.json_safe(version.stats),
         }
-        ctx.report("saving", 1.0)
-        ctx.succeed(session, result)
+        ctx.succeed(session, result)  # no progress report in here: this transaction holds the write lock
 
 
 def _other_jobs_use(ctx: JobContext, session: Session, sha: str) -> bool:
@@ -121,7 +121,11 @@ def _import_upload(ctx: JobContext) -> None:
             calibration_path.write_bytes(storage.blobs.get(str(args["calibration_sha256"])))
             calibration = str(calibration_path)
         ctx.report("import", 0.0)
-        with storage.blobs.batch() as batch, storage.db.session() as session:
+        with (
+            relabelled(work / "unpacked", filename),
+            storage.blobs.batch() as batch,
+            storage.db.session() as session,
+        ):
             drive = drive_service.import_drive(
                 session,
                 batch,
@@ -187,15 +191,6 @@ def drive_localise(ctx: JobContext) -> None:
         ctx.succeed(session, result)
 
 
-def _share(ctx: JobContext, k: int, n: int) -> Callable[[float], None]:
-    """A 0..1 progress hook for item ``k`` of ``n`` reporting its share of the ``import`` stage."""
-
-    def report(fraction: float) -> None:
-        ctx.report("import", (k + fraction) / n)
-
-    return report
-
-
 def site_simulate(ctx: JobContext) -> None:
     """Simulate a site and import it (survey and every drive) as a new site, all in one transaction.
 
@@ -220,13 +215,12 @@ def site_simulate(ctx: JobContext) -> None:
             max_frames_per_drive=args.get("max_frames_per_drive"),
         )
         folders = drive_service.drive_folders_in(out / "drives")
+        ctx.report("import", 0.0)  # the last report: the import below holds the write lock from its start
         with storage.blobs.batch() as batch, storage.db.session() as session:
             site = site_service.create_site(session, name)
             site_service.add_survey_map(session, batch, site, (out / "survey.dxf").read_bytes(), "survey.dxf")
-            for k, folder in enumerate(folders):
-                drive_service.import_drive(
-                    session, batch, site, folder, progress=_share(ctx, k, len(folders))
-                )
+            for folder in folders:
+                drive_service.import_drive(session, batch, site, folder)
             job = session.get(Job, ctx.job.id)
             assert job is not None
             job.site_id = site.id

@@ -132,14 +132,11 @@ def _store_drive(
         frame_count=len(rows),
         source=source,
     )
-    session.add(drive)
-    session.flush()
     frame_rows: list[dict[str, object]] = []
     step = max(1, len(rows) // 100)
     for done, (row, data, ext) in enumerate(images, start=1):
         frame_rows.append(
             {
-                "drive_id": drive.id,
                 "index": row.frame,
                 "t_s": row.t_s,
                 "blob_sha256": batch.put(data),
@@ -151,8 +148,14 @@ def _store_drive(
         )
         if progress is not None and done % step == 0:
             progress(done / len(rows))
+    # Rows are written only now, so the database is locked for writing only briefly (SQLite) and
+    # progress callbacks above may write to the database from other connections.
+    if progress is not None:
+        progress(1.0)
+    session.add(drive)
+    session.flush()
     if frame_rows:
-        session.execute(insert(Frame), frame_rows)
+        session.execute(insert(Frame), [{**r, "drive_id": drive.id} for r in frame_rows])
     if groundings:
         ids = dict(session.execute(select(Frame.index, Frame.id).where(Frame.drive_id == drive.id)).all())
         session.execute(
@@ -169,8 +172,6 @@ def _store_drive(
             ],
         )
     session.flush()
-    if progress is not None:
-        progress(1.0)
     return drive
 
 

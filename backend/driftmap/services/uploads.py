@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import shutil
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
 from typing import BinaryIO
 
@@ -53,9 +55,18 @@ def _relabel(exc: BadInputError, root: Path, label: str) -> BadInputError:
     file = exc.file
     if file is not None and Path(file).is_relative_to(root):
         file = f"{label}: {Path(file).relative_to(root).as_posix()}"
-    elif file is None:
+    elif file is None or Path(file).is_absolute():
         file = label
     return type(exc)(exc.reason, file=file, line=exc.line, field=exc.field)
+
+
+@contextmanager
+def relabelled(root: Path, label: str) -> Iterator[None]:
+    """Re-raise a :class:`BadInputError` about a file under ``root`` as one about ``label: inner/path``."""
+    try:
+        yield
+    except BadInputError as exc:
+        raise _relabel(exc, root, label) from None
 
 
 def unpack_drive_zip(zip_path: Path, out_dir: Path, *, label: str, max_bytes: int) -> DriveFolder:
@@ -99,10 +110,8 @@ def unpack_drive_zip(zip_path: Path, out_dir: Path, *, label: str, max_bytes: in
             f"{what} at the top of the archive; zip one drive folder (drive.json, frames.csv, frames/)",
             file=label,
         )
-    try:
+    with relabelled(out_dir, label):
         return read_drive_folder(top[0])
-    except BadInputError as exc:
-        raise _relabel(exc, out_dir, label) from None
 
 
 def check_calibration(data: bytes, label: str) -> dict[str, object]:
