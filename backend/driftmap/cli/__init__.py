@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from driftmap.cli import data, localise, maps, server, worker
+from driftmap.cli import data, localise, maps, server, vpr, worker
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -18,6 +18,7 @@ app.add_typer(data.drive_app, name="drive")
 app.add_typer(data.db_app, name="db")
 app.add_typer(maps.map_app, name="map")
 app.add_typer(maps.report_app, name="report")
+app.add_typer(vpr.vpr_app, name="vpr")
 app.add_typer(server.user_app, name="user")
 app.command()(server.serve)
 app.command()(worker.worker)
