@@ -1,0 +1,166 @@
+"""Place recognition on outside data: metrics, single-image matching and the route HMM on hand-made cases."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from driftmap.core import metrics, vpr, vpr_route
+from driftmap.errors import BadInputError
+
+U8 = NDArray[np.uint8]
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+def textures(n: int, seed: int = 0, shape: tuple[int, int] = (32, 64)) -> U8:
+    """(n, H, W) uint8 grey textures, distinct per place, smooth enough to survive noise."""
+    rng = np.random.default_rng(seed)
+    raw = rng.normal(0.0, 1.0, (n, *shape)).astype(np.float32)
+    out = np.stack([cv2.GaussianBlur(r, (0, 0), 1.2) for r in raw])
+    out = 128 + 40 * out / out.std(axis=(1, 2), keepdims=True)
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def noisy(images: U8, sigma: float, seed: int) -> U8:
+    rng = np.random.default_rng(seed)
+    return np.clip(images + rng.normal(0.0, sigma, images.shape), 0, 255).astype(np.uint8)
+
+
+class TestMetrics:
+    def test_hand_made_sweep(self) -> None:
+        # scores 0.9 (right), 0.8 (wrong), 0.7 (right), 0.6 (right); 5 recallable queries (one never matched)
+        score = np.array([0.9, 0.8, 0.7, 0.6, -np.inf])
+        correct = np.array([True, False, True, True, False])
+        curve = metrics.pr_curve(score, correct, recallable=5)
+        np.testing.assert_allclose(curve.thresholds, [0.9, 0.8, 0.7, 0.6])
+        np.testing.assert_allclose(curve.precision, [1.0, 0.5, 2 / 3, 3 / 4])
+        np.testing.assert_allclose(curve.recall, [0.2, 0.2, 0.4, 0.6])
+        assert curve.auc == pytest.approx(0.2 * 1.0 + 0.0 * 0.5 + 0.2 * 2 / 3 + 0.2 * 3 / 4)
+        assert curve.recall_at_full_precision == pytest.approx(0.2)
+
+    def test_ties_enter_together(self) -> None:
+        # a wrong and a right match with the same score: no threshold separates them
+        curve = metrics.pr_curve(np.array([0.5, 0.5]), np.array([True, False]), recallable=2)
+        np.testing.assert_allclose(curve.precision, [0.5])
+        assert curve.recall_at_full_precision == 0.0
+
+    def test_evaluate_matches(self) -> None:
+        gt = np.zeros((3, 4), dtype=bool)
+        gt[0, 0] = gt[1, 1] = gt[1, 2] = True  # query 2 has no acceptable match
+        result, _ = metrics.evaluate_matches(np.array([0, 2, 3]), np.array([0.3, 0.2, 0.9]), gt)
+        assert result.recall_at_1 == 1.0
+        assert (result.queries, result.recallable) == (3, 2)
+        assert result.recall_at_full_precision == 0.0  # the most confident match (query 2) is wrong
+
+    def test_bad_input(self) -> None:
+        with pytest.raises(BadInputError):
+            metrics.match_correct(np.array([5]), np.ones((1, 2), dtype=bool))
+        with pytest.raises(BadInputError):
+            metrics.pr_curve(np.array([1.0]), np.array([True]), recallable=0)
+
+
+class TestSingleImage:
+    def test_thumbnail_keeps_aspect(self) -> None:
+        assert vpr.thumbnail_params((120, 160)).size_px == (64, 48)
+        assert vpr.thumbnail_params((32, 64)).size_px == (64, 32)
+        assert vpr.thumbnail_params((10, 20)).size_px == (20, 10)  # never enlarged
+
+    def test_match_single_scores(self) -> None:
+        d = np.array([[0.5, 1.0, 1.0, np.inf], [1.0, 1.0, 1.0, 1.0]], dtype=np.float32)
+        m = vpr.match_single(d)
+        assert m.db_index.tolist() == [0, 0]
+        np.testing.assert_allclose(m.score, [0.5, 0.0])  # 1 - d_best / median of the finite scores
+
+    def test_noisy_views_find_their_place(self) -> None:
+        db = textures(12)
+        query = noisy(db, 10.0, seed=1)
+        for method in vpr.METHODS:
+            m = vpr_route.recognise_places(query, db, method)
+            assert m.db_index.tolist() == list(range(12))
+
+    def test_sesame_leaves_a_dark_reference_out(self) -> None:
+        db = textures(6)
+        db[3] = 2  # a black frame: patch-normalises to zeros and would be near every query
+        prepared = vpr.prepare_images(db, "sesame")
+        assert prepared.usable.tolist() == [True, True, True, False, True, True]
+        d = vpr.distance_matrix(vpr.prepare_images(noisy(db, 5.0, 2), "sesame"), prepared)
+        assert np.isinf(d[:, 3]).all() and np.isfinite(np.delete(d, 3, axis=1)).all()
+        plain = vpr.distance_matrix(vpr.prepare_images(db, "sad"), vpr.prepare_images(db, "sad"))
+        assert np.isfinite(plain).all()
+
+    def test_bad_input(self) -> None:
+        with pytest.raises(BadInputError, match="uint8"):
+            vpr.prepare_images(np.zeros((2, 8, 8), dtype=np.float32), "sad")
+        with pytest.raises(BadInputError, match="method"):
+            vpr.prepare_images(np.zeros((2, 8, 8), dtype=np.uint8), "orb")  # type: ignore[arg-type]
+        wide, square = (
+            vpr.prepare_images(textures(2), "sad"),
+            vpr.prepare_images(textures(2, shape=(32, 32)), "sad"),
+        )
+        with pytest.raises(BadInputError, match="aspect"):
+            vpr.distance_matrix(wide, square)
+
+
+class TestRouteHmm:
+    def test_transitions(self) -> None:
+        pi = vpr_route.route_transitions(6).toarray()  # forward, reach 2
+        assert pi[2:5, 2].tolist() == pytest.approx([1 / 3] * 3) and pi[:2, 2].sum() == 0
+        np.testing.assert_allclose(pi.sum(axis=0), [1, 1, 1, 1, 2 / 3, 1 / 3])  # moves past the end leave
+        both = vpr_route.route_transitions(
+            6, vpr_route.RouteParams(direction="both", reach_frames=1)
+        ).toarray()
+        np.testing.assert_allclose(both, both.T)
+
+    def test_reference_stats_exclude_neighbours(self) -> None:
+        d = np.array([[0.0, 0.1, 2.0, 2.0, 4.0, 6.0], [3.0, 3.0, 1.0, 0.0, 0.2, 2.0]], dtype=np.float32)
+        m, s = vpr_route.reference_stats(d, np.array([0, 3]), exclude_frames=1)
+        # sample 0 counts for columns 2..5, sample 3 for columns 0, 1 and 5 only
+        np.testing.assert_allclose(m, [3.0, 3.0, 2.0, 2.0, 4.0, 4.0])
+        assert s[5] == pytest.approx(1.4826 * 2.0) and np.all(s > 0)
+
+    def test_chain_follows_the_query_through_a_misleading_frame(self) -> None:
+        n, start = 30, 4
+        rng = np.random.default_rng(0)
+        filt = vpr_route.RouteFilter(np.ones(n), np.full(n, 0.1))
+        truth = [min(n - 1, start + k) for k in range(20)]
+        best = []
+        for k, j in enumerate(truth):
+            d = 1.0 + 0.05 * rng.standard_normal(n)
+            d[j] = 0.6  # z = 4 at the true place
+            if k == 10:
+                d[j], d[25] = 1.0, 0.4  # one frame: the true place looks ordinary, a far one looks perfect
+            best.append(filt.step(d)[0])
+        # the misleading frame keeps the belief where the route predicts it (within a frame), not at 25
+        assert abs(best[10] - truth[10]) <= 1
+        assert best[3:10] + best[11:] == truth[3:10] + truth[11:]
+
+    def test_route_where_single_images_fail(self) -> None:
+        db = textures(40, seed=3)
+        # each query is 80 % an unrelated scene (a changed season, a passing train) over its true place
+        query = noisy((0.2 * db + 0.8 * textures(40, seed=9)).astype(np.uint8), 10.0, seed=4)
+        single = vpr_route.recognise_places(query, db, "sad")
+        assert (single.db_index != np.arange(40)).sum() >= 8
+        m = vpr_route.recognise_places(query, db, "sad", temporal=True)
+        assert np.abs(m.db_index[5:] - np.arange(5, 40)).max() <= 1
+        assert m.score[5:].min() > 0.5
+
+
+@pytest.mark.skipif(not (DATA / "corridor" / "gt.csv").is_file(), reason="shared outside data absent")
+def test_corridor_outside_data() -> None:
+    """The real corridor (111 vs 111): single-image SAD near the outside reference 0.414, the route far above."""
+    from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
+
+    folder = DATA / "corridor"
+    db_files, q_files = list_images(folder / "db"), list_images(folder / "query")
+    gt = gt_matrix(read_gt_pairs(folder / "gt.csv", q_files, db_files), q_files, db_files)
+    db, query = read_gray_stack(db_files), read_gray_stack(q_files)
+    single = vpr_route.recognise_places(query, db, "sad", params=vpr.ROUTE)
+    route = vpr_route.recognise_places(query, db, "sad", temporal=True, params=vpr.ROUTE)
+    r_single, _ = metrics.evaluate_matches(single.db_index, single.score, gt)
+    r_route, _ = metrics.evaluate_matches(route.db_index, route.score, gt)
+    assert 0.35 <= r_single.recall_at_1 <= 0.5
+    assert r_route.recall_at_1 >= 0.8 and r_route.auc > r_single.auc + 0.3
