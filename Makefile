@@ -43,7 +43,7 @@ pytest: $(VENV)/.installed-dev
 
 test: lint typecheck imports pytest
 
-BENCHES := bench_import bench_simulate bench_sad kitti_odometry bench_loops bench_posegraph bench_topomap bench_localise
+BENCHES := bench_import bench_simulate bench_sad kitti_odometry bench_loops bench_posegraph bench_topomap bench_localise vpr_outside
 
 bench: $(VENV)/.installed-dev
 	@for b in $(BENCHES); do echo "== bench/$$b.py"; $(BIN)/python bench/$$b.py || exit 1; done

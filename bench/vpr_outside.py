@@ -1,0 +1,157 @@
+"""Place recognition on the outside datasets: single-image SAD / SESAME and the route HMM, with PR curves.
+
+Datasets (``../shared/data``, see its README): ``corridor`` (111 vs 111 indoor images, gt +-2 frames) and
+``nordland-1000`` (summer references vs winter queries, first 1,000 of the 64x32 sample, gt +-1 frame).
+For each, in one process: the baseline (plain patch-normalised SAD, single image), SESAME single image,
+and ``--temporal`` (the route HMM of ``driftmap.core.vpr_route``) with SAD and with SESAME. Prints
+recall@1, AUC, recall at 100 % precision and wall seconds (images decoded beforehand; thumbnails, masks,
+distances and the filter counted), the ratio of each to the baseline, and the reference figures measured
+outside this project. Writes ``docs/vpr_corridor.png`` and ``docs/vpr_nordland.png``.
+
+Presets (``driftmap.core.vpr.PRESETS``): ``mine`` searches shifts of +-4/+-2 px like the mine localiser;
+``route`` does not search shifts (a camera on a fixed path). Nordland's single-image runs use ``route``
+only, ``--mine-nordland`` adds the ``mine`` ones (about a minute each on a busy 2-core machine).
+
+Skips cleanly (exit 0) when the data folder is absent. Usage:
+``.venv/bin/python bench/vpr_outside.py [--data ../shared/data] [--workers 1] [--mine-nordland]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core import metrics
+from driftmap.core.vpr import PRESETS, VprMethod
+from driftmap.core.vpr_route import recognise_places
+from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Figures measured outside this project on the same frames (issue 4).
+REFERENCES = {
+    "corridor": ["SAD single image (outside): recall@1 0.414"],
+    "nordland-1000": [
+        "SAD single image (outside): recall@1 0.176",
+        "SeqSLAM (outside, +-1 frame): AUC 0.727, recall at 100% precision 0.57, 44 s on 2 cores",
+    ],
+}
+PNG = {"corridor": "vpr_corridor.png", "nordland-1000": "vpr_nordland.png"}
+
+
+@dataclass(frozen=True)
+class Run:
+    """One configuration of one dataset."""
+
+    label: str
+    method: VprMethod
+    temporal: bool
+    preset: str
+
+
+@dataclass(frozen=True)
+class Outcome:
+    run: Run
+    result: metrics.PlaceMetrics
+    curve: metrics.PrCurve
+    seconds: float
+
+
+def runs(dataset: str, mine_nordland: bool) -> list[Run]:
+    """The baseline first, then SESAME and the route HMM."""
+    single_presets = ["route"] if dataset == "nordland-1000" and not mine_nordland else ["mine", "route"]
+    out = []
+    for preset in single_presets:
+        out.append(Run(f"SAD single ({preset})", "sad", False, preset))
+        out.append(Run(f"SESAME single ({preset})", "sesame", False, preset))
+    out.append(Run("route HMM + SAD (route)", "sad", True, "route"))
+    out.append(Run("route HMM + SESAME (route)", "sesame", True, "route"))
+    return out
+
+
+def load(folder: Path) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.bool_]]:
+    """Query images, reference images and the (Q, D) ground-truth table of a dataset folder."""
+    db_files, q_files = list_images(folder / "db"), list_images(folder / "query")
+    gt = gt_matrix(read_gt_pairs(folder / "gt.csv", q_files, db_files), q_files, db_files)
+    return read_gray_stack(q_files), read_gray_stack(db_files), gt
+
+
+def evaluate(dataset: str, folder: Path, workers: int, mine_nordland: bool) -> list[Outcome]:
+    query, db, gt = load(folder)
+    print(
+        f"\n== {dataset}: {query.shape[0]} queries x {db.shape[0]} references, {db.shape[2]}x{db.shape[1]} px"
+    )
+    outcomes = []
+    for run in runs(dataset, mine_nordland):
+        t0 = time.perf_counter()
+        m = recognise_places(
+            query, db, run.method, temporal=run.temporal, params=PRESETS[run.preset], workers=workers
+        )
+        seconds = time.perf_counter() - t0
+        result, curve = metrics.evaluate_matches(m.db_index, m.score, gt)
+        outcomes.append(Outcome(run, result, curve, seconds))
+    base = outcomes[0]
+    print(f"{'run':<28} {'recall@1':>9} {'AUC':>7} {'R@100P':>7} {'seconds':>8}   vs {base.run.label}")
+    for o in outcomes:
+        r = o.result
+        ratio = (r.auc / base.result.auc) if base.result.auc > 0 else float("inf")
+        print(
+            f"{o.run.label:<28} {r.recall_at_1:9.3f} {r.auc:7.3f} {r.recall_at_full_precision:7.3f} "
+            f"{o.seconds:8.1f}   AUC x{ratio:.1f}, recall@1 {r.recall_at_1 - base.result.recall_at_1:+.3f}"
+        )
+    for line in REFERENCES[dataset]:
+        print(f"  reference: {line}")
+    return outcomes
+
+
+def plot(dataset: str, outcomes: list[Outcome], path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    for o in outcomes:
+        style = "-" if o.run.temporal else "--"
+        label = f"{o.run.label}: AUC {o.result.auc:.2f}"
+        ax.step(
+            np.r_[0.0, o.curve.recall], np.r_[o.curve.precision[:1], o.curve.precision], style, label=label
+        )
+    if dataset == "nordland-1000":
+        ax.plot([0.57], [1.0], "k*", markersize=10, label="SeqSLAM (outside): R@100P 0.57, AUC 0.727")
+    ax.set_xlabel("recall")
+    ax.set_ylabel("precision")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.02)
+    ax.set_title(f"{dataset}: place recognition, precision-recall")
+    ax.legend(fontsize=7, loc="lower left")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    print(f"  figure: {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
+    parser.add_argument("--workers", type=int, default=1, help="threads computing image distances")
+    parser.add_argument(
+        "--mine-nordland", action="store_true", help="also the +-4/+-2 shift runs on Nordland"
+    )
+    args = parser.parse_args()
+    present = [d for d in PNG if (args.data / d / "gt.csv").is_file()]
+    if not present:
+        print(f"skipped: no outside data under {args.data}")
+        return
+    for dataset in present:
+        outcomes = evaluate(dataset, args.data / dataset, args.workers, args.mine_nordland)
+        plot(dataset, outcomes, ROOT / "docs" / PNG[dataset])
+
+
+if __name__ == "__main__":
+    main()
