@@ -57,7 +57,7 @@ def _query() -> Select[VehiclePosition, str, int, int]:
 
 
 def _view(row: Row[VehiclePosition, str, int, int]) -> PositionView:
-    p, name, site_id, version = row.tuple()
+    p, name, site_id, version = row
     return PositionView(
         seq=p.id,
         vehicle_id=p.vehicle_id,

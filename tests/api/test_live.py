@@ -1,0 +1,299 @@
+"""Live localisation through the API on the tiny simulated site's stored map (real SQLite, real localiser).
+
+Frames of the site's localisation drive are posted as a vehicle would; estimates are compared with the
+simulator's ground truth. Overload is produced by submitting a burst of frames at once to the lanes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from driftmap.api.app import create_app
+from driftmap.api.live_service import LiveService
+from driftmap.config import Settings
+from driftmap.formats.frame_images import decode_gray, encode_png
+from driftmap.services import localisation as loc_service
+from driftmap.services import sites as site_service
+from driftmap.services import vehicles as vehicle_service
+from driftmap.store.access_models import VehicleLiveState
+from driftmap.store.storage import Storage
+from tests.api.access_helpers import (
+    Actors,
+    RecordedFrame,
+    built_tiny_data,
+    copy_data,
+    localisation_drive,
+    make_actors,
+    recorded_frames,
+)
+
+ON_NODE_M = 15.0  # an estimate is right when its node centre is within this of the true position, metres
+MIN_RIGHT = 0.8  # fraction of matched estimates that must be right
+MIN_MATCHED = 0.2  # fraction of frames of the drive's first 15 s that must be matched
+DRIVE_FRAMES = 150
+
+
+@pytest.fixture
+def built(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path) -> Path:
+    """A private copy of a data dir holding the tiny site with a built map."""
+    return copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
+
+
+@pytest.fixture
+def frames(tiny_site_dir: Path) -> list[RecordedFrame]:
+    return recorded_frames(localisation_drive(tiny_site_dir), DRIVE_FRAMES)
+
+
+@pytest.fixture
+def actors(built: Path) -> Iterator[Actors]:
+    made = make_actors(Settings(data_dir=built, stale_after_s=3600.0), site_name="tiny")
+    with made.client:
+        yield made
+
+
+def post(actors: Actors, frame: RecordedFrame, t: float | None = None, vehicle: str = "vehicle") -> dict:  # type: ignore[type-arg]
+    response = actors.client.post(
+        f"/api/vehicles/{actors.vehicle_id}/frames",
+        params={"t": frame.t if t is None else t},
+        content=frame.data,
+        headers={**actors.auth(vehicle), "Content-Type": "image/png"},
+    )
+    assert response.status_code == 200, response.text
+    body: dict = response.json()  # type: ignore[type-arg]
+    return body
+
+
+class TestFrames:
+    def test_a_drive_posted_in_order_lands_near_the_truth(
+        self, actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        answers = [post(actors, f) for f in frames]
+        assert [a["status"] for a in answers] == ["processed"] * len(frames)
+        error = np.array([np.hypot(a["x"] - f.x, a["y"] - f.y) for a, f in zip(answers, frames, strict=True)])
+        matched = np.array([a["matched"] for a in answers])
+        assert matched.mean() >= MIN_MATCHED
+        assert (error[matched] <= ON_NODE_M).mean() >= MIN_RIGHT
+        assert np.median(error) <= ON_NODE_M
+        assert answers[-1]["processed"] == len(frames) and answers[-1]["skipped"] == 0
+        history = actors.client.get(
+            f"/api/vehicles/{actors.vehicle_id}/positions", headers=actors.auth("viewer")
+        ).json()
+        assert [p["t"] for p in history] == [f.t for f in frames]
+        assert [p["seq"] for p in history] == [a["seq"] for a in answers]
+        window = actors.client.get(
+            f"/api/vehicles/{actors.vehicle_id}/positions",
+            params={"start": frames[10].t, "end": frames[19].t},
+            headers=actors.auth("viewer"),
+        ).json()
+        assert len(window) == 10
+
+    def test_state_carries_over_to_another_server_on_the_same_database(
+        self, built: Path, frames: list[RecordedFrame]
+    ) -> None:
+        first = make_actors(Settings(data_dir=built), site_name="tiny")
+        with first.client:
+            nodes = [post(first, f)["node"] for f in frames[:30]]
+        with TestClient(create_app(Settings(data_dir=built))) as client:
+            for f in frames[30:60]:
+                response = client.post(
+                    f"/api/vehicles/{first.vehicle_id}/frames",
+                    params={"t": f.t},
+                    content=f.data,
+                    headers={**first.auth("vehicle"), "Content-Type": "image/png"},
+                )
+                nodes.append(response.json()["node"])
+            again = client.post(
+                f"/api/vehicles/{first.vehicle_id}/frames",
+                params={"t": frames[59].t},
+                content=frames[59].data,
+                headers={**first.auth("vehicle"), "Content-Type": "image/png"},
+            )
+            assert again.json()["status"] == "out_of_order"
+        storage = Storage.open(Settings(data_dir=built))
+        with storage.db.session() as session:
+            lmap = loc_service.load_localiser_map(
+                session, storage.blobs, site_service.get_site(session, "tiny")
+            )
+        storage.close()
+        localiser = loc_service.make_localiser(lmap)
+        continuous = [localiser.step(decode_gray(f.data), f.t).node for f in frames[:60]]
+        assert nodes == continuous
+
+    def test_out_of_order_frames_are_refused_and_counted(
+        self, actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        assert post(actors, frames[0], t=5.0)["status"] == "processed"
+        assert post(actors, frames[1], t=4.0)["status"] == "out_of_order"
+        refused = post(actors, frames[1], t=5.0)
+        assert refused["status"] == "out_of_order" and refused["x"] is None and refused["out_of_order"] == 2
+        assert post(actors, frames[1], t=6.0)["status"] == "processed"
+        viewer = actors.auth("viewer")
+        history = actors.client.get(f"/api/vehicles/{actors.vehicle_id}/positions", headers=viewer).json()
+        assert [p["t"] for p in history] == [5.0, 6.0]
+        state = actors.client.get(f"/api/vehicles/{actors.vehicle_id}/live-state", headers=viewer).json()
+        assert (state["processed"], state["out_of_order"], state["last_t_s"]) == (2, 2, 6.0)
+
+    def test_bad_frames_are_named_and_the_server_keeps_serving(
+        self, actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        url = f"/api/vehicles/{actors.vehicle_id}/frames"
+        vehicle = actors.auth("vehicle")
+        garbage = actors.client.post(
+            url, params={"t": 1}, content=b"not an image", headers={**vehicle, "Content-Type": "image/png"}
+        )
+        assert garbage.status_code == 422 and "not a PNG or JPEG" in garbage.json()["detail"]
+        cut = actors.client.post(
+            url,
+            params={"t": 1},
+            content=frames[0].data[: len(frames[0].data) // 2],
+            headers={**vehicle, "Content-Type": "image/png"},
+        )
+        assert cut.status_code == 422
+        wrong_type = actors.client.post(
+            url, params={"t": 1}, content=frames[0].data, headers={**vehicle, "Content-Type": "text/plain"}
+        )
+        assert wrong_type.status_code == 400 and wrong_type.json()["field"] == "content-type"
+        no_t = actors.client.post(
+            url, content=frames[0].data, headers={**vehicle, "Content-Type": "image/png"}
+        )
+        assert no_t.status_code == 422
+        tiny = encode_png(np.full((6, 5), 128, dtype=np.uint8))
+        odd = actors.client.post(
+            url, params={"t": 1}, content=tiny, headers={**vehicle, "Content-Type": "image/png"}
+        )
+        assert odd.status_code in (200, 422)
+        assert post(actors, frames[0], t=2.0)["status"] == "processed"
+
+    def test_oversized_frame_is_413(self, built: Path, frames: list[RecordedFrame]) -> None:
+        actors = make_actors(Settings(data_dir=built, max_frame_bytes=1000), site_name="tiny")
+        response = actors.client.post(
+            f"/api/vehicles/{actors.vehicle_id}/frames",
+            params={"t": 1},
+            content=frames[0].data,
+            headers={**actors.auth("vehicle"), "Content-Type": "image/png"},
+        )
+        assert response.status_code == 413 and "1000 byte limit" in response.json()["detail"]
+
+    def test_a_site_without_a_map_is_409(self, settings: Settings, frames: list[RecordedFrame]) -> None:
+        actors = make_actors(settings)
+        response = actors.client.post(
+            f"/api/vehicles/{actors.vehicle_id}/frames",
+            params={"t": 1},
+            content=frames[0].data,
+            headers={**actors.auth("vehicle"), "Content-Type": "image/png"},
+        )
+        assert response.status_code == 409 and "has no map" in response.json()["detail"]
+
+
+class TestOverload:
+    def test_a_burst_skips_stale_frames_in_order_and_counts_them(
+        self, built: Path, frames: list[RecordedFrame]
+    ) -> None:
+        settings = Settings(data_dir=built)
+        storage = Storage.open(settings)
+        with storage.db.session() as session:
+            vehicle, _token = vehicle_service.create_vehicle(
+                session, "burst", site_service.get_site(session, "tiny").id
+            )
+            vid, site_id = vehicle.id, vehicle.site_id
+        live = LiveService(settings, storage, queue_depth=1)
+        burst = [(f.t, decode_gray(f.data)) for f in frames[:12]]
+
+        async def run() -> list:  # type: ignore[type-arg]
+            first = await asyncio.gather(*(live.submit(vid, "burst", site_id, t, g) for t, g in burst[:6]))
+            second = await asyncio.gather(*(live.submit(vid, "burst", site_id, t, g) for t, g in burst[6:]))
+            late = await live.submit(vid, "burst", site_id, burst[3][0], burst[3][1])
+            return [*first, *second, late]
+
+        outcomes = asyncio.run(run())
+        live.close()
+        assert [o.t for o in outcomes[:12]] == [t for t, _g in burst]  # one answer per frame, in order
+        statuses = [o.status for o in outcomes]
+        assert statuses[-1] == "out_of_order"
+        processed = [o.t for o in outcomes if o.status == "processed"]
+        assert processed == sorted(processed) and processed[-1] == burst[-1][0]
+        assert statuses[:12].count("skipped") >= 8  # one frame runs, one waits: a burst of 6 keeps 1-2
+        assert statuses[5] == statuses[11] == "processed"  # the newest frame of a burst is always processed
+        with storage.db.session() as session:
+            state = session.get(VehicleLiveState, vid)
+            assert state is not None
+            assert (state.processed, state.skipped) == (len(processed), statuses.count("skipped"))
+            assert state.out_of_order == 1
+        storage.close()
+
+
+def _framed(frame: RecordedFrame) -> bytes:
+    return struct.pack(">d", frame.t) + frame.data
+
+
+class TestStream:
+    def test_frames_over_a_websocket_each_get_one_answer(
+        self, actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        url = f"/api/vehicles/{actors.vehicle_id}/stream"
+        with actors.client.websocket_connect(url, headers=actors.auth("vehicle")) as ws:
+            for f in frames[:10]:
+                ws.send_bytes(_framed(f))
+            answers = [ws.receive_json() for _ in range(10)]
+            ws.send_text("hello")
+            error = ws.receive_json()
+            ws.send_bytes(struct.pack(">d", 99.0) + b"garbage")
+            garbage = ws.receive_json()
+            ws.send_bytes(_framed(frames[10]))
+            after = ws.receive_json()
+        assert sorted(a["t"] for a in answers) == [f.t for f in frames[:10]]
+        assert {a["status"] for a in answers} <= {"processed", "skipped"}
+        processed = [a["t"] for a in answers if a["status"] == "processed"]
+        assert processed and max(processed) == frames[9].t
+        assert error["status"] == "error" and error["code"] == 400 and error["field"] == "message"
+        assert garbage["code"] == 422 and garbage["t"] == 99.0
+        assert after["status"] == "processed" and after["t"] == frames[10].t
+
+
+class TestWatch:
+    def test_snapshot_then_updates_then_resume(self, actors: Actors, frames: list[RecordedFrame]) -> None:
+        viewer = actors.auth("viewer")
+        with actors.client.websocket_connect("/api/live", headers=viewer) as ws:
+            snapshot = ws.receive_json()
+            assert snapshot["type"] == "snapshot" and snapshot["seq"] == 0
+            assert {v["vehicle"] for v in snapshot["vehicles"]} == {"lhd-1", "lhd-2"}
+            assert all(v["stale"] and v["position"] is None for v in snapshot["vehicles"])
+            answers = [post(actors, f) for f in frames[:3]]
+            updates = [ws.receive_json() for _ in range(3)]
+        assert [u["type"] for u in updates] == ["position"] * 3
+        assert [u["seq"] for u in updates] == [a["seq"] for a in answers]
+        assert [(u["x"], u["y"]) for u in updates] == [(a["x"], a["y"]) for a in answers]
+        post(actors, frames[3])
+        with actors.client.websocket_connect(f"/api/live?since={answers[0]['seq']}", headers=viewer) as ws:
+            snapshot = ws.receive_json()
+            replay = [ws.receive_json() for _ in range(3)]
+        mine = next(v for v in snapshot["vehicles"] if v["vehicle_id"] == actors.vehicle_id)
+        assert not mine["stale"] and mine["position"]["t"] == frames[3].t
+        assert [m["t"] for m in replay] == [f.t for f in frames[1:4]]
+
+    def test_a_silent_vehicle_turns_stale_and_keeps_its_last_position(
+        self, built: Path, frames: list[RecordedFrame]
+    ) -> None:
+        actors = make_actors(Settings(data_dir=built, stale_after_s=0.0), site_name="tiny")
+        with actors.client:
+            answer = post(actors, frames[0])
+            latest = actors.client.get("/api/positions/latest", headers=actors.auth("viewer")).json()
+            mine = next(v for v in latest if v["vehicle_id"] == actors.vehicle_id)
+            assert mine["stale"] and mine["position"]["seq"] == answer["seq"]
+            with actors.client.websocket_connect("/api/live", headers=actors.auth("viewer")) as ws:
+                assert ws.receive_json()["type"] == "snapshot"
+                post(actors, frames[1])
+                assert ws.receive_json()["type"] == "position"
+                stale = ws.receive_json()
+        assert stale == {
+            "type": "stale",
+            "vehicle_id": actors.vehicle_id,
+            "received_at": stale["received_at"],
+        }
