@@ -1,0 +1,114 @@
+"""``driftmap serve`` as a real process: uvicorn on a free port and a worker process beside it."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+import websockets
+
+START_DEADLINE_S = 90.0
+STOP_DEADLINE_S = 60.0
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie (exited, not yet reaped by its parent) counts as stopped
+    status = Path(f"/proc/{pid}/status")
+    return not (status.exists() and "\nState:\tZ" in status.read_text())
+
+
+@pytest.fixture
+def env(tmp_path: Path) -> dict[str, str]:
+    out = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
+    out["DRIFTMAP_DATA_DIR"] = str(tmp_path / "data")
+    return out
+
+
+@pytest.fixture
+def server(env: dict[str, str], tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], str, Path]]:
+    port = _free_port()
+    log = tmp_path / "serve.log"
+    with log.open("wb") as sink:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "driftmap", "serve", "--port", str(port)],
+            env=env,
+            stdout=sink,
+            stderr=sink,
+        )
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + START_DEADLINE_S
+    while True:
+        assert process.poll() is None, log.read_text()
+        try:
+            if httpx.get(f"{base}/api/health", timeout=2.0).status_code == 200:
+                break
+        except httpx.TransportError:
+            pass
+        assert time.monotonic() < deadline, (
+            f"no health answer within {START_DEADLINE_S} s:\n{log.read_text()}"
+        )
+        time.sleep(0.2)
+    yield process, base, log
+    if process.poll() is None:
+        process.kill()
+        process.wait()
+
+
+class TestServe:
+    def test_health_login_live_socket_and_clean_shutdown(
+        self, server: tuple[subprocess.Popen[bytes], str, Path], env: dict[str, str]
+    ) -> None:
+        process, base, log = server
+        assert httpx.get(f"{base}/api/health").json()["status"] == "ok"
+        assert httpx.get(f"{base}/docs").status_code == 200
+        worker_pid = int(re.search(r"worker process (\d+) started", log.read_text()).group(1))  # type: ignore[union-attr]
+        assert _alive(worker_pid)
+
+        added = subprocess.run(
+            [sys.executable, "-m", "driftmap", "user", "add", "ops", "--role", "viewer", "--password-stdin"],
+            input=b"long-password\n",
+            env=env,
+            capture_output=True,
+            check=False,
+        )
+        assert added.returncode == 0, added.stderr.decode()
+        login = httpx.post(f"{base}/api/auth/login", json={"username": "ops", "password": "long-password"})
+        token = login.json()["access_token"]
+
+        async def snapshot() -> dict:  # type: ignore[type-arg]
+            url = base.replace("http", "ws") + f"/api/live?token={token}"
+            async with websockets.connect(url) as ws:
+                message: dict = json.loads(await asyncio.wait_for(ws.recv(), 30.0))  # type: ignore[type-arg]
+                return message
+
+        assert asyncio.run(snapshot())["type"] == "snapshot"
+
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(STOP_DEADLINE_S) == 0 or process.returncode == 128 + signal.SIGTERM
+        deadline = time.monotonic() + STOP_DEADLINE_S
+        while _alive(worker_pid):
+            assert time.monotonic() < deadline, "the worker process outlived the server"
+            time.sleep(0.2)
+        assert "worker process" in log.read_text() and "stopped" in log.read_text()
