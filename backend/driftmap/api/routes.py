@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from driftmap.api import auth, health, live, positions, users, vehicles
+from driftmap.api import auth, drives, groundings, health, jobs, live, maps, positions, sites, users, vehicles
 
 ROUTERS: list[APIRouter] = [
     health.router,
@@ -18,6 +18,11 @@ ROUTERS: list[APIRouter] = [
     vehicles.router,
     live.router,
     positions.router,
+    sites.router,
+    drives.router,
+    groundings.router,
+    maps.router,
+    jobs.router,
 ]
 
 OPEN_PATHS: frozenset[str] = frozenset({"/api/health", "/api/auth/login", "/api/auth/logout"})

@@ -10,6 +10,7 @@ longer queued, or loses the final conditional update and rolls back.
 from __future__ import annotations
 
 import logging
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -78,6 +79,13 @@ def map_build(ctx: JobContext) -> None:
         ctx.succeed(session, result)  # no progress report in here: this transaction holds the write lock
 
 
+def _copy_blob(ctx: JobContext, sha: str, dest: Path) -> None:
+    source = ctx.runtime.storage.blobs.path_of(sha)
+    if not source.is_file():
+        raise NotFoundError(f"job {ctx.job.id}: the uploaded file (blob {sha}) is gone; upload it again")
+    shutil.copyfile(source, dest)
+
+
 def _other_jobs_use(ctx: JobContext, session: Session, sha: str) -> bool:
     args = session.scalars(
         select(Job.args).where(
@@ -108,7 +116,7 @@ def _import_upload(ctx: JobContext) -> None:
     with _scratch(ctx) as scratch:
         work = Path(scratch)
         data_path = work / filename
-        data_path.write_bytes(storage.blobs.get(str(args["upload_sha256"])))
+        _copy_blob(ctx, str(args["upload_sha256"]), data_path)
         calibration: str | None = None
         if args.get("format") == "zip":
             folder = uploads.unpack_drive_zip(
@@ -118,7 +126,7 @@ def _import_upload(ctx: JobContext) -> None:
         else:
             source = data_path
             calibration_path = work / "calibration.json"
-            calibration_path.write_bytes(storage.blobs.get(str(args["calibration_sha256"])))
+            _copy_blob(ctx, str(args["calibration_sha256"]), calibration_path)
             calibration = str(calibration_path)
         ctx.report("import", 0.0)
         with (

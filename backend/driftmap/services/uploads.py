@@ -7,7 +7,10 @@ field 't': ...``). The pixels are checked again by the import itself, which stor
 
 from __future__ import annotations
 
+import hashlib
+import os
 import shutil
+import tempfile
 import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -21,7 +24,7 @@ from driftmap.errors import BadInputError, BadRequestError, ConflictError, Paylo
 from driftmap.formats.drive_folder import DriveFolder, read_drive_folder
 from driftmap.formats.drive_json import camera_to_json, load_json, parse_camera_block
 from driftmap.formats.frame_images import check_complete, check_frame_image
-from driftmap.store.blobs import BlobBatch
+from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import Drive, Frame, Site
 
 CHUNK_BYTES = 1024 * 1024
@@ -197,3 +200,29 @@ def append_frame(
     drive.frame_count = (drive.frame_count or 0) + 1
     session.flush()
     return frame
+
+
+def store_file_as_blob(blobs: BlobStore, path: Path) -> str:
+    """Move a file (under the data dir, same file system) into the blob store; returns its SHA-256.
+
+    The file is hashed in chunks, never read whole into memory; ``path`` is gone afterwards.
+    """
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        while chunk := handle.read(CHUNK_BYTES):
+            digest.update(chunk)
+    sha = digest.hexdigest()
+    target = blobs.path_of(sha)
+    if target.exists():
+        path.unlink()
+        return sha
+    target.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(path, target)
+    return sha
+
+
+def scratch_dir(data_dir: Path, prefix: str) -> Path:
+    """A new private folder under ``<data_dir>/tmp`` (same file system as the blob store)."""
+    root = data_dir / "tmp"
+    root.mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=prefix, dir=root))

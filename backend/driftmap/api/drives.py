@@ -1,0 +1,361 @@
+"""Drives: upload (zip of a drive folder, video + calibration, or frame by frame), list, detail, frames,
+thumbnails, delete, and localisation of a stored drive against a map (a job)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import cv2
+import numpy as np
+from fastapi import APIRouter, Depends, Form, Query, Request, UploadFile, status
+from fastapi.responses import Response
+from sqlalchemy import select
+
+from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, SettingsDep, StorageDep, SurveyorDep
+from driftmap.api.jobs import QueueDep
+from driftmap.api.schemas_data import (
+    DriveCreate,
+    DriveKind,
+    DriveRead,
+    DriveUpdate,
+    FrameArrays,
+    FrameRead,
+    JobRead,
+    LocaliseCreate,
+    Page,
+)
+from driftmap.api.sites import site_by_id
+from driftmap.api.upload_limits import check_content_length, read_limited
+from driftmap.errors import BadInputError, BadRequestError, ConflictError, NotFoundError, PayloadTooLargeError
+from driftmap.formats.frame_images import encode_png
+from driftmap.services import deletion, uploads
+from driftmap.services import drives as drive_service
+from driftmap.services import jobs as job_service
+from driftmap.store.models import Drive, Frame
+
+router = APIRouter(tags=["drives"])
+IMAGE_TYPES = {"image/png": ".png", "image/jpeg": ".jpg"}
+THUMBNAIL_WIDTH_PX = 160
+CALIBRATION_MAX_BYTES = 1024 * 1024
+
+
+def drive_by_id(session: SessionDep, drive_id: int) -> Drive:
+    """The drive of the path's ``drive_id`` (404 when missing)."""
+    drive = session.get(Drive, drive_id)
+    if drive is None:
+        raise NotFoundError(f"no drive with id {drive_id}")
+    return drive
+
+
+def _read(session: SessionDep, drive: Drive) -> DriveRead:
+    site = site_by_id(session, drive.site_id)
+    summary = next(s for s in drive_service.list_drives(session, site) if s.id == drive.id)
+    return DriveRead(
+        **vars(summary),
+        site_id=drive.site_id,
+        source=drive.source,
+        camera=drive.camera,
+        created_at=drive.created_at,
+    )
+
+
+@router.get("/sites/{site_id}/drives", dependencies=[Depends(VIEWER)])
+def list_drives(
+    site_id: int,
+    session: SessionDep,
+    offset: Annotated[int, Query(ge=0)] = 0,
+    limit: Annotated[int, Query(ge=1, le=500)] = 100,
+) -> Page[DriveRead]:
+    """The site's drives, oldest first, with duration, grounding count and whether they have ground truth."""
+    site = site_by_id(session, site_id)
+    summaries = drive_service.list_drives(session, site)
+    drives = {d.id: d for d in session.scalars(select(Drive).where(Drive.site_id == site.id))}
+    items = [
+        DriveRead(
+            **vars(s),
+            site_id=site.id,
+            source=drives[s.id].source,
+            camera=drives[s.id].camera,
+            created_at=drives[s.id].created_at,
+        )
+        for s in summaries[offset : offset + limit]
+    ]
+    return Page[DriveRead](items=items, total=len(summaries), offset=offset, limit=limit)
+
+
+@router.post("/sites/{site_id}/drives", status_code=status.HTTP_201_CREATED)
+def create_drive(site_id: int, body: DriveCreate, session: SessionDep, _user: SurveyorDep) -> DriveRead:
+    """An empty drive; post its frames one by one to ``/api/drives/{id}/frames``."""
+    drive = uploads.create_empty_drive(
+        session,
+        site_by_id(session, site_id),
+        name=body.name,
+        kind=body.kind,
+        fps=body.fps,
+        camera=body.camera.model_dump(),
+    )
+    return _read(session, drive)
+
+
+def _ensure_new_name(session: SessionDep, site_id: int, name: str) -> None:
+    if session.scalar(select(Drive.id).where(Drive.site_id == site_id, Drive.name == name)) is not None:
+        raise ConflictError(f"the site already has a drive named {name!r}")
+
+
+@router.post(
+    "/sites/{site_id}/drives/zip",
+    status_code=status.HTTP_202_ACCEPTED,
+    dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
+)
+def upload_drive_zip(
+    site_id: int,
+    file: UploadFile,
+    session: SessionDep,
+    storage: StorageDep,
+    settings: SettingsDep,
+    queue: QueueDep,
+    user: SurveyorDep,
+) -> JobRead:
+    """Upload a zipped drive folder (multipart field ``file``); it is checked now and imported by a job."""
+    site = site_by_id(session, site_id)
+    filename = Path(file.filename or "drive.zip").name
+    scratch = uploads.scratch_dir(settings.data_dir, "upload-")
+    try:
+        zip_path = scratch / "upload.zip"
+        uploads.save_upload(file.file, zip_path, max_bytes=settings.max_upload_bytes, filename=filename)
+        folder = uploads.unpack_drive_zip(
+            zip_path, scratch / "unpacked", label=filename, max_bytes=settings.max_upload_bytes
+        )
+        _ensure_new_name(session, site.id, folder.meta.name)
+        sha = uploads.store_file_as_blob(storage.blobs, zip_path)
+    finally:
+        uploads.remove_tree(scratch)
+    args = {"format": "zip", "upload_sha256": sha, "filename": filename, "name": folder.meta.name}
+    job = job_service.submit(
+        session, queue.enqueue, "drive.import", args, site_id=site.id, created_by=user.name
+    )
+    return JobRead.model_validate(job)
+
+
+@router.post(
+    "/sites/{site_id}/drives/video",
+    status_code=status.HTTP_202_ACCEPTED,
+    dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
+)
+def upload_drive_video(
+    site_id: int,
+    video: UploadFile,
+    calibration: UploadFile,
+    session: SessionDep,
+    storage: StorageDep,
+    settings: SettingsDep,
+    queue: QueueDep,
+    user: SurveyorDep,
+    name: Annotated[str | None, Form(description="Drive name (default: the video's file stem).")] = None,
+    kind: Annotated[DriveKind, Form()] = "mapping",
+) -> JobRead:
+    """Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``)."""
+    site = site_by_id(session, site_id)
+    filename = Path(video.filename or "drive.mp4").name
+    if Path(filename).suffix.lower() not in drive_service.VIDEO_SUFFIXES:
+        raise BadRequestError(f"not a video file ({', '.join(drive_service.VIDEO_SUFFIXES)})", file=filename)
+    calibration_name = Path(calibration.filename or "calibration.json").name
+    calibration_data = read_limited(calibration, CALIBRATION_MAX_BYTES, calibration_name)
+    uploads.check_calibration(calibration_data, calibration_name)
+    drive_name = (name or Path(filename).stem).strip()
+    _ensure_new_name(session, site.id, drive_name)
+    scratch = uploads.scratch_dir(settings.data_dir, "upload-")
+    try:
+        video_path = scratch / filename
+        uploads.save_upload(video.file, video_path, max_bytes=settings.max_upload_bytes, filename=filename)
+        sha = uploads.store_file_as_blob(storage.blobs, video_path)
+    finally:
+        uploads.remove_tree(scratch)
+    calibration_sha, _created = storage.blobs.put(calibration_data)
+    args = {
+        "format": "video",
+        "upload_sha256": sha,
+        "calibration_sha256": calibration_sha,
+        "filename": filename,
+        "name": drive_name,
+        "kind": kind,
+    }
+    job = job_service.submit(
+        session, queue.enqueue, "drive.import", args, site_id=site.id, created_by=user.name
+    )
+    return JobRead.model_validate(job)
+
+
+@router.get("/drives/{drive_id}", dependencies=[Depends(VIEWER)])
+def get_drive(drive_id: int, session: SessionDep) -> DriveRead:
+    """One drive with its camera block."""
+    return _read(session, drive_by_id(session, drive_id))
+
+
+@router.patch("/drives/{drive_id}")
+def update_drive(drive_id: int, body: DriveUpdate, session: SessionDep, _user: SurveyorDep) -> DriveRead:
+    """Rename a drive."""
+    drive = drive_by_id(session, drive_id)
+    if body.name is not None and body.name.strip() != drive.name:
+        _ensure_new_name(session, drive.site_id, body.name.strip())
+        drive.name = body.name.strip()
+        session.flush()
+    return _read(session, drive)
+
+
+@router.delete("/drives/{drive_id}", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(ADMIN)])
+def delete_drive(drive_id: int, session: SessionDep, storage: StorageDep) -> None:
+    """Delete a drive with its frames, groundings and the frame images no other drive uses."""
+    candidates = deletion.delete_drive(session, drive_by_id(session, drive_id))
+    session.commit()
+    deletion.delete_unreferenced_blobs(storage, candidates)
+
+
+@router.get("/drives/{drive_id}/frames", dependencies=[Depends(VIEWER)])
+def list_frames(
+    drive_id: int,
+    session: SessionDep,
+    offset: Annotated[int, Query(ge=0)] = 0,
+    limit: Annotated[int, Query(ge=1, le=100_000)] = 10_000,
+) -> FrameArrays:
+    """A page of the drive's frames as parallel arrays (frame number, time, ground truth when known)."""
+    drive = drive_by_id(session, drive_id)
+    rows = session.execute(
+        select(Frame.index, Frame.t_s, Frame.true_x_m, Frame.true_y_m)
+        .where(Frame.drive_id == drive.id)
+        .order_by(Frame.index)
+        .offset(offset)
+        .limit(limit)
+    ).all()
+    return FrameArrays(
+        drive_id=drive.id,
+        total=drive.frame_count,
+        offset=offset,
+        limit=limit,
+        index=[r[0] for r in rows],
+        t_s=[r[1] for r in rows],
+        true_x_m=[r[2] for r in rows],
+        true_y_m=[r[3] for r in rows],
+    )
+
+
+async def _image_body(request: Request) -> bytes:
+    """The request body of a posted frame: PNG or JPEG bytes, within the frame size limit."""
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type not in IMAGE_TYPES:
+        raise BadRequestError(
+            f"send the frame as the body with Content-Type image/png or image/jpeg, not {content_type or 'none'!r}",
+            field="content-type",
+        )
+    limit: int = request.app.state.settings.max_frame_bytes
+    chunks, total = [], 0
+    async for chunk in request.stream():
+        total += len(chunk)
+        if total > limit:
+            raise PayloadTooLargeError(f"frame is over the {limit} byte limit", field="body")
+        chunks.append(chunk)
+    if not total:
+        raise BadRequestError("the request has no body: send the PNG or JPEG bytes", field="body")
+    return b"".join(chunks)
+
+
+@router.post(
+    "/drives/{drive_id}/frames",
+    status_code=status.HTTP_201_CREATED,
+    dependencies=[Depends(SURVEYOR)],
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {key: {"schema": {"type": "string", "format": "binary"}} for key in IMAGE_TYPES},
+        }
+    },
+)
+def add_frame(
+    drive_id: int,
+    data: Annotated[bytes, Depends(_image_body)],
+    session: SessionDep,
+    storage: StorageDep,
+    t: Annotated[float, Query(description="Seconds since the drive's start; must increase.")],
+    index: Annotated[
+        int | None, Query(ge=0, description="Frame number (default: one past the last).")
+    ] = None,
+) -> FrameRead:
+    """Append one frame (PNG or JPEG body of the camera's size) to a drive built frame by frame."""
+    drive = drive_by_id(session, drive_id)
+    with storage.blobs.batch() as batch:
+        frame = uploads.append_frame(session, batch, drive, data, t_s=t, index=index)
+        session.commit()
+    return FrameRead.model_validate(frame)
+
+
+def _frame(session: SessionDep, drive_id: int, index: int) -> Frame:
+    frame = session.scalar(select(Frame).where(Frame.drive_id == drive_id, Frame.index == index))
+    if frame is None:
+        drive_by_id(session, drive_id)
+        raise NotFoundError(f"drive {drive_id} has no frame {index}")
+    return frame
+
+
+def _image_response(data: bytes, media_type: str, etag: str) -> Response:
+    headers = {"ETag": f'"{etag}"', "Cache-Control": "private, max-age=86400, immutable"}
+    return Response(data, media_type=media_type, headers=headers)
+
+
+_IMAGE_RESPONSES: dict[int | str, dict[str, object]] = {200: {"content": {"image/png": {}, "image/jpeg": {}}}}
+
+
+@router.get(
+    "/drives/{drive_id}/frames/{index}",
+    dependencies=[Depends(VIEWER)],
+    response_class=Response,
+    responses=_IMAGE_RESPONSES,
+)
+def frame_image(drive_id: int, index: int, session: SessionDep, storage: StorageDep) -> Response:
+    """The frame's original image file (PNG or JPEG, as recorded)."""
+    frame = _frame(session, drive_id, index)
+    media = "image/png" if frame.image_ext == ".png" else "image/jpeg"
+    return _image_response(storage.blobs.get(frame.blob_sha256), media, frame.blob_sha256)
+
+
+@router.get(
+    "/drives/{drive_id}/frames/{index}/thumbnail",
+    dependencies=[Depends(VIEWER)],
+    response_class=Response,
+    responses={200: {"content": {"image/png": {}}}},
+)
+def frame_thumbnail(
+    drive_id: int,
+    index: int,
+    session: SessionDep,
+    storage: StorageDep,
+    width: Annotated[int, Query(ge=16, le=1024, description="Thumbnail width, pixels.")] = THUMBNAIL_WIDTH_PX,
+) -> Response:
+    """A small PNG of the frame, ``width`` pixels wide (never wider than the frame)."""
+    frame = _frame(session, drive_id, index)
+    image = cv2.imdecode(
+        np.frombuffer(storage.blobs.get(frame.blob_sha256), dtype=np.uint8),
+        cv2.IMREAD_UNCHANGED,
+    )
+    if image is None:
+        raise BadInputError(f"frame {index} of drive {drive_id} cannot be decoded", field="index")
+    height_px, width_px = image.shape[:2]
+    if width < width_px:
+        size = (width, max(1, round(height_px * width / width_px)))
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    return _image_response(
+        encode_png(np.asarray(image, dtype=np.uint8)), "image/png", f"{frame.blob_sha256}-{width}"
+    )
+
+
+@router.post("/drives/{drive_id}/localise", status_code=status.HTTP_202_ACCEPTED)
+def localise_drive(
+    drive_id: int, body: LocaliseCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
+) -> JobRead:
+    """Localise every frame of a stored drive against a map version (a ``drive.localise`` job)."""
+    drive = drive_by_id(session, drive_id)
+    args = {"drive_id": drive.id, **body.model_dump()}
+    job = job_service.submit(
+        session, queue.enqueue, "drive.localise", args, site_id=drive.site_id, created_by=user.name
+    )
+    return JobRead.model_validate(job)

@@ -1,0 +1,207 @@
+"""Request and response bodies of sites, survey maps, drives, frames, groundings and jobs.
+
+Families per resource: ``XCreate`` (request), ``XUpdate`` (partial request), ``XRead`` (response), and
+:class:`Page` for paginated lists. Positions are survey-frame metres, times seconds, angles radians.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Generic, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field
+
+T = TypeVar("T")
+DriveKind = Literal["mapping", "localisation"]
+
+
+class Page(BaseModel, Generic[T]):
+    """One page of a list: ``items`` from ``offset``, at most ``limit``, of ``total``."""
+
+    items: list[T]
+    total: int
+    offset: int
+    limit: int
+
+
+class SiteCreate(BaseModel):
+    name: str = Field(min_length=1, max_length=200)
+    description: str = ""
+
+
+class SiteUpdate(BaseModel):
+    name: str | None = Field(default=None, min_length=1, max_length=200)
+    description: str | None = None
+
+
+class SiteRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    name: str
+    description: str
+    created_at: datetime
+
+
+class SiteSimulate(BaseModel):
+    """A synthetic site to render and import as a new site (a ``site.simulate`` job)."""
+
+    name: str = Field(min_length=1, max_length=200)
+    seed: int = Field(default=0, ge=0)
+    size: Literal["tiny", "small", "medium", "large"] = "tiny"
+    obscurants: bool = False
+    max_frames_per_drive: int | None = Field(default=None, ge=2)
+
+
+class SurveyMapRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    site_id: int
+    filename: str
+    dxf_sha256: str
+    units: str
+    min_x_m: float
+    min_y_m: float
+    max_x_m: float
+    max_y_m: float
+    created_at: datetime
+
+
+class SurveyLayersRead(BaseModel):
+    """GeoJSON FeatureCollections per layer, plane metres, simplified to ``tolerance_m``."""
+
+    survey_map_id: int
+    tolerance_m: float
+    extents: list[float]
+    vertices: int
+    layers: dict[str, dict[str, Any]]
+
+
+class CameraBlock(BaseModel):
+    """The ``camera`` block of drive.json (formats.md)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    width: int
+    height: int
+    ground_roi: list[int]
+    k_x: float
+    k_y: float
+    y_c: float
+    y_h: float
+    forward_sign: int = 1
+
+
+class DriveCreate(BaseModel):
+    """An empty drive whose frames are then posted one by one."""
+
+    name: str = Field(min_length=1, max_length=200)
+    kind: DriveKind = "mapping"
+    fps: float = Field(gt=0)
+    camera: CameraBlock
+
+
+class DriveUpdate(BaseModel):
+    name: str | None = Field(default=None, min_length=1, max_length=200)
+
+
+class DriveRead(BaseModel):
+    id: int
+    site_id: int
+    name: str
+    kind: str
+    fps: float
+    frame_count: int
+    duration_s: float
+    grounding_count: int
+    has_truth: bool
+    source: str
+    camera: dict[str, Any]
+    created_at: datetime
+
+
+class FrameRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    drive_id: int
+    index: int
+    t_s: float
+    image_ext: str
+    true_x_m: float | None
+    true_y_m: float | None
+    true_yaw_rad: float | None
+
+
+class FrameArrays(BaseModel):
+    """A page of a drive's frames as parallel arrays (compact for long drives)."""
+
+    drive_id: int
+    total: int
+    offset: int
+    limit: int
+    index: list[int]
+    t_s: list[float]
+    true_x_m: list[float | None]
+    true_y_m: list[float | None]
+
+
+class LocaliseCreate(BaseModel):
+    """Localise a stored drive against a map version (a ``drive.localise`` job)."""
+
+    map_version: int | None = Field(default=None, description="Map version (default: latest).")
+    sesame: bool = True
+    temporal: bool = True
+
+
+class GroundingCreate(BaseModel):
+    frame: int = Field(ge=0, description="Frame number of the drive.")
+    x: float = Field(description="Surveyed x (east), metres.")
+    y: float = Field(description="Surveyed y (north), metres.")
+
+
+class GroundingUpdate(BaseModel):
+    x: float | None = None
+    y: float | None = None
+
+
+class GroundingRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    drive_id: int
+    drive: str
+    frame: int
+    x_m: float
+    y_m: float
+    created_by: str
+    residual_m: float | None
+    map_version: int | None
+
+
+class GroundingImportRead(BaseModel):
+    drive_id: int
+    imported: int
+
+
+class JobRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    kind: str
+    site_id: int | None
+    args: dict[str, Any]
+    status: str
+    progress: float
+    stage: str
+    error: str | None
+    result: dict[str, Any] | None
+    attempts: int
+    created_by: str
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    heartbeat_at: datetime | None
+    cancel_requested_at: datetime | None
+    worker_id: str | None

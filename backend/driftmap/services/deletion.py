@@ -1,0 +1,103 @@
+"""Deleting sites, drives and map versions with their rows, then the blobs nothing refers to any more.
+
+Rows go inside the caller's transaction (foreign keys cascade in the database); the blobs they referred to
+are returned as candidates, and :func:`delete_unreferenced_blobs` removes those still unreferenced once the
+caller has committed, so a rolled-back delete never loses a blob.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from sqlalchemy import delete, distinct, select
+from sqlalchemy.orm import Session
+
+from driftmap.errors import ConflictError
+from driftmap.services.localisation import LOCALISER_DB_KEY
+from driftmap.store.blobs import BlobStore
+from driftmap.store.models import Drive, Frame, MapPose, MapVersion, Site, SurveyMap
+from driftmap.store.storage import Storage
+
+
+def _version_blobs(version: MapVersion) -> set[str]:
+    shas = {version.topomap_sha256}
+    extra = (version.stats or {}).get(LOCALISER_DB_KEY)
+    if isinstance(extra, str):
+        shas.add(extra)
+    return shas
+
+
+def delete_map_version(session: Session, version: MapVersion) -> set[str]:
+    """Delete one map version (poses, closures, residuals, nodes cascade); returns candidate blobs."""
+    candidates = _version_blobs(version)
+    session.execute(delete(MapVersion).where(MapVersion.id == version.id))
+    return candidates
+
+
+def delete_drive(session: Session, drive: Drive) -> set[str]:
+    """Delete a drive with its frames and groundings; returns its frame blobs as candidates.
+
+    Raises:
+        ConflictError: a map version holds poses of the drive (delete those versions first).
+    """
+    versions = session.scalars(
+        select(distinct(MapVersion.version))
+        .join(MapPose, MapPose.map_version_id == MapVersion.id)
+        .join(Frame, MapPose.frame_id == Frame.id)
+        .where(Frame.drive_id == drive.id)
+        .order_by(MapVersion.version)
+    ).all()
+    if versions:
+        listed = ", ".join(str(v) for v in versions)
+        raise ConflictError(f"drive {drive.name!r} is part of map version(s) {listed}; delete those first")
+    candidates = set(session.scalars(select(distinct(Frame.blob_sha256)).where(Frame.drive_id == drive.id)))
+    session.execute(delete(Drive).where(Drive.id == drive.id))
+    return candidates
+
+
+def delete_site(session: Session, site: Site) -> set[str]:
+    """Delete a site with everything in it; returns every blob it referred to as candidates."""
+    candidates = set(
+        session.scalars(
+            select(distinct(Frame.blob_sha256))
+            .join(Drive, Frame.drive_id == Drive.id)
+            .where(Drive.site_id == site.id)
+        )
+    )
+    candidates |= set(session.scalars(select(SurveyMap.dxf_sha256).where(SurveyMap.site_id == site.id)))
+    for version in session.scalars(select(MapVersion).where(MapVersion.site_id == site.id)):
+        candidates |= _version_blobs(version)
+    session.execute(delete(Site).where(Site.id == site.id))
+    return candidates
+
+
+def referenced(session: Session, shas: Iterable[str]) -> set[str]:
+    """Those of ``shas`` that a frame, a survey map or a map version still refers to."""
+    wanted = set(shas)
+    found: set[str] = set()
+    items = sorted(wanted)
+    for start in range(0, len(items), 500):
+        chunk = items[start : start + 500]
+        found |= set(session.scalars(select(Frame.blob_sha256).where(Frame.blob_sha256.in_(chunk))))
+        found |= set(session.scalars(select(SurveyMap.dxf_sha256).where(SurveyMap.dxf_sha256.in_(chunk))))
+        found |= set(
+            session.scalars(select(MapVersion.topomap_sha256).where(MapVersion.topomap_sha256.in_(chunk)))
+        )
+    for stats in session.scalars(select(MapVersion.stats)):
+        extra = (stats or {}).get(LOCALISER_DB_KEY)
+        if extra in wanted:
+            found.add(extra)
+    return found
+
+
+def delete_unreferenced_blobs(storage: Storage, shas: Iterable[str]) -> int:
+    """After the deleting transaction committed: remove the blobs of ``shas`` nothing refers to."""
+    candidates = set(shas)
+    if not candidates:
+        return 0
+    with storage.db.session() as session:
+        keep = referenced(session, candidates)
+    blobs: BlobStore = storage.blobs
+    for sha in candidates - keep:
+        blobs.delete(sha)
+    return len(candidates - keep)

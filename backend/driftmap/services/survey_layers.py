@@ -1,0 +1,109 @@
+"""A site's survey plan as GeoJSON layers in plane metres, simplified for the zoom it is drawn at.
+
+Big plans hold hundreds of thousands of vertices; a map view needs only those a screen pixel can show.
+Line and polygon features are simplified with shapely (Douglas-Peucker, topology preserved) to a tolerance
+in metres, chosen directly or from a zoom level: at zoom 0 the plan's larger side spans 256 pixels, each
+further level doubles that, and the tolerance is half a pixel. Results are cached per survey map and
+tolerance (the stored layers never change: a new upload is a new survey map).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict
+from typing import Any
+
+from shapely.geometry import mapping, shape
+
+from driftmap.errors import BadInputError
+from driftmap.store.models import SurveyMap
+
+TILE_PX = 256  # pixels the whole plan spans at zoom 0
+MAX_ZOOM = 30
+CACHE_SIZE = 64  # simplified plans kept in memory (per process)
+
+_cache: OrderedDict[tuple[int, str, float], dict[str, Any]] = OrderedDict()
+_lock = threading.Lock()
+
+
+def tolerance_for_zoom(survey: SurveyMap, zoom: float) -> float:
+    """Half a screen pixel in metres when the plan is drawn at ``zoom`` (see the module docstring)."""
+    if not 0 <= zoom <= MAX_ZOOM:
+        raise BadInputError(f"zoom must be between 0 and {MAX_ZOOM}", field="zoom")
+    side_m = max(survey.max_x_m - survey.min_x_m, survey.max_y_m - survey.min_y_m, 1e-6)
+    return float(side_m / (TILE_PX * 2.0**zoom) / 2.0)
+
+
+def _simplify_collection(collection: dict[str, Any], tolerance_m: float) -> tuple[dict[str, Any], int]:
+    features = []
+    vertices = 0
+    for feature in collection.get("features", []):
+        geometry = feature.get("geometry")
+        if geometry and tolerance_m > 0 and geometry.get("type") not in ("Point", "MultiPoint"):
+            simplified = shape(geometry).simplify(tolerance_m, preserve_topology=True)
+            if simplified.is_empty:
+                continue
+            geometry = mapping(simplified)
+        vertices += _count_vertices(geometry.get("coordinates")) if geometry else 0
+        features.append({**feature, "geometry": geometry})
+    return {"type": "FeatureCollection", "features": features}, vertices
+
+
+def _count_vertices(coordinates: Any) -> int:
+    if not isinstance(coordinates, list | tuple) or not coordinates:
+        return 0
+    if isinstance(coordinates[0], int | float):
+        return 1
+    return sum(_count_vertices(c) for c in coordinates)
+
+
+def survey_layers(
+    survey: SurveyMap, *, tolerance_m: float = 0.0, layers: list[str] | None = None
+) -> dict[str, Any]:
+    """The plan's layers as GeoJSON FeatureCollections (plane metres), simplified to ``tolerance_m``.
+
+    Args:
+        survey: the stored survey map.
+        tolerance_m: largest distance a simplified line may move from the original, metres (0: as stored).
+        layers: only these layer names (all when None).
+
+    Returns:
+        ``{"survey_map_id", "tolerance_m", "extents": [min_x, min_y, max_x, max_y], "vertices",
+        "layers": {name: FeatureCollection}}``.
+
+    Raises:
+        BadInputError: a negative or non-finite tolerance, or an unknown layer name.
+    """
+    if not (math.isfinite(tolerance_m) and tolerance_m >= 0):
+        raise BadInputError("tolerance_m must be a finite number >= 0", field="tolerance_m")
+    if layers is not None:
+        unknown = sorted(set(layers) - set(survey.layers))
+        if unknown:
+            raise BadInputError(
+                f"unknown layer(s) {', '.join(unknown)}; the plan has {', '.join(sorted(survey.layers))}",
+                field="layers",
+            )
+    key = (survey.id, survey.dxf_sha256, round(tolerance_m, 6))
+    with _lock:
+        whole = _cache.get(key)
+        if whole is not None:
+            _cache.move_to_end(key)
+    if whole is None:
+        simplified: dict[str, Any] = {}
+        counts: dict[str, int] = {}
+        for name, collection in survey.layers.items():
+            simplified[name], counts[name] = _simplify_collection(collection, tolerance_m)
+        whole = {"layers": simplified, "vertices": counts}
+        with _lock:
+            _cache[key] = whole
+            while len(_cache) > CACHE_SIZE:
+                _cache.popitem(last=False)
+    names = layers if layers is not None else list(whole["layers"])
+    return {
+        "survey_map_id": survey.id,
+        "tolerance_m": tolerance_m,
+        "extents": [survey.min_x_m, survey.min_y_m, survey.max_x_m, survey.max_y_m],
+        "vertices": sum(whole["vertices"][n] for n in names),
+        "layers": {n: whole["layers"][n] for n in names},
+    }
