@@ -3,7 +3,10 @@
 Datasets (``../shared/data``, see its README): ``corridor`` (111 vs 111 indoor images, gt +-2 frames) and
 ``nordland-1000`` (summer references vs winter queries, first 1,000 of the 64x32 sample, gt +-1 frame).
 For each, in one process: the baseline (plain patch-normalised SAD, single image), SESAME single image,
-and ``--temporal`` (the route HMM of ``driftmap.core.vpr_route``) with SAD and with SESAME. Prints
+``--temporal`` (the route HMM of ``driftmap.core.vpr_route``) with SAD and with SESAME, the same with
+``--any-speed``, and the paper's HMM exactly as the mine localiser runs it (``core.localiser.Localiser`` on a
+chain map, eq. 8 observation) for comparison. A second table drops every other query (the query traversal
+then runs twice as fast as the references') to show the speed prior of the default filter. Prints
 recall@1, AUC, recall at 100 % precision and wall seconds (images decoded beforehand; thumbnails, masks,
 distances and the filter counted), the ratio of each to the baseline, and the reference figures measured
 outside this project. Writes ``docs/vpr_corridor.png`` and ``docs/vpr_nordland.png``.
@@ -20,7 +23,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import matplotlib
@@ -29,10 +32,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import csr_array
 
-from driftmap.core import metrics
-from driftmap.core.vpr import PRESETS, VprMethod
-from driftmap.core.vpr_route import recognise_places
+from driftmap.core import hmm, metrics
+from driftmap.core.localiser import Localiser, LocaliserMap
+from driftmap.core.vpr import PRESETS, Matches, VprMethod, VprParams, prepare_images
+from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams, recognise_places
 from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,6 +60,8 @@ class Run:
     method: VprMethod
     temporal: bool
     preset: str
+    route: RouteParams = ROUTE_DEFAULT
+    localiser: bool = False  # the mine localiser's HMM (eq. 8) on a chain map instead of the route HMM
 
 
 @dataclass(frozen=True)
@@ -74,7 +81,45 @@ def runs(dataset: str, mine_nordland: bool) -> list[Run]:
         out.append(Run(f"SESAME single ({preset})", "sesame", False, preset))
     out.append(Run("route HMM + SAD (route)", "sad", True, "route"))
     out.append(Run("route HMM + SESAME (route)", "sesame", True, "route"))
+    out.append(Run("  any speed, SAD", "sad", True, "route", ROUTE_ANY_SPEED))
+    out.append(Run("  any speed, SESAME", "sesame", True, "route", ROUTE_ANY_SPEED))
+    out.append(Run("paper HMM (Localiser), SAD", "sad", True, "route", localiser=True))
     return out
+
+
+def speed_runs() -> list[Run]:
+    return [
+        Run("route HMM + SAD (2x speed)", "sad", True, "route"),
+        Run("  any speed, SAD (2x speed)", "sad", True, "route", ROUTE_ANY_SPEED),
+    ]
+
+
+def chain_localiser(query: NDArray[np.uint8], db: NDArray[np.uint8], params: VprParams) -> Matches:
+    """The mine localiser (paper eq. 4-12 as in ``core.localiser``) over the references as a chain map."""
+    pq, pd = prepare_images(query, "sad", params), prepare_images(db, "sad", params)
+    n, k_max = pd.thumbs.shape[0], 64
+    rows, cols, vals = [], [], []
+    for k in range(1, k_max + 1):
+        j = np.arange(n - k, dtype=np.int64)
+        rows += [j, j + k]
+        cols += [j + k, j]
+        vals += [np.full(j.size, float(k))] * 2
+    adjacency = csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    lmap = LocaliserMap(
+        thumbs=pd.thumbs,
+        node_ptr=np.arange(n + 1, dtype=np.int64),
+        centres_m=np.column_stack([np.arange(n, dtype=np.float64), np.zeros(n)]),
+        adjacency_m=adjacency,
+        max_adjacency_m=float(k_max),
+    )
+    # distances in frames, one query frame per "second": A_t = 3 reaches 2 references per frame
+    chain = replace(hmm.PAPER, max_speed_mps=3.0, min_a_t_m=3.0, a_t_quantum_m=1.0)
+    loc = Localiser(lmap, chain, params.sad)
+    steps = [loc.step(thumb, float(i)) for i, thumb in enumerate(pq.thumbs)]
+    return Matches(
+        db_index=np.array([e.node for e in steps], dtype=np.int64),
+        score=np.array([e.score for e in steps], dtype=np.float64),
+    )
 
 
 def load(folder: Path) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.bool_]]:
@@ -84,20 +129,32 @@ def load(folder: Path) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np
     return read_gray_stack(q_files), read_gray_stack(db_files), gt
 
 
-def evaluate(dataset: str, folder: Path, workers: int, mine_nordland: bool) -> list[Outcome]:
-    query, db, gt = load(folder)
-    print(
-        f"\n== {dataset}: {query.shape[0]} queries x {db.shape[0]} references, {db.shape[2]}x{db.shape[1]} px"
-    )
+def execute(
+    runs_: list[Run], query: NDArray[np.uint8], db: NDArray[np.uint8], gt: NDArray[np.bool_], workers: int
+) -> list[Outcome]:
+    """Run each configuration, timed (prepare, distances and matching; images decoded beforehand)."""
     outcomes = []
-    for run in runs(dataset, mine_nordland):
+    for run in runs_:
         t0 = time.perf_counter()
-        m = recognise_places(
-            query, db, run.method, temporal=run.temporal, params=PRESETS[run.preset], workers=workers
-        )
+        if run.localiser:
+            m = chain_localiser(query, db, PRESETS[run.preset])
+        else:
+            m = recognise_places(
+                query,
+                db,
+                run.method,
+                temporal=run.temporal,
+                params=PRESETS[run.preset],
+                route=run.route,
+                workers=workers,
+            )
         seconds = time.perf_counter() - t0
         result, curve = metrics.evaluate_matches(m.db_index, m.score, gt)
         outcomes.append(Outcome(run, result, curve, seconds))
+    return outcomes
+
+
+def report(outcomes: list[Outcome]) -> None:
     base = outcomes[0]
     print(f"{'run':<28} {'recall@1':>9} {'AUC':>7} {'R@100P':>7} {'seconds':>8}   vs {base.run.label}")
     for o in outcomes:
@@ -107,14 +164,27 @@ def evaluate(dataset: str, folder: Path, workers: int, mine_nordland: bool) -> l
             f"{o.run.label:<28} {r.recall_at_1:9.3f} {r.auc:7.3f} {r.recall_at_full_precision:7.3f} "
             f"{o.seconds:8.1f}   AUC x{ratio:.1f}, recall@1 {r.recall_at_1 - base.result.recall_at_1:+.3f}"
         )
+
+
+def evaluate(dataset: str, folder: Path, workers: int, mine_nordland: bool) -> list[Outcome]:
+    query, db, gt = load(folder)
+    print(
+        f"\n== {dataset}: {query.shape[0]} queries x {db.shape[0]} references, {db.shape[2]}x{db.shape[1]} px"
+    )
+    outcomes = execute(runs(dataset, mine_nordland), query, db, gt, workers)
+    report(outcomes)
     for line in REFERENCES[dataset]:
         print(f"  reference: {line}")
+    print(f"-- {dataset}, every other query (the queries run at twice the references' speed)")
+    report(execute(speed_runs(), query[::2], db, gt[::2], workers))
     return outcomes
 
 
 def plot(dataset: str, outcomes: list[Outcome], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     for o in outcomes:
+        if o.run.localiser or o.run.route is not ROUTE_DEFAULT:
+            continue  # the figure keeps to the main runs
         style = "-" if o.run.temporal else "--"
         label = f"{o.run.label}: AUC {o.result.auc:.2f}"
         ax.step(

@@ -12,7 +12,7 @@ from rich.table import Table
 from driftmap.cli.common import console, user_errors
 from driftmap.core import metrics
 from driftmap.core.vpr import METHODS, PRESETS, VprMethod
-from driftmap.core.vpr_route import recognise_places
+from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, recognise_places
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import PlaceMatchRow, write_place_matches_csv
 from driftmap.formats.place_images import find_gt_csv, gt_matrix, list_images, read_gray_stack, read_gt_pairs
@@ -39,6 +39,13 @@ def vpr_match(
     preset: Annotated[
         str, typer.Option(help="mine (shift search +-4/+-2 px) or route (camera on a fixed path, no shifts).")
     ] = "mine",
+    any_speed: Annotated[
+        bool,
+        typer.Option(
+            "--any-speed",
+            help="With --temporal: track the query's speed (0-3x the references') instead of ~1x.",
+        ),
+    ] = False,
     gt: Annotated[
         Path | None, typer.Option("--gt", help="gt.csv to score against (default: the dataset's, if any).")
     ] = None,
@@ -56,7 +63,13 @@ def vpr_match(
         db_images, query_images = read_gray_stack(db_files), read_gray_stack(query_files)
         t0 = time.perf_counter()
         matches = recognise_places(
-            query_images, db_images, vpr_method, temporal=temporal, params=PRESETS[preset], workers=workers
+            query_images,
+            db_images,
+            vpr_method,
+            temporal=temporal,
+            params=PRESETS[preset],
+            route=ROUTE_ANY_SPEED if any_speed else ROUTE_DEFAULT,
+            workers=workers,
         )
         seconds = time.perf_counter() - t0
         rows = [
@@ -68,7 +81,7 @@ def vpr_match(
         if pairs is not None:
             gt_table = gt_matrix(pairs, query_files, db_files)
             result, _ = metrics.evaluate_matches(matches.db_index, matches.score, gt_table)
-    mode = "route HMM" if temporal else "single image"
+    mode = ("route HMM, any speed" if any_speed else "route HMM") if temporal else "single image"
     console.print(
         f"wrote {len(rows)} matches to {out} ({vpr_method}, {mode}, preset {preset}; "
         f"{len(query_files)} queries x {len(db_files)} references in {seconds:.1f} s)"
