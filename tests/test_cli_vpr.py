@@ -42,7 +42,9 @@ def _match(folder: Path, out: Path, *extra: str) -> tuple[int, str]:
 
 
 class TestMatch:
-    @pytest.mark.parametrize("extra", [(), ("--method", "sad"), ("--temporal", "--preset", "route")])
+    @pytest.mark.parametrize(
+        "extra", [(), ("--method", "sad"), ("--temporal", "--preset", "route"), ("--temporal", "--any-speed")]
+    )
     def test_writes_one_row_per_query_and_scores(
         self, dataset: Path, tmp_path: Path, extra: tuple[str, ...]
     ) -> None:

@@ -138,6 +138,31 @@ class TestRouteHmm:
         assert abs(best[10] - truth[10]) <= 1
         assert best[3:10] + best[11:] == truth[3:10] + truth[11:]
 
+    def test_fractional_speed_splits_mass(self) -> None:
+        mass = np.zeros(6)
+        mass[1] = 1.0
+        np.testing.assert_allclose(vpr_route._shift(mass, 1.5), [0, 0, 0.5, 0.5, 0, 0])
+        np.testing.assert_allclose(vpr_route._shift(mass, 5.0), np.zeros(6))  # past the end: leaves
+
+    def test_tracked_speed_follows_a_fast_query(self) -> None:
+        n, speed = 120, 3
+        truth = [2 + speed * k for k in range(35)]
+        filters = {
+            "fixed": vpr_route.RouteFilter(np.ones(n), np.full(n, 0.1)),
+            "tracked": vpr_route.RouteFilter(np.ones(n), np.full(n, 0.1), vpr_route.ROUTE_ANY_SPEED),
+        }
+        best: dict[str, list[int]] = {name: [] for name in filters}
+        rng = np.random.default_rng(1)
+        for j in truth:
+            d = 1.0 + 0.05 * rng.standard_normal(n)
+            d[j] = 0.75  # z = 2.5: clear, but not enough to jump against the prior every frame
+            for name, filt in filters.items():
+                best[name].append(filt.step(d)[0])
+        assert best["tracked"][5:] == truth[5:]
+        assert np.isclose(filters["tracked"].place_belief.sum(), 1.0)
+        # the fixed kernel moves at most 2 references a frame: it keeps losing the query
+        assert sum(b != t for b, t in zip(best["fixed"][5:], truth[5:], strict=True)) >= 10
+
     def test_route_where_single_images_fail(self) -> None:
         db = textures(40, seed=3)
         # each query is 80 % an unrelated scene (a changed season, a passing train) over its true place
