@@ -9,9 +9,12 @@ import numpy as np
 import typer
 
 from driftmap.cli.common import console, open_storage, stage_progress, user_errors
+from driftmap.config import get_settings
+from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import write_localisation_csv
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
+from driftmap.reports.localisation_report import run_localisation_report
 from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
@@ -56,3 +59,40 @@ def localise(
         f"wrote {len(rows)} estimates against map version {number} to {out}: "
         f"{matched} matched ({100 * matched / max(len(rows), 1):.0f}%), {ms:.1f} ms per frame (median)"
     )
+
+
+def report_localisation(
+    site: Annotated[str, typer.Argument(help="Site name.")],
+    truth: Annotated[bool, typer.Option("--truth", help="Score against the drives' ground truth.")] = False,
+    tolerance_m: Annotated[
+        float, typer.Option("--tolerance-m", help="An estimate within this of the truth is right, metres.")
+    ] = 15.0,
+    out: Annotated[
+        Path | None, typer.Option(help="Folder for the PNG and table (default: DATA_DIR/reports/SITE).")
+    ] = None,
+    map_version: Annotated[
+        int | None, typer.Option("--map-version", help="Map version (default: latest).")
+    ] = None,
+) -> None:
+    """Precision-recall of SAD, SAD+SESAME, HMM+SAD and HMM+SESAME over the site's localisation drives."""
+    storage = open_storage()
+    with user_errors():
+        if not truth:
+            raise BadInputError("the localisation report needs ground truth: pass --truth", field="--truth")
+        folder = out or get_settings().data_dir / "reports" / site
+        with storage.db.session() as session:
+            record = site_service.get_site(session, site)
+            version = map_service.get_map_version(session, record, map_version)
+            lmap = loc_service.load_version_localiser_map(session, storage.blobs, version)
+            sesame_params = loc_service.sesame_params_of(version)
+            drives = [
+                d
+                for d in loc_service.load_localisation_drives(session, storage.blobs, record)
+                if d.truth_xy_m is not None
+            ]
+        with stage_progress("localisation report") as report:
+            result = run_localisation_report(
+                lmap, drives, sesame_params, tolerance_m=tolerance_m, out_dir=folder, progress=report
+            )
+    console.print(result.table())
+    console.print(f"figure: {result.figure}\ntable: {result.table_path}")

@@ -65,9 +65,8 @@ class HmmParams:
     x_thresh: float = 0.5  # eq. 12: a place match needs X_i(b(i)) >= x_thresh
     n_probe: int = 8  # extra nodes compared per frame (rotating through the map) to gauge an unrelated d
     lost_confidence: float = 0.02  # a frame with X_i(b(i)) below this counts as lost
-    lost_distinct_ratio: float = (
-        0.85  # a frame with d_best / median(d evaluated and probes) above this is lost
-    )
+    lost_distinct_ratio: float = 0.95  # lost when d(b(i)) / median d of the compared nodes is above this
+    lost_elsewhere_ratio: float = 1.0  # lost when d(b(i)) / least d of compared far nodes is above this
     lost_frames: int = 5  # this many lost frames in a row re-initialise the belief globally; 0 disables
 
     def __post_init__(self) -> None:

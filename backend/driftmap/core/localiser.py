@@ -6,9 +6,11 @@ The batch CLI and the live server use it the same way; the live server keeps :me
 shared store between frames and calls :meth:`Localiser.restore` on the next.
 
 Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i)) is below
-``lost_confidence`` or the best score is not distinct, i.e. d_best is above ``lost_distinct_ratio`` times
-the median d over the evaluated nodes and a few rotating probe nodes (an unrelated place's typical score).
-After ``lost_frames`` lost frames in a row the belief becomes uniform, so the next frame searches the whole
+``lost_confidence`` or the believed place does not look distinctly better than somewhere else: d(i, b(i))
+is above ``lost_distinct_ratio`` times the least d of the compared nodes (evaluated nodes and a few rotating
+probe nodes) that lie beyond the stored shortest paths from b(i). The test is relative to other places of
+the same map, so it holds in mines where every tunnel looks much alike (d of the right place only a few per
+cent below an unrelated one's). After ``lost_frames`` lost frames in a row the belief becomes uniform, so the next frame searches the whole
 map. With ``single_image=True`` there is no filter: every node is compared and b(i) = argmin d.
 
 SESAME (paper 001, eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
@@ -296,14 +298,28 @@ class Localiser:
         belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
         best = int(np.argmax(belief))
         score = float(belief[best])
-        d_best = float(d.min()) if d.size else float("inf")
-        ratio = 1.0 - self._distinctness(d_all, d_best)
-        lost = p.lost_frames > 0 and (score < p.lost_confidence or ratio > p.lost_distinct_ratio)
+        compared = np.r_[nodes, probes]
+        at_best = d_all[compared == best]
+        d_here = float(at_best[0]) if at_best.size else float(np.min(d_all, initial=np.inf))
+        typical = 1.0 - self._distinctness(d_all, d_here)
+        elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here)
+        not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
+        lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
         lost_count = s.lost_count + 1 if lost else 0
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count = hmm.initial_belief(lm.n_nodes), 0  # re-initialise globally
         self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1)
         return self._estimate(best, score, lost, int(d_all.size), t0)
+
+    def _elsewhere_ratio(self, compared: I64, d: NDArray[np.floating], best: int, d_here: float) -> float:
+        """d(b(i)) / least d of the compared nodes beyond the stored shortest paths from b(i); 0 if none."""
+        adj = self.map.adjacency_m
+        near = adj.indices[adj.indptr[best] : adj.indptr[best + 1]]
+        far = ~np.isin(compared, near) & (compared != best) & np.isfinite(d)
+        if not far.any() or not np.isfinite(d_here):
+            return 0.0 if not far.any() else float("inf")
+        d_far = float(d[far].min())
+        return d_here / d_far if d_far > 0 else float("inf")
 
     @staticmethod
     def _distinctness(d: NDArray[np.floating], d_best: float) -> float:

@@ -26,6 +26,7 @@ from driftmap.core.camera import CameraModel
 from driftmap.core.images import preprocess
 from driftmap.core.odometry import dead_reckon
 from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
+from driftmap.core.place_database import DATABASE_DEFAULT, DatabaseParams, database_selector, frame_stats
 from driftmap.core.topomap import PAPER as TOPO_PAPER
 from driftmap.core.topomap import TopoMap, TopoMapParams, build_topomap
 
@@ -63,6 +64,7 @@ class MappingParams:
     loops: loop_search.LoopParams = loop_search.LOOPS_DEFAULT  # loop-closure search (eq. 3)
     graph: posegraph.PoseGraphParams = posegraph.ROBUST  # pose-graph back end
     topomap: TopoMapParams = TOPO_PAPER  # map compression (III-A-4)
+    database: DatabaseParams = DATABASE_DEFAULT  # each node's reference frames: SESAME + quality filter
     keyframe_spacing_m: float = 1.0  # odometry travel between keyframes used for loop closure, metres
     grounding_sigma_m: float = 0.5  # surveyor click accuracy, metres
     use_loop_closures: bool = True  # Table I variants switch these two off
@@ -111,6 +113,7 @@ class MapBuild:
         topomap: the compressed map.
         odometry_confidence: per drive, (N_d,) confidence of the step into each frame (1 for frame 0).
         stats: figures of the build (counts, errors, seconds per stage).
+        reference_thumbs: (S, h, w) float32 thumbnails of ``topomap.chosen``, the localiser's references.
     """
 
     wTi: tuple[F64, ...]
@@ -121,6 +124,7 @@ class MapBuild:
     topomap: TopoMap
     odometry_confidence: tuple[F64, ...]
     stats: dict[str, float | int] = field(default_factory=dict)
+    reference_thumbs: NDArray[np.float32] | None = None
 
 
 def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
@@ -264,7 +268,7 @@ def solve_map(
 
     start = time.perf_counter()
     report("topological map", 0.0)
-    topomap = build_topomap(list(graph.wTi), quality=list(prepared.confidence), params=params.topomap)
+    topomap, database_stats = _topomap_with_database(graph.wTi, prepared, drives, params)
     report("topological map", 1.0)
     timings["topomap_s"] = time.perf_counter() - start
 
@@ -286,6 +290,7 @@ def solve_map(
         "nodes": topomap.n_nodes,
         "graph_initial_error": graph.initial_error,
         "graph_final_error": graph.final_error,
+        **database_stats,
         **timings,
     }
     return MapBuild(
@@ -297,7 +302,35 @@ def solve_map(
         topomap=topomap,
         odometry_confidence=prepared.confidence,
         stats=stats,
+        reference_thumbs=np.concatenate(prepared.thumbs)[topomap.chosen],
     )
+
+
+def _topomap_with_database(
+    wTi: Sequence[F64], prepared: PreparedDrives, drives: Sequence[MappingDrive], params: MappingParams
+) -> tuple[TopoMap, dict[str, float | int]]:
+    """Stage 5: the topological map, each node's frames chosen by the SESAME database when it is on."""
+    db = params.database
+    if not db.enabled:
+        topomap = build_topomap(list(wTi), quality=list(prepared.confidence), params=params.topomap)
+        return topomap, {"reference_frames": int(topomap.chosen.size)}
+    counts = [t.shape[0] for t in prepared.thumbs]
+    stats = frame_stats([d.frames for d in drives], counts, db, params.images)
+    chain_ptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    select = database_selector(stats, np.concatenate(prepared.thumbs), chain_ptr, db, params.loops.sad)
+    per_node = max(params.topomap.frames_per_node, db.frames_per_node if db.use_sesame else 0)
+    topo_params = replace(params.topomap, frames_per_node=per_node)
+    topomap = build_topomap(
+        list(wTi), quality=list(prepared.confidence), params=topo_params, select_frames=select
+    )
+    figures: dict[str, float | int] = {
+        "reference_frames": int(topomap.chosen.size),
+        "quality_rejected_fraction": stats.rejected_fraction,
+    }
+    if stats.classifier is not None:
+        figures["quality_holdout_accuracy"] = stats.classifier.holdout_accuracy
+    return topomap, figures
+
 
 
 def build_map(

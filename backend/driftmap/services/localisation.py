@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import io
 import logging
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import replace
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -33,14 +33,17 @@ from driftmap.core.saliency import SesameParams
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import LocalisationRow
 from driftmap.formats.frame_images import decode_gray
-from driftmap.services.maps import get_map_version, load_topomap
+from driftmap.services.drives import frame_rows
+from driftmap.services.maps import LOCALISER_DB_KEY, get_map_version, load_topomap
 from driftmap.store.blobs import BlobStore
-from driftmap.store.models import Frame, MapNodeFrame, MapVersion, Site
+from driftmap.store.models import Drive, Frame, MapNodeFrame, MapVersion, Site
 
 __all__ = [
     "LOCALISER_DB_KEY",
+    "RecordedDrive",
     "estimate_rows",
     "image_params_of",
+    "load_localisation_drives",
     "load_localiser_map",
     "load_version_localiser_map",
     "localise_frames",
@@ -50,7 +53,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 ProgressFn = Callable[[str, float], None]
-LOCALISER_DB_KEY = "localiser_db_sha256"  # MapVersion.stats key of the localisation database blob
 
 
 def _tuples(value: Any) -> Any:
@@ -187,3 +189,50 @@ def estimate_rows(frame_numbers: Sequence[int], estimates: Sequence[Estimate]) -
         LocalisationRow(int(f), e.node, e.x_m, e.y_m, e.score, e.matched)
         for f, e in zip(frame_numbers, estimates, strict=True)
     ]
+
+
+@dataclass(frozen=True, eq=False)
+class RecordedDrive:
+    """A stored localisation drive, frames streamed from the blob store.
+
+    Attributes:
+        name: the drive's name.
+        frame_numbers: (N,) int64 frame numbers of the drive folder.
+        t_s: (N,) float64 timestamps, seconds.
+        truth_xy_m: (N, 2) float64 true floor points (survey frame, metres) when every frame has one, else None.
+        frames: returns a fresh iterator over the N grey (H, W) uint8 frames in time order.
+    """
+
+    name: str
+    frame_numbers: NDArray[np.int64]
+    t_s: NDArray[np.float64]
+    truth_xy_m: NDArray[np.float64] | None
+    frames: Callable[[], Iterator[NDArray[np.uint8]]]
+
+
+def load_localisation_drives(session: Session, blobs: BlobStore, site: Site) -> list[RecordedDrive]:
+    """Every stored drive of kind ``localisation`` of ``site``, in import order."""
+    drives = session.scalars(
+        select(Drive).where(Drive.site_id == site.id, Drive.kind == "localisation").order_by(Drive.id)
+    ).all()
+    out = []
+    for drive in drives:
+        rows = frame_rows(session, drive)
+        has_truth = bool(rows) and all(f.true_x_m is not None and f.true_y_m is not None for f in rows)
+        truth = np.array([[f.true_x_m, f.true_y_m] for f in rows], dtype=np.float64) if has_truth else None
+        shas = [f.blob_sha256 for f in rows]
+
+        def frames(shas: list[str] = shas) -> Iterator[NDArray[np.uint8]]:
+            for sha in shas:
+                yield decode_gray(blobs.get(sha), f"blob {sha}")
+
+        out.append(
+            RecordedDrive(
+                name=drive.name,
+                frame_numbers=np.array([f.index for f in rows], dtype=np.int64),
+                t_s=np.array([f.t_s for f in rows], dtype=np.float64),
+                truth_xy_m=truth,
+                frames=frames,
+            )
+        )
+    return out

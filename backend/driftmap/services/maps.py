@@ -34,6 +34,9 @@ from driftmap.store.models import (
 )
 
 ProgressFn = Callable[[str, float], None]
+LOCALISER_DB_KEY = "localiser_db_sha256"
+"""``MapVersion.stats`` key of the localisation database blob: an ``.npz`` of ``thumbs`` (S, h, w) float16
+reference thumbnails of every node's chosen frames, node by node, and ``node_ptr`` (M + 1,) int64 offsets."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,11 +130,17 @@ def store_map_version(
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **build.topomap.to_arrays())  # type: ignore[arg-type]
     latest = session.scalar(select(func.max(MapVersion.version)).where(MapVersion.site_id == site.id)) or 0
+    stats = json_safe(build.stats)
+    if build.reference_thumbs is not None:
+        database = io.BytesIO()
+        thumbs = build.reference_thumbs.astype(np.float16)
+        np.savez(database, thumbs=thumbs, node_ptr=build.topomap.chosen_ptr.astype(np.int64))
+        stats[LOCALISER_DB_KEY] = batch.put(database.getvalue())
     version = MapVersion(
         site_id=site.id,
         version=latest + 1,
         params=_params_json(params),
-        stats=json_safe(build.stats),
+        stats=stats,
         topomap_sha256=batch.put(buffer.getvalue()),
         created_by=created_by,
     )

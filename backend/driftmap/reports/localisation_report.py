@@ -1,0 +1,233 @@
+"""Localisation evaluated like both papers: precision-recall per condition and method (paper 000 Fig. 9).
+
+Every localisation drive with ground truth is run through four localisers on the same stored map:
+holistic single-image SAD, single-image SAD with SESAME masks, the HMM filter with SAD, and the HMM with
+SESAME. Drives are grouped by condition from their names: ``*-dust1``, ``*-dust2``, ``*-water1``,
+``*-water2`` (the simulator's obscured copies, paper 000 IV-A) and ``clean`` for the rest.
+
+A frame's estimate is right when its node centre lies within ``tolerance_m`` of the true floor point
+(15 m for the simulator; paper 000 used 30 m in a larger mine). Sweeping the match threshold over each
+method's score gives the precision-recall curve (:mod:`driftmap.reports.pr_curves`); the table gives its
+area, the recall at 100 % precision, the share of frames the localiser marks matched at its configured
+X_thresh and their mean distance error (node centre to truth, metres).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from driftmap.core import hmm
+from driftmap.core.localiser import Localiser, LocaliserMap
+from driftmap.core.saliency import SesameParams
+from driftmap.errors import BadInputError
+from driftmap.reports.plots import new_figure, save
+from driftmap.reports.pr_curves import PrCurve, pr_curve
+from driftmap.services.localisation import RecordedDrive
+
+__all__ = [
+    "CONDITIONS",
+    "METHODS",
+    "LocalisationReport",
+    "MethodResult",
+    "condition_of",
+    "run_localisation_report",
+]
+
+ProgressFn = Callable[[str, float], None]
+CONDITIONS = ("clean", "dust1", "dust2", "water1", "water2")
+#: (label, SESAME masks, HMM temporal filter)
+METHODS: tuple[tuple[str, bool, bool], ...] = (
+    ("SAD", False, False),
+    ("SAD+SESAME", True, False),
+    ("HMM+SAD", False, True),
+    ("HMM+SESAME", True, True),
+)
+_CONDITION = re.compile(r"-((?:dust|water)\d)$")
+_COLOURS = {"SAD": "#9a9a9a", "SAD+SESAME": "#3a7bd5", "HMM+SAD": "#e08a2e", "HMM+SESAME": "#c0392b"}
+
+
+def condition_of(drive_name: str) -> str:
+    """``dust1``/``dust2``/``water1``/``water2`` from a drive name's suffix, else ``clean``."""
+    found = _CONDITION.search(drive_name)
+    return found.group(1) if found else "clean"
+
+
+@dataclass(eq=False)
+class MethodResult:
+    """Per-frame outcomes of one method on one condition (every drive of it, concatenated).
+
+    Attributes:
+        scores: (N,) confidence of each frame's estimate.
+        error_m: (N,) distance from the estimated node centre to the true floor point, metres.
+        matched: (N,) the localiser's own match flag at its configured X_thresh.
+        ms: (N,) milliseconds per frame.
+    """
+
+    scores: list[float] = field(default_factory=list)
+    error_m: list[float] = field(default_factory=list)
+    matched: list[bool] = field(default_factory=list)
+    ms: list[float] = field(default_factory=list)
+
+    def curve(self, tolerance_m: float) -> PrCurve:
+        """The precision-recall curve at this ground-truth tolerance."""
+        return pr_curve(np.asarray(self.scores), np.asarray(self.error_m) <= tolerance_m)
+
+    def matched_error_m(self) -> float:
+        """Mean distance error of the matched frames, metres (NaN when none matched)."""
+        m = np.asarray(self.matched, dtype=bool)
+        return float(np.mean(np.asarray(self.error_m)[m])) if m.any() else float("nan")
+
+
+@dataclass(frozen=True, eq=False)
+class LocalisationReport:
+    """Results by (condition, method) and the files written."""
+
+    results: dict[tuple[str, str], MethodResult]
+    tolerance_m: float
+    figure: Path | None
+    table_path: Path | None
+
+    def rows(self) -> list[dict[str, float | str | int]]:
+        """One row per (condition, method) with AUC, recall@100% precision, matched share and errors."""
+        out: list[dict[str, float | str | int]] = []
+        for (cond, method), r in self.results.items():
+            curve = r.curve(self.tolerance_m)
+            out.append(
+                {
+                    "condition": cond,
+                    "method": method,
+                    "frames": len(r.scores),
+                    "auc": curve.auc,
+                    "recall_at_p100": curve.recall_at_full_precision,
+                    "matched": float(np.mean(r.matched)) if r.matched else 0.0,
+                    "matched_error_m": r.matched_error_m(),
+                    "ms_per_frame": float(np.median(r.ms)) if r.ms else float("nan"),
+                }
+            )
+        return out
+
+    def table(self) -> str:
+        """The table as Markdown, with each method's AUC change against clean."""
+        clean = {row["method"]: float(row["auc"]) for row in self.rows() if row["condition"] == "clean"}
+        lines = [
+            "| condition | method | frames | AUC | AUC - clean | recall @ 100% precision "
+            "| matched | mean error of matched (m) | ms/frame |",
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        ]
+        for row in self.rows():
+            delta = float(row["auc"]) - clean.get(str(row["method"]), float("nan"))
+            lines.append(
+                f"| {row['condition']} | {row['method']} | {row['frames']} | {float(row['auc']):.3f} "
+                f"| {delta:+.3f} | {float(row['recall_at_p100']):.3f} | {100 * float(row['matched']):.0f}% "
+                f"| {float(row['matched_error_m']):.2f} | {float(row['ms_per_frame']):.1f} |"
+            )
+        return "\n".join(lines)
+
+
+def _run_drive(
+    drive: RecordedDrive, localisers: dict[str, Localiser], results: dict[str, MethodResult]
+) -> None:
+    """Every method on one drive; the frame is pre-processed and masked once, shared by the methods."""
+    if drive.truth_xy_m is None:
+        raise BadInputError(f"drive {drive.name!r} has no ground truth on every frame", field="truth")
+    plain = next(loc for loc in localisers.values() if loc.sesame is None)
+    masker = next((loc for loc in localisers.values() if loc.sesame is not None), None)
+    for k, frame in enumerate(drive.frames()):
+        thumb = plain.thumbnail(frame)
+        t0 = time.perf_counter()
+        mask = masker.query_mask(frame) if masker is not None else None
+        mask_ms = (time.perf_counter() - t0) * 1e3  # charged to the SESAME methods only
+        for name, loc in localisers.items():
+            est = loc.step(thumb, float(drive.t_s[k]), mask if loc.sesame is not None else None)
+            res = results[name]
+            res.scores.append(est.score)
+            res.error_m.append(
+                float(np.hypot(est.x_m - drive.truth_xy_m[k, 0], est.y_m - drive.truth_xy_m[k, 1]))
+            )
+            res.matched.append(est.matched)
+            res.ms.append(est.ms + (mask_ms if loc.sesame is not None else 0.0))
+
+
+def run_localisation_report(
+    lmap: LocaliserMap,
+    drives: Sequence[RecordedDrive],
+    sesame: SesameParams,
+    *,
+    tolerance_m: float = 15.0,
+    out_dir: Path | None = None,
+    params: hmm.HmmParams = hmm.DEFAULT,
+    progress: ProgressFn | None = None,
+) -> LocalisationReport:
+    """Run the four methods over every drive, score them, and write the PNG and the table.
+
+    Args:
+        lmap: the localiser's map of the version evaluated.
+        drives: localisation drives with ground truth (their names give the condition).
+        sesame: SESAME mask parameters of the SESAME methods.
+        tolerance_m: a frame is right when its node centre is within this of the truth, metres.
+        out_dir: folder for ``localisation_pr.png`` and ``localisation_table.md``; None writes nothing.
+        params: HMM parameters of the temporal methods.
+        progress: called with (drive name, fraction of drives done).
+
+    Returns:
+        :class:`LocalisationReport`.
+    """
+    if not drives:
+        raise BadInputError("no localisation drive with ground truth to evaluate", field="drives")
+    if not tolerance_m > 0:
+        raise BadInputError(f"must be positive, got {tolerance_m}", field="tolerance_m")
+    report = progress or (lambda _stage, _fraction: None)
+    results: dict[tuple[str, str], MethodResult] = {}
+    order = sorted(range(len(drives)), key=lambda i: CONDITIONS.index(condition_of(drives[i].name)))
+    for done, i in enumerate(order):
+        drive = drives[i]
+        cond = condition_of(drive.name)
+        report(drive.name, done / len(drives))
+        localisers = {
+            name: Localiser(lmap, params, single_image=not temporal, sesame=sesame if masked else None)
+            for name, masked, temporal in METHODS
+        }
+        per = {name: results.setdefault((cond, name), MethodResult()) for name, _m, _t in METHODS}
+        _run_drive(drive, localisers, per)
+    report("done", 1.0)
+    figure = table_path = None
+    result = LocalisationReport(results, tolerance_m, None, None)
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        figure = _plot(result, out_dir / "localisation_pr.png")
+        table_path = out_dir / "localisation_table.md"
+        table_path.write_text(result.table() + "\n", encoding="utf-8")
+    return LocalisationReport(results, tolerance_m, figure, table_path)
+
+
+def _plot(result: LocalisationReport, path: Path) -> Path:
+    conditions = [c for c in CONDITIONS if any(k[0] == c for k in result.results)]
+    fig, axes = new_figure(len(conditions), 1, size_in=3.6)
+    for ax, cond in zip(axes, conditions, strict=True):
+        for name, _m, _t in METHODS:
+            r = result.results.get((cond, name))
+            if r is None:
+                continue
+            curve = r.curve(result.tolerance_m)
+            ax.plot(
+                np.r_[0.0, curve.recall],
+                np.r_[1.0, curve.precision],
+                color=_COLOURS[name],
+                label=f"{name} ({curve.auc:.2f})",
+                linewidth=1.4,
+            )
+        ax.set_title(f"{cond}, {result.tolerance_m:g} m tolerance")
+        ax.set_xlabel("recall")
+        ax.set_ylabel("precision")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower left", fontsize=7)
+    save(fig, str(path))
+    return path
