@@ -1,0 +1,183 @@
+"""The job lifecycle with real ``driftmap worker`` processes on the embedded SQLite queue.
+
+Upload drives as zips, build a map through a job and read it back; cancel a queued and a running job; kill a
+worker with SIGKILL in the middle of a map build and check that another worker finishes it exactly once.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from sqlalchemy import func, select
+
+from driftmap.config import Settings
+from driftmap.store.models import Frame, MapPose, MapVersion
+from driftmap.store.storage import Storage
+from tests.api.data_helpers import (
+    ApiUsers,
+    api_users,
+    create_site_with_survey,
+    start_worker,
+    stop_worker,
+    upload_zip,
+)
+from tests.jobs.mini_site import drive_folders, mini_site_dir, zip_folder
+from tests.sim_site import import_site
+
+
+@pytest.fixture(scope="session")
+def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return mini_site_dir(tmp_path_factory)
+
+
+@pytest.fixture
+def users(settings: Settings) -> Iterator[ApiUsers]:
+    made = api_users(settings, immediate=False)
+    yield made
+    made.client.close()
+
+
+@pytest.fixture
+def site_id(users: ApiUsers, mini_site: Path) -> int:
+    """The mini site's mapping drives imported directly (the upload path is tested on its own)."""
+    import_site(users.storage, mini_site, name="tiny")
+    return int(users.get("/api/sites")["items"][0]["id"])
+
+
+def _build(users: ApiUsers, site_id: int) -> int:
+    response = users.client.post(
+        f"/api/sites/{site_id}/maps", json={"preset": "fast"}, headers=users.auth("surveyor")
+    )
+    assert response.status_code == 202, response.text
+    assert response.json()["status"] == "queued"
+    return int(response.json()["id"])
+
+
+def _counts(storage: Storage) -> tuple[int, int, int]:
+    with storage.db.session() as session:
+        versions = session.scalar(select(func.count()).select_from(MapVersion)) or 0
+        poses = session.scalar(select(func.count()).select_from(MapPose)) or 0
+        frames = session.scalar(select(func.count()).select_from(Frame)) or 0
+    return versions, poses, frames
+
+
+def _in_odometry(job: dict[str, object]) -> bool:
+    return job["status"] == "running" and "odometry" in str(job["stage"]) and float(str(job["progress"])) > 0
+
+
+class TestLifecycle:
+    def test_upload_build_and_read_back_through_a_worker(
+        self, users: ApiUsers, settings: Settings, mini_site: Path
+    ) -> None:
+        site_id = create_site_with_survey(users, mini_site)
+        worker = start_worker(settings)
+        try:
+            imports = []
+            for folder in drive_folders(mini_site, "map"):
+                response = upload_zip(users, site_id, f"{folder.name}.zip", zip_folder(folder))
+                assert response.status_code == 202, response.text
+                imports.append(response.json()["id"])
+            for job_id in imports:
+                job = users.wait_job(job_id)
+                assert job["status"] == "succeeded", job["error"]
+                assert job["result"]["frames"] == 100 and job["attempts"] == 1
+            build = users.wait_job(_build(users, site_id))
+        finally:
+            stop_worker(worker)
+        assert build["status"] == "succeeded", build["error"]
+        assert (build["progress"], build["stage"]) == (1.0, "done")
+        version = build["result"]["version"]
+        detail = users.get(f"/api/sites/{site_id}/maps/{version}")
+        assert detail["poses"] == 200 and detail["residuals"] == 2 and detail["nodes"] >= 5
+        poses = users.get(f"/api/sites/{site_id}/maps/{version}/poses")
+        assert poses["total"] == len(poses["x_m"]) == 200
+        residuals = users.get(f"/api/sites/{site_id}/maps/{version}/residuals")
+        assert len(residuals) == 2 and all(r["distance_m"] < 2.0 for r in residuals)
+        listed = users.get("/api/jobs", params={"site_id": site_id, "kind": "drive.import"})
+        assert listed["total"] == 2 and {j["status"] for j in listed["items"]} == {"succeeded"}
+
+    def test_progress_stream_ends_with_the_final_state(
+        self, users: ApiUsers, settings: Settings, site_id: int
+    ) -> None:
+        job_id = _build(users, site_id)
+        worker = start_worker(settings)
+        try:
+            events = []
+            with users.client.stream(
+                "GET", f"/api/jobs/{job_id}/events", headers=users.auth("viewer")
+            ) as stream:
+                assert stream.headers["content-type"].startswith("text/event-stream")
+                for line in stream.iter_lines():
+                    if line.startswith("data: "):
+                        events.append(json.loads(line.removeprefix("data: ")))
+        finally:
+            stop_worker(worker)
+        assert events[0]["status"] in ("queued", "running")
+        assert events[-1]["status"] == "succeeded"
+        progress = [e["progress"] for e in events if e["status"] == "running"]
+        assert len(events) >= 3 and progress and max(progress) > 0
+
+
+class TestCancel:
+    def test_a_queued_job_cancelled_before_any_worker_never_runs(
+        self, users: ApiUsers, settings: Settings, site_id: int
+    ) -> None:
+        job_id = _build(users, site_id)
+        response = users.client.post(f"/api/jobs/{job_id}/cancel", headers=users.auth("surveyor"))
+        assert response.status_code == 200 and response.json()["status"] == "cancelled"
+        later = _build(users, site_id)  # queued behind it: once this ran, the worker has seen the first one
+        worker = start_worker(settings)
+        try:
+            assert users.wait_job(later)["status"] == "succeeded"
+        finally:
+            stop_worker(worker)
+        cancelled = users.job(job_id)
+        assert (cancelled["status"], cancelled["attempts"], cancelled["started_at"]) == ("cancelled", 0, None)
+        assert _counts(users.storage)[0] == 1
+
+    def test_a_running_job_stops_at_its_next_progress_report(
+        self, users: ApiUsers, settings: Settings, site_id: int
+    ) -> None:
+        worker = start_worker(settings)
+        try:
+            job_id = _build(users, site_id)
+            users.wait_job(job_id, _in_odometry)
+            response = users.client.post(f"/api/jobs/{job_id}/cancel", headers=users.auth("surveyor"))
+            assert response.status_code == 200 and response.json()["cancel_requested_at"] is not None
+            job = users.wait_job(job_id)
+        finally:
+            stop_worker(worker)
+        assert job["status"] == "cancelled" and job["result"] is None
+        assert _counts(users.storage)[:2] == (0, 0)
+        again = users.client.post(f"/api/jobs/{job_id}/cancel", headers=users.auth("surveyor"))
+        assert again.status_code == 200 and again.json()["status"] == "cancelled"
+
+
+class TestWorkerKilled:
+    def test_a_build_whose_worker_is_killed_is_finished_once_by_another(
+        self, users: ApiUsers, settings: Settings, site_id: int
+    ) -> None:
+        first = start_worker(settings)
+        try:
+            job_id = _build(users, site_id)
+            running = users.wait_job(job_id, _in_odometry)
+            first.send_signal(signal.SIGKILL)
+            first.wait(timeout=30)
+        finally:
+            stop_worker(first)
+        assert running["attempts"] == 1
+        assert users.job(job_id)["status"] == "running"  # nobody knows yet
+        second = start_worker(settings)
+        try:
+            job = users.wait_job(job_id)
+        finally:
+            stop_worker(second)
+        assert job["status"] == "succeeded", job["error"]
+        assert job["attempts"] == 2 and job["worker_id"] != running["worker_id"]
+        versions, poses, frames = _counts(users.storage)
+        assert (versions, poses) == (1, frames) and frames == 200
+        assert job["result"]["version"] == 1
