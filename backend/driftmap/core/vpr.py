@@ -160,7 +160,8 @@ def check_pair(query: PreparedImages, db: PreparedImages) -> None:
     if query.thumbs.shape[1:] != db.thumbs.shape[1:]:
         raise BadInputError(
             f"query thumbnails {query.thumbs.shape[1:]} and reference thumbnails {db.thumbs.shape[1:]} differ:"
-            " query and db images must have the same aspect ratio",
+            " query and db images must have the same aspect ratio (images narrower than the thumbnail keep"
+            " their size)",
             field="query",
         )
     if (query.masks is None) != (db.saliency is None):
