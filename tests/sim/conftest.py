@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from driftmap.sim import SimulationSummary, SitePlan, plan_site, simulate_site
+from driftmap.sim.ride import RIDE_NONE
 
 SEED = 5
 WRITTEN_FRAMES = 160  # frames kept per written drive; the plan-level tests check whole drives
@@ -27,6 +28,10 @@ def tiny_plan() -> SitePlan:
 
 @pytest.fixture(scope="session")
 def tiny_site(tmp_path_factory: pytest.TempPathFactory) -> WrittenSite:
-    """The tiny site written to disk (first frames of every drive), obscured copies included."""
+    """The tiny site written to disk (first frames of every drive), obscured copies included.
+
+    Rendered with a perfect rig (no bounce, blur or calibration error) so pixels agree exactly with truth.
+    """
     out = tmp_path_factory.mktemp("sim") / "site"
-    return WrittenSite(out, simulate_site(out, seed=SEED, size="tiny", max_frames_per_drive=WRITTEN_FRAMES))
+    summary = simulate_site(out, seed=SEED, size="tiny", max_frames_per_drive=WRITTEN_FRAMES, ride=RIDE_NONE)
+    return WrittenSite(out, summary)

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.sim.ride import (
     RIDE_DEFAULT,
     RIDE_NONE,
@@ -18,8 +20,7 @@ from driftmap.sim.ride import (
     ride_motion,
 )
 from driftmap.sim.rig import CameraRig
-
-PX_TOL = 0.05  # pixels: the rotation warp is exact up to floating point
+from driftmap.sim.site import simulate_site
 
 
 def _warp_of(rig: CameraRig, pitch: float, roll: float, yaw: float, uv: tuple[float, float]) -> np.ndarray:
@@ -91,3 +92,15 @@ class TestRideMotion:
             for s in range(200)
         ]
         assert np.std(ratios) == pytest.approx(0.02, rel=0.25)
+
+
+class TestSimulatedSite:
+    def test_each_drive_carries_its_own_imperfect_calibration(self, tmp_path: Path) -> None:
+        simulate_site(
+            tmp_path / "s", seed=4, size="tiny", obscurants=False, max_frames_per_drive=3, workers=1
+        )
+        nominal = CameraRig().camera_model
+        cameras = [read_drive_folder(d).meta.camera for d in sorted((tmp_path / "s" / "drives").iterdir())]
+        scales = [c.k_y_m_per_px / nominal.k_y_m_per_px for c in cameras]
+        assert len(set(scales)) == len(cameras)  # no two drives calibrated alike
+        assert all(abs(s - 1.0) < 5 * RIDE_DEFAULT.height_error_frac + 0.02 for s in scales)

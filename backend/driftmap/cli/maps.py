@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
@@ -29,6 +30,11 @@ report_app = typer.Typer(help="Evaluation reports against ground truth.", no_arg
 MODELS: dict[str, OdometryModel] = {"auto": "auto", "linear": "linear", "homography": "homography"}
 PRESETS: dict[str, MappingParams] = {"paper": PAPER, "fast": FAST}
 PresetOption = Annotated[str, typer.Option("--preset", help="Parameter preset: paper or fast.")]
+DEFAULT_WORKERS = min(2, os.cpu_count() or 1)
+WorkersOption = Annotated[
+    int,
+    typer.Option("--workers", min=1, help="Drives dead-reckoned at once (threads; default: up to 2 cores)."),
+]
 
 
 def _preset(name: str) -> MappingParams:
@@ -75,6 +81,7 @@ def odometry(
 def map_build(
     site: Annotated[str, typer.Argument(help="Site name.")],
     preset: PresetOption = "paper",
+    workers: WorkersOption = DEFAULT_WORKERS,
 ) -> None:
     """Build a new immutable map version from the site's mapping drives and groundings."""
     storage = open_storage()
@@ -85,7 +92,7 @@ def map_build(
             map_service.ensure_buildable(session, record)
             with stage_progress("map build") as report:
                 version, build = map_service.build_site_map(
-                    session, storage.blobs, batch, record, params, report
+                    session, storage.blobs, batch, record, params, report, workers=workers
                 )
             number = version.version
     console.print(f"map version {number} of {site!r}: {_stats_line(build.stats)}")
@@ -147,6 +154,7 @@ def report_mapping(
         Path | None, typer.Option(help="Folder for the PNG (default: DATA_DIR/reports/SITE).")
     ] = None,
     preset: PresetOption = "paper",
+    workers: WorkersOption = DEFAULT_WORKERS,
 ) -> None:
     """The paper's Table I (VO, VO+loops, VO+groundings, full) and a Fig. 6-style PNG."""
     storage = open_storage()
@@ -167,6 +175,7 @@ def report_mapping(
                 plan_layers=plan,
                 figure_path=folder / "mapping.png",
                 progress=report,
+                workers=workers,
             )
     console.print(result.table())
     console.print(f"figure: {result.figure}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -173,14 +174,19 @@ class PreparedDrives:
 
 
 def prepare_drives(
-    drives: Sequence[MappingDrive], params: MappingParams = PAPER, progress: ProgressFn | None = None
+    drives: Sequence[MappingDrive],
+    params: MappingParams = PAPER,
+    progress: ProgressFn | None = None,
+    workers: int = 1,
 ) -> PreparedDrives:
     """Stages 1-3: visual odometry and thumbnails of every frame, keyframes, loop-closure search.
 
     Args:
         drives: every mapping drive of the site.
         params: pipeline parameters (``use_loop_closures`` off skips the search).
-        progress: called with (stage name, fraction 0..1 of that stage).
+        progress: called with (stage name, fraction 0..1 of that stage), from the calling thread.
+        workers: drives dead-reckoned at once in threads (OpenCV and NumPy release the GIL in their
+            inner loops, so two threads use two cores).
 
     Raises:
         ValueError: no drive, or a drive whose frame count disagrees with its times.
@@ -190,26 +196,16 @@ def prepare_drives(
     report = progress or (lambda _stage, _fraction: None)
     timings: dict[str, float] = {}
     start = time.perf_counter()
-    chains: list[posegraph.OdometryChain] = []
-    raw_poses: list[F64] = []
-    confidence: list[F64] = []
-    thumbs: list[NDArray[np.float32]] = []
-    for k, drive in enumerate(drives):
-        report("odometry", k / len(drives))
-        tee = _Tee(drive.frames(), params.images)
-        reckoning = dead_reckon(tee, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0))
-        if len(tee.thumbs) != drive.t_s.shape[0]:
-            raise ValueError(
-                f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times"
-            )
-        steps = reckoning.steps
-        iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
-        sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
-        chains.append(posegraph.OdometryChain(iTj, sigmas))
-        raw_poses.append(reckoning.wTi)
-        confidence.append(np.concatenate([[1.0], [s.confidence for s in steps]]))
-        thumbs.append(np.stack(tee.thumbs))
-    report("odometry", 1.0)
+    report("odometry", 0.0)
+    with ThreadPoolExecutor(max(1, min(workers, len(drives)))) as pool:
+        futures = [pool.submit(_drive_odometry, drive, params) for drive in drives]
+        for done, _ in enumerate(as_completed(futures), start=1):
+            report("odometry", done / len(drives))
+        results = [f.result() for f in futures]
+    chains = [r[0] for r in results]
+    raw_poses = [r[1] for r in results]
+    confidence = [r[2] for r in results]
+    thumbs = [r[3] for r in results]
     timings["odometry_s"] = time.perf_counter() - start
 
     start = time.perf_counter()
@@ -225,6 +221,21 @@ def prepare_drives(
     return PreparedDrives(
         tuple(chains), tuple(raw_poses), tuple(confidence), tuple(thumbs), keyframes, found, timings
     )
+
+
+def _drive_odometry(
+    drive: MappingDrive, params: MappingParams
+) -> tuple[posegraph.OdometryChain, F64, F64, NDArray[np.float32]]:
+    """Dead reckoning of one drive: its odometry chain, (N, 3) poses, (N,) confidence, (N, h, w) thumbnails."""
+    tee = _Tee(drive.frames(), params.images)
+    reckoning = dead_reckon(tee, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0))
+    if len(tee.thumbs) != drive.t_s.shape[0]:
+        raise ValueError(f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times")
+    steps = reckoning.steps
+    iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
+    sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
+    confidence = np.concatenate([[1.0], [s.confidence for s in steps]])
+    return posegraph.OdometryChain(iTj, sigmas), reckoning.wTi, confidence, np.stack(tee.thumbs)
 
 
 def solve_map(
@@ -332,9 +343,11 @@ def _topomap_with_database(
     return topomap, figures
 
 
-
 def build_map(
-    drives: Sequence[MappingDrive], params: MappingParams = PAPER, progress: ProgressFn | None = None
+    drives: Sequence[MappingDrive],
+    params: MappingParams = PAPER,
+    progress: ProgressFn | None = None,
+    workers: int = 1,
 ) -> MapBuild:
     """Build the map of a site from its mapping drives: :func:`prepare_drives` then :func:`solve_map`.
 
@@ -342,11 +355,12 @@ def build_map(
         drives: every mapping drive, each with its frames, times and groundings.
         params: pipeline parameters; ``use_loop_closures``/``use_groundings`` select Table I variants.
         progress: called with (stage name, fraction 0..1 of that stage).
+        workers: drives dead-reckoned at once (see :func:`prepare_drives`).
 
     Returns:
         :class:`MapBuild` with optimised poses, closures, residuals and the topological map.
     """
-    return solve_map(prepare_drives(drives, params, progress), drives, params, progress)
+    return solve_map(prepare_drives(drives, params, progress, workers), drives, params, progress)
 
 
 def _aligned_dead_reckoning(

@@ -89,6 +89,7 @@ def run_mapping_report(
     plan_layers: dict[str, Any] | None = None,
     figure_path: Path | None = None,
     progress: Any = None,
+    workers: int = 1,
 ) -> MappingReport:
     """Build the four Table I variants once each (odometry and loop search shared) and score them."""
     if any(t is None for t in truth):
@@ -98,7 +99,7 @@ def run_mapping_report(
         replace(d, start_wT=(float(t[0, 0]), float(t[0, 1]), float(t[0, 2])))
         for d, t in zip(drives, true, strict=True)
     ]
-    prepared = prepare_drives(started, params, progress)
+    prepared = prepare_drives(started, params, progress, workers)
     rows, builds = [], {}
     for key, label, loops, groundings in VARIANTS:
         build = solve_map(prepared, started, variant(params, loops=loops, groundings=groundings))

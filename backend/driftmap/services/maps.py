@@ -220,10 +220,14 @@ def build_site_map(
     params: MappingParams = PAPER,
     progress: ProgressFn | None = None,
     created_by: str = "cli",
+    workers: int = 1,
 ) -> tuple[MapVersion, MapBuild]:
-    """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version."""
+    """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
+
+    ``workers`` drives are dead-reckoned at once (threads of this process).
+    """
     loaded = load_site_drives(session, blobs, site)
-    build = build_map(loaded.inputs, params, progress)
+    build = build_map(loaded.inputs, params, progress, workers)
     return store_map_version(session, batch, site, loaded, build, params, created_by), build
 
 

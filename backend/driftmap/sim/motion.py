@@ -130,15 +130,16 @@ def plan_mapping(g: Graph, vp: VehicleParams, y_c_m: float, seed: int) -> list[D
         starts = starts or [i for i, d in enumerate(walk) if nodes[g.tail(d)].kind == "junction"] or [0]
         walk = walk[starts[0] :] + walk[: starts[0]]
         b = _Builder(g, vp, y_c_m, np.random.default_rng([seed, 31, k]))
-        if not _leave_base(g, vp, b, walk[0], grounded):
-            grounded.add(g.tail(walk[0]))
+        surveyor = _Surveyor(g, vp, grounded)
+        if not _leave_base(g, b, walk[0], surveyor):
+            surveyor.start_at(g.tail(walk[0]))
         i, n = 0, len(walk)
         while i < n:
             d = walk[i]
             head = g.head(d)
             if g.is_leaf(head):
                 node = nodes[head]
-                b.finish_forward(vp.mapping_speed_mps, Stop(_xy(node.xy), vp.stop_s, node.name, True), d)
+                b.finish_forward(vp.mapping_speed_mps, surveyor.at_leaf(head), d)
                 if node.kind == "drawpoint":
                     b.dig(d, vp.mapping_dig_strokes)
                 e_f = walk[(i + 2) % n]
@@ -147,40 +148,72 @@ def plan_mapping(g: Graph, vp: VehicleParams, y_c_m: float, seed: int) -> list[D
                 b.reverse_out(d, pair[0])
                 i += 2
                 continue
-            last = i == n - 1
-            stop = None
-            if not last and g.main_junction(head) and head not in grounded:
-                stop = Stop(_xy(nodes[head].xy), vp.stop_s, nodes[head].name, True)
-                grounded.add(head)
-            b.forward(d, stop)
+            b.forward(d, surveyor.at_junction(head) if i < n - 1 else None)
             i += 1
-        end_node = nodes[g.tail(walk[0])]
-        b.finish_forward(vp.mapping_speed_mps, Stop(_xy(end_node.xy), vp.stop_s, end_node.name, True))
+        b.finish_forward(vp.mapping_speed_mps, surveyor.at_leaf(g.tail(walk[0])))
         plans.append(DrivePlan(f"map-{k + 1:02d}", "mapping", tuple(b.runs), vp.stop_s, True, tuple(b.darts)))
     return plans
 
 
-def _leave_base(g: Graph, vp: VehicleParams, b: _Builder, first: Dart, grounded: set[int]) -> bool:
+@dataclass
+class _Surveyor:
+    """Where a mapping drive stops for a grounding (one per drive; ``grounded`` is shared by all drives).
+
+    Dead ends and the drive's start and end are always grounded. A main junction is grounded the first
+    time any drive passes it; any junction is grounded when this drive's groundings so far lie within
+    ``SPREAD_M`` of each other: groundings at one spot fix a drive's position but not its heading, so a
+    surveyor grounds a second, distant point.
+    """
+
+    SPREAD_M = 10.0
+
+    g: Graph
+    vp: VehicleParams
+    grounded: set[int]
+    mine: list[tuple[float, float]] = field(default_factory=list)
+
+    def start_at(self, node: int) -> None:
+        """The drive starts (with its start grounding) at ``node``."""
+        self.mine.append(_xy(self.g.layout.nodes[node].xy))
+        self.grounded.add(node)
+
+    def at_leaf(self, node: int) -> Stop:
+        """The grounding stop at a dead end or at the drive's end."""
+        xy = _xy(self.g.layout.nodes[node].xy)
+        self.mine.append(xy)
+        return Stop(xy, self.vp.stop_s, self.g.layout.nodes[node].name, True)
+
+    def at_junction(self, node: int) -> Stop | None:
+        """A grounding stop at ``node`` when it is a main junction that needs one, else None."""
+        xy = _xy(self.g.layout.nodes[node].xy)
+        far = all(np.hypot(xy[0] - m[0], xy[1] - m[1]) >= self.SPREAD_M for m in self.mine)
+        clustered = all(
+            np.hypot(a[0] - c[0], a[1] - c[1]) < self.SPREAD_M for a in self.mine for c in self.mine
+        )
+        needs_spread = clustered and far and len(self.g.out[node]) >= 3
+        if not needs_spread and (not self.g.main_junction(node) or node in self.grounded):
+            return None
+        self.grounded.add(node)
+        self.mine.append(xy)
+        return Stop(xy, self.vp.stop_s, self.g.layout.nodes[node].name, True)
+
+
+def _leave_base(g: Graph, b: _Builder, first: Dart, surveyor: _Surveyor) -> bool:
     """Start the drive parked at the dump and drive to the tail of ``first``; False if there is no route.
 
     Every mapping drive leaves from the same base, as a real survey vehicle leaves its parking bay, so the
     access tunnels are driven again in the same direction by later drives: loop closures tie the drives
-    together there. Main junctions on the way are grounded only the first time a drive passes them.
+    together there.
     """
     dumps = _leaf_darts(g, "dump")
     plan = g.plan_from_leaf(dumps[0], first) if dumps and g.tail(first) != g.tail(dumps[0]) else None
     if plan is None:
         return False
     e_r, access = plan
+    surveyor.start_at(g.head(dumps[0]))
     b.reverse_out(dumps[0], e_r)
-    nodes = g.layout.nodes
     for d in access[:-1]:
-        head = g.head(d)
-        stop = None
-        if g.main_junction(head) and head not in grounded:
-            stop = Stop(_xy(nodes[head].xy), vp.stop_s, nodes[head].name, True)
-            grounded.add(head)
-        b.forward(d, stop)
+        b.forward(d, surveyor.at_junction(g.head(d)))
     return True
 
 

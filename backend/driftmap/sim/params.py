@@ -50,16 +50,17 @@ class SiteSize:
     min_localisation_frames: int  # localisation frames guaranteed even if mapping eats the budget
 
 
-# Centreline length and frames (seeds vary them a little): tiny ~105 m / ~1,300 frames (mapping alone
-# takes most of it), small ~370 m / ~3,400, medium ~1.46 km / ~12,500, large ~5.7 km / ~50,000.
+# Centreline length and frames (seeds vary them a little): tiny ~105 m / ~1,400 frames (mapping alone
+# takes most of it), small ~370 m / ~4,500, medium ~1.46 km / ~15,000, large ~5.7 km / ~62,000. Every
+# mapping drive leaves from the dump, so mapping takes about three quarters of the frames.
 SIZES: dict[str, SiteSize] = {
     "tiny": SiteSize("tiny", LayoutParams(24.0, 15.0, 0, access_length_m=0.0), 400, 1, 100),
-    "small": SiteSize("small", LayoutParams(88.0, 44.0, 1, access_length_m=22.0), 3000, 2, 500),
-    "medium": SiteSize("medium", LayoutParams(330.0, 100.0, 3, access_length_m=90.0), 12000, 4, 2400),
+    "small": SiteSize("small", LayoutParams(88.0, 44.0, 1, access_length_m=22.0), 4500, 2, 500),
+    "medium": SiteSize("medium", LayoutParams(330.0, 100.0, 3, access_length_m=90.0), 15000, 4, 2400),
     "large": SiteSize(
         "large",
         LayoutParams(1300.0, 190.0, 9, drawpoint_spacing_m=28.0, access_length_m=150.0),
-        45000,
+        60000,
         8,
         9000,
     ),
