@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from sqlalchemy import delete, distinct, select
+from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
 from driftmap.errors import ConflictError
@@ -41,7 +41,8 @@ def delete_drive(session: Session, drive: Drive) -> set[str]:
         ConflictError: a map version holds poses of the drive (delete those versions first).
     """
     versions = session.scalars(
-        select(distinct(MapVersion.version))
+        select(MapVersion.version)
+        .distinct()
         .join(MapPose, MapPose.map_version_id == MapVersion.id)
         .join(Frame, MapPose.frame_id == Frame.id)
         .where(Frame.drive_id == drive.id)
@@ -50,7 +51,7 @@ def delete_drive(session: Session, drive: Drive) -> set[str]:
     if versions:
         listed = ", ".join(str(v) for v in versions)
         raise ConflictError(f"drive {drive.name!r} is part of map version(s) {listed}; delete those first")
-    candidates = set(session.scalars(select(distinct(Frame.blob_sha256)).where(Frame.drive_id == drive.id)))
+    candidates = set(session.scalars(select(Frame.blob_sha256).distinct().where(Frame.drive_id == drive.id)))
     session.execute(delete(Drive).where(Drive.id == drive.id))
     return candidates
 
@@ -59,7 +60,8 @@ def delete_site(session: Session, site: Site) -> set[str]:
     """Delete a site with everything in it; returns every blob it referred to as candidates."""
     candidates = set(
         session.scalars(
-            select(distinct(Frame.blob_sha256))
+            select(Frame.blob_sha256)
+            .distinct()
             .join(Drive, Frame.drive_id == Drive.id)
             .where(Drive.site_id == site.id)
         )
