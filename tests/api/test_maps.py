@@ -1,0 +1,124 @@
+"""Map-version routes on a real SQLite file: builds through the job (huey's immediate mode), read-back,
+comparison of two versions, deletion."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from sqlalchemy import select
+
+from driftmap.config import Settings
+from driftmap.store.models import MapVersion
+from tests.api.data_helpers import ApiUsers, api_users
+from tests.jobs.mini_site import mini_site_dir
+from tests.sim_site import import_site
+
+
+@pytest.fixture(scope="session")
+def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return mini_site_dir(tmp_path_factory)
+
+
+@pytest.fixture
+def users(settings: Settings) -> Iterator[ApiUsers]:
+    made = api_users(settings)
+    yield made
+    made.client.close()
+
+
+@pytest.fixture
+def site_id(users: ApiUsers, mini_site: Path) -> int:
+    import_site(users.storage, mini_site, name="tiny")
+    return int(users.get("/api/sites")["items"][0]["id"])
+
+
+def build(users: ApiUsers, site_id: int) -> dict[str, object]:
+    """Start a FAST build; returns the finished job (immediate mode)."""
+    response = users.client.post(
+        f"/api/sites/{site_id}/maps", json={"preset": "fast"}, headers=users.auth("surveyor")
+    )
+    assert response.status_code == 202, response.text
+    job = users.job(response.json()["id"])
+    assert job["status"] == "succeeded", job["error"]
+    return job
+
+
+class TestBuildAndRead:
+    def test_a_version_serves_poses_closures_nodes_and_residuals(self, users: ApiUsers, site_id: int) -> None:
+        job = build(users, site_id)
+        versions = users.get(f"/api/sites/{site_id}/maps")
+        assert versions["total"] == 1 and versions["items"][0]["version"] == 1
+        assert versions["items"][0]["created_by"] == f"surveyor via job {job['id']}"
+        detail = users.get(f"/api/sites/{site_id}/maps/1")
+        assert (detail["poses"], detail["residuals"]) == (200, 2) and detail["params"]
+        assert detail["residual_max_m"] >= detail["residual_mean_m"] >= 0
+        page = users.get(f"/api/sites/{site_id}/maps/1/poses", params={"offset": 95, "limit": 10})
+        assert page["total"] == 200 and len(page["x_m"]) == len(page["frame"]) == 10
+        assert page["frame"][:5] == [95, 96, 97, 98, 99] and page["frame"][5:] == [0, 1, 2, 3, 4]
+        assert len(set(page["drive_id"])) == 2
+        closures = users.get(f"/api/sites/{site_id}/maps/1/closures")
+        assert len(closures) == detail["closures"]
+        nodes = users.get(f"/api/sites/{site_id}/maps/1/nodes")
+        assert len(nodes["node"]) == detail["nodes"] and nodes["edges"]
+        assert all(0 <= a < b < detail["nodes"] for a, b in nodes["edges"])
+        residuals = users.get(f"/api/sites/{site_id}/maps/1/residuals")
+        assert len(residuals) == 2 and residuals[0]["distance_m"] >= residuals[1]["distance_m"]
+
+    def test_unknown_versions_and_unbuildable_sites_are_refused(self, users: ApiUsers) -> None:
+        site_id = users.client.post("/api/sites", json={"name": "bare"}, headers=users.auth("admin")).json()[
+            "id"
+        ]
+        assert (
+            users.client.get(f"/api/sites/{site_id}/maps/1", headers=users.auth("viewer")).status_code == 404
+        )
+        response = users.client.post(f"/api/sites/{site_id}/maps", json={}, headers=users.auth("surveyor"))
+        assert response.status_code == 409 and users.get("/api/jobs")["total"] == 0
+        viewer = users.client.post(f"/api/sites/{site_id}/maps", json={}, headers=users.auth("viewer"))
+        assert viewer.status_code == 403
+
+
+class TestCompareAndDelete:
+    def test_moving_a_grounding_moves_the_next_version(self, users: ApiUsers, site_id: int) -> None:
+        build(users, site_id)
+        same = build(users, site_id)
+        assert same["result"]["version"] == 2
+        unchanged = users.get(f"/api/sites/{site_id}/maps/compare", params={"a": 1, "b": 2})
+        assert unchanged["frames"] == 200 and unchanged["max_m"] < 1e-6
+        grounding = users.get(f"/api/sites/{site_id}/groundings")["items"][0]
+        moved = users.client.patch(
+            f"/api/groundings/{grounding['id']}",
+            json={"x": grounding["x_m"] + 3.0},
+            headers=users.auth("surveyor"),
+        )
+        assert moved.status_code == 200
+        build(users, site_id)
+        compared = users.get(f"/api/sites/{site_id}/maps/compare", params={"a": 2, "b": 3})
+        assert compared["frames"] == 200 and (compared["only_in_a"], compared["only_in_b"]) == (0, 0)
+        assert compared["max_m"] > 1.0 and compared["p95_m"] <= compared["max_m"]
+        drive_ids = {d["id"] for d in users.get(f"/api/sites/{site_id}/drives")["items"]}
+        assert {d["drive_id"] for d in compared["per_drive"]} == drive_ids
+        assert sum(d["frames"] for d in compared["per_drive"]) == 200
+
+    def test_a_drive_in_a_map_is_kept_until_its_versions_are_deleted(
+        self, users: ApiUsers, site_id: int
+    ) -> None:
+        build(users, site_id)
+        drive_id = users.get(f"/api/sites/{site_id}/drives")["items"][0]["id"]
+        blocked = users.client.delete(f"/api/drives/{drive_id}", headers=users.auth("admin"))
+        assert blocked.status_code == 409 and "map version(s) 1" in blocked.json()["detail"]
+        with users.storage.db.session() as session:
+            sha = session.scalars(select(MapVersion.topomap_sha256)).one()
+        assert users.storage.blobs.exists(sha)
+        assert (
+            users.client.delete(f"/api/sites/{site_id}/maps/1", headers=users.auth("surveyor")).status_code
+            == 403
+        )
+        assert (
+            users.client.delete(f"/api/sites/{site_id}/maps/1", headers=users.auth("admin")).status_code
+            == 204
+        )
+        assert users.get(f"/api/sites/{site_id}/maps")["total"] == 0
+        assert not users.storage.blobs.exists(sha)
+        assert users.client.delete(f"/api/drives/{drive_id}", headers=users.auth("admin")).status_code == 204
