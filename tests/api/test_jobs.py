@@ -181,3 +181,26 @@ class TestWorkerKilled:
         versions, poses, frames = _counts(users.storage)
         assert (versions, poses) == (1, frames) and frames == 200
         assert job["result"]["version"] == 1
+
+
+class TestWorkerStopped:
+    def test_sigterm_puts_the_running_job_back_for_the_next_worker(
+        self, users: ApiUsers, settings: Settings, site_id: int
+    ) -> None:
+        first = start_worker(settings, stale_after_s=600.0)  # only the shutdown hand-back can save the job
+        try:
+            job_id = _build(users, site_id)
+            users.wait_job(job_id, _in_odometry)
+            first.send_signal(signal.SIGTERM)
+            first.wait(timeout=60)
+        finally:
+            stop_worker(first)
+        handed_back = users.job(job_id)
+        assert handed_back["status"] == "queued" and handed_back["worker_id"] is None
+        second = start_worker(settings, stale_after_s=600.0)
+        try:
+            job = users.wait_job(job_id)
+        finally:
+            stop_worker(second)
+        assert job["status"] == "succeeded" and job["attempts"] == 2
+        assert _counts(users.storage)[:2] == (1, 200)
