@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from driftmap.cli import app
 from driftmap.formats.csv_exports import read_place_matches_csv
 from driftmap.formats.place_dataset import write_gt_csv
-from tests.core.test_vpr import noisy, textures
+from tests.vpr_factory import noisy, textures
 
 runner = CliRunner()
 PLACES = 16

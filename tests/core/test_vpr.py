@@ -4,30 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
-from numpy.typing import NDArray
+from tests.vpr_factory import noisy, textures
 
 from driftmap.core import metrics, vpr, vpr_route
 from driftmap.errors import BadInputError
 
-U8 = NDArray[np.uint8]
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
-
-
-def textures(n: int, seed: int = 0, shape: tuple[int, int] = (32, 64)) -> U8:
-    """(n, H, W) uint8 grey textures, distinct per place, smooth enough to survive noise."""
-    rng = np.random.default_rng(seed)
-    raw = rng.normal(0.0, 1.0, (n, *shape)).astype(np.float32)
-    out = np.stack([cv2.GaussianBlur(r, (0, 0), 1.2) for r in raw])
-    out = 128 + 40 * out / out.std(axis=(1, 2), keepdims=True)
-    return np.clip(out, 0, 255).astype(np.uint8)
-
-
-def noisy(images: U8, sigma: float, seed: int) -> U8:
-    rng = np.random.default_rng(seed)
-    return np.clip(images + rng.normal(0.0, sigma, images.shape), 0, 255).astype(np.uint8)
 
 
 class TestMetrics:
