@@ -85,7 +85,8 @@ class RouteParams:
     calib_samples: int = 64  # references compared with the route to learn each reference's statistics
     calib_exclude_frames: int = 5  # a sampled reference's neighbours within this show the same place
     block_rows: int = 64  # query rows computed at a time by the batch :func:`match_route`
-    speeds: tuple[float, ...] = ()  # tracked speed states (references per query frame); () = fixed kernel
+    speeds: tuple[float, ...] = ()  # tracked speeds, refs per query frame (< 0: backwards); () = fixed kernel
+    # (with speeds, reach_frames and direction are not used)
     speed_change: float = 0.01  # tracked: probability per step of moving to a neighbouring speed state
 
     def __post_init__(self) -> None:
