@@ -204,21 +204,22 @@ class TestOverload:
             )
             vid, site_id = vehicle.id, vehicle.site_id
         live = LiveService(settings, storage, queue_depth=1)
-        burst = [(f.t, decode_gray(f.data)) for f in frames[:12]]
+        burst = [(f.t, f.data) for f in frames[:12]]
 
         async def run() -> list:  # type: ignore[type-arg]
             first = await asyncio.gather(*(live.submit(vid, "burst", site_id, t, g) for t, g in burst[:6]))
             second = await asyncio.gather(*(live.submit(vid, "burst", site_id, t, g) for t, g in burst[6:]))
             late = await live.submit(vid, "burst", site_id, burst[3][0], burst[3][1])
-            return [*first, *second, late]
+            tail = await live.submit(vid, "burst", site_id, frames[12].t, frames[12].data)
+            return [*first, *second, late, tail]
 
         outcomes = asyncio.run(run())
         live.close()
         assert [o.t for o in outcomes[:12]] == [t for t, _g in burst]  # one answer per frame, in order
         statuses = [o.status for o in outcomes]
-        assert statuses[-1] == "out_of_order"
+        assert statuses[-2:] == ["out_of_order", "processed"]
         processed = [o.t for o in outcomes if o.status == "processed"]
-        assert processed == sorted(processed) and processed[-1] == burst[-1][0]
+        assert processed == sorted(processed) and processed[-2:] == [burst[-1][0], frames[12].t]
         assert statuses[:12].count("skipped") >= 8  # one frame runs, one waits: a burst of 6 keeps 1-2
         assert statuses[5] == statuses[11] == "processed"  # the newest frame of a burst is always processed
         with storage.db.session() as session:
@@ -227,6 +228,32 @@ class TestOverload:
             assert (state.processed, state.skipped) == (len(processed), statuses.count("skipped"))
             assert state.out_of_order == 1
         storage.close()
+
+    def test_frames_arriving_shuffled_are_never_processed_backwards(
+        self, built: Path, frames: list[RecordedFrame]
+    ) -> None:
+        settings = Settings(data_dir=built)
+        storage = Storage.open(settings)
+        with storage.db.session() as session:
+            vehicle, _token = vehicle_service.create_vehicle(
+                session, "shuffled", site_service.get_site(session, "tiny").id
+            )
+            vid, site_id = vehicle.id, vehicle.site_id
+        live = LiveService(settings, storage, queue_depth=1)
+        order = [3, 1, 2, 0, 5, 4]
+
+        async def run() -> list:  # type: ignore[type-arg]
+            return await asyncio.gather(
+                *(live.submit(vid, "s", site_id, frames[i].t, frames[i].data) for i in order)
+            )
+
+        outcomes = asyncio.run(run())
+        live.close()
+        storage.close()
+        status = {o.t: o.status for o in outcomes}
+        processed = [o.t for o in sorted(outcomes, key=lambda o: o.seq or 0) if o.status == "processed"]
+        assert processed == sorted(processed) and frames[5].t in processed
+        assert set(status.values()) <= {"processed", "skipped", "out_of_order"} and len(status) == len(order)
 
 
 def _framed(frame: RecordedFrame) -> bytes:

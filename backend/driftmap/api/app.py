@@ -14,6 +14,7 @@ from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
 from driftmap import __version__
+from driftmap.api.deps import PrincipalCache
 from driftmap.api.error_handlers import driftmap_error_handler
 from driftmap.api.live_service import LiveService
 from driftmap.api.routes import ROUTERS
@@ -49,6 +50,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.storage = storage
     app.state.secret_key = secret_key(settings)
     app.state.live = live
+    app.state.principals = PrincipalCache()
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
     for router in ROUTERS:
         app.include_router(router, prefix="/api")

@@ -14,7 +14,8 @@ Routers declare their rule with ``dependencies=[Depends(VIEWER)]``, ``Depends(SU
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+import time
+from collections.abc import Awaitable, Callable, Iterator
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Annotated
@@ -32,6 +33,7 @@ from driftmap.store.storage import Storage
 TOKEN_COOKIE = "driftmap_token"
 WS_CLOSE_UNAUTHORIZED = 4401
 WS_CLOSE_FORBIDDEN = 4403
+AUTH_CACHE_S = 2.0  # how long a checked token is trusted without looking it up again, seconds
 
 
 class Role(StrEnum):
@@ -93,8 +95,11 @@ def token_of(conn: HTTPConnection, *, allow_query: bool = False) -> str | None:
 def principal_of(conn: HTTPConnection, *, allow_query: bool = False) -> Principal | None:
     """Who the credentials of ``conn`` belong to; None when there are none or they are not valid."""
     token = token_of(conn, allow_query=allow_query)
-    if token is None:
-        return None
+    return None if token is None else principal_of_token(conn, token)
+
+
+def principal_of_token(conn: HTTPConnection, token: str) -> Principal | None:
+    """Who ``token`` belongs to (a database lookup); None when it is not valid."""
     storage = _storage(conn)
     vehicle_id = security.vehicle_id_of_token(token)
     with storage.db.session() as session:
@@ -111,6 +116,53 @@ def principal_of(conn: HTTPConnection, *, allow_query: bool = False) -> Principa
         return Principal("user", user.id, user.username, role=Role(user.role))
 
 
+class PrincipalCache:
+    """Token -> principal answers of the last ``ttl_s`` seconds, so frames do not each hit the database.
+
+    The routes that change users or vehicle tokens clear it, so this process sees a change at once; another
+    server process sees it within ``ttl_s``.
+    """
+
+    def __init__(self, ttl_s: float = AUTH_CACHE_S, max_entries: int = 10000) -> None:
+        self.ttl_s = ttl_s
+        self.max_entries = max_entries
+        self._entries: dict[str, tuple[Principal | None, float]] = {}
+
+    def get(self, token: str) -> tuple[bool, Principal | None]:
+        """(found, principal) for ``token``."""
+        entry = self._entries.get(token)
+        if entry is None or time.monotonic() - entry[1] > self.ttl_s:
+            return False, None
+        return True, entry[0]
+
+    def put(self, token: str, principal: Principal | None) -> None:
+        if len(self._entries) >= self.max_entries:
+            self._entries.clear()
+        self._entries[token] = (principal, time.monotonic())
+
+    def clear(self) -> None:
+        self._entries.clear()
+
+
+async def cached_principal(conn: HTTPConnection, *, allow_query: bool = False) -> Principal | None:
+    """:func:`principal_of` through the app's :class:`PrincipalCache` (the lookup in a worker thread)."""
+    token = token_of(conn, allow_query=allow_query)
+    if token is None:
+        return None
+    cache: PrincipalCache = conn.app.state.principals
+    found, principal = cache.get(token)
+    if not found:
+        principal = await run_in_threadpool(principal_of_token, conn, token)
+        cache.put(token, principal)
+    return principal
+
+
+def forget_principals(conn: HTTPConnection) -> None:
+    """Drop cached credentials (after a user or vehicle token changed)."""
+    cache: PrincipalCache = conn.app.state.principals
+    cache.clear()
+
+
 def _unauthorized() -> HTTPException:
     return HTTPException(
         status.HTTP_401_UNAUTHORIZED,
@@ -119,11 +171,11 @@ def _unauthorized() -> HTTPException:
     )
 
 
-def _current_principal(request: Request) -> Principal | None:
-    return principal_of(request)
+async def _current_principal(request: Request) -> Principal | None:
+    return await cached_principal(request)
 
 
-def _current_user(principal: Annotated[Principal | None, Depends(_current_principal)]) -> Principal:
+async def _current_user(principal: Annotated[Principal | None, Depends(_current_principal)]) -> Principal:
     if principal is None:
         raise _unauthorized()
     if principal.kind != "user":
@@ -135,7 +187,7 @@ CurrentUserDep = Annotated[Principal, Depends(_current_user)]
 """The logged-in user (any role); 401 without credentials, 403 for a vehicle token."""
 
 
-def require_roles(*roles: Role) -> Callable[[Principal], Principal]:
+def require_roles(*roles: Role) -> Callable[[Principal], Awaitable[Principal]]:
     """A dependency that lets through users with one of ``roles`` (admins always); 403 for others.
 
     Use as ``dependencies=[Depends(require_roles(Role.surveyor))]`` or through :data:`VIEWER`,
@@ -143,7 +195,7 @@ def require_roles(*roles: Role) -> Callable[[Principal], Principal]:
     """
     allowed = frozenset({*roles, Role.admin})
 
-    def check(user: CurrentUserDep) -> Principal:
+    async def check(user: CurrentUserDep) -> Principal:
         if user.role not in allowed:
             names = ", ".join(sorted(allowed))
             raise HTTPException(status.HTTP_403_FORBIDDEN, f"this needs one of the roles: {names}")
@@ -165,7 +217,7 @@ SurveyorDep = Annotated[Principal, Depends(SURVEYOR)]
 AdminDep = Annotated[Principal, Depends(ADMIN)]
 
 
-def _vehicle(
+async def _vehicle(
     vehicle_id: Annotated[int, Path(description="The vehicle's id.")],
     principal: Annotated[Principal | None, Depends(_current_principal)],
 ) -> Principal:
@@ -182,5 +234,5 @@ VehicleDep = Annotated[Principal, Depends(_vehicle)]
 
 
 async def websocket_principal(websocket: WebSocket) -> Principal | None:
-    """Who opened ``websocket`` (header, cookie or ``?token=``); looked up in a worker thread."""
-    return await run_in_threadpool(principal_of, websocket, allow_query=True)
+    """Who opened ``websocket`` (header, cookie or ``?token=``)."""
+    return await cached_principal(websocket, allow_query=True)

@@ -24,6 +24,7 @@ from datetime import datetime
 from typing import Any
 
 from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect
+from starlette.requests import ClientDisconnect
 
 from driftmap.api.deps import (
     WS_CLOSE_FORBIDDEN,
@@ -55,11 +56,14 @@ async def _read_body(request: Request, limit: int) -> bytes:
     if declared is not None and declared.isdigit() and int(declared) > limit:
         raise PayloadTooLargeError(f"frame of {declared} bytes is over the {limit} byte limit", field="body")
     chunks, total = [], 0
-    async for chunk in request.stream():
-        total += len(chunk)
-        if total > limit:
-            raise PayloadTooLargeError(f"frame is over the {limit} byte limit", field="body")
-        chunks.append(chunk)
+    try:
+        async for chunk in request.stream():
+            total += len(chunk)
+            if total > limit:
+                raise PayloadTooLargeError(f"frame is over the {limit} byte limit", field="body")
+            chunks.append(chunk)
+    except ClientDisconnect:
+        raise BadRequestError("the client went away before sending the whole frame", field="body") from None
     return b"".join(chunks)
 
 
@@ -82,9 +86,7 @@ async def post_frame(
     data = await _read_body(request, request.app.state.settings.max_frame_bytes)
     if not data:
         raise BadRequestError("the request has no body: send the JPEG or PNG bytes", field="body")
-    live = _live(request.app.state)
-    frame = await live.decode(data)
-    outcome = await live.submit(vehicle.id, vehicle.name, vehicle.site_id or 0, t, frame)
+    outcome = await _live(request.app.state).submit(vehicle.id, vehicle.name, vehicle.site_id or 0, t, data)
     return FrameEstimate.model_validate(outcome)
 
 
@@ -145,12 +147,11 @@ async def vehicle_stream(websocket: WebSocket, vehicle_id: int) -> None:
                 if len(data) - 8 > limit:
                     raise PayloadTooLargeError(f"frame is over the {limit} byte limit", field="message")
                 (t,) = struct.unpack(">d", data[:8])
-                frame = await live.decode(data[8:])
             except DriftmapError as exc:
                 await send({"status": "error", "t": t, "code": status_of(exc), **error_body(exc)})
                 continue
             submitted = asyncio.create_task(
-                live.submit(principal.id, principal.name, principal.site_id or 0, t, frame)
+                live.submit(principal.id, principal.name, principal.site_id or 0, t, data[8:])
             )
             task = asyncio.create_task(answer(t, submitted))
             pending.add(task)

@@ -9,6 +9,7 @@ from driftmap.api.schemas_access import LiveStateRead, PositionRead, VehicleLate
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.services import positions as position_service
 from driftmap.services import vehicles as vehicle_service
+from driftmap.services.live import as_utc
 from driftmap.store.access_models import VehicleLiveState
 
 router = APIRouter(tags=["positions"], dependencies=[Depends(VIEWER)])
@@ -37,7 +38,8 @@ def vehicle_live_state(vehicle_id: int, session: SessionDep) -> LiveStateRead:
     state = session.get(VehicleLiveState, vehicle_id)
     if state is None:
         raise NotFoundError(f"vehicle {vehicle_id} has not posted a frame yet")
-    return LiveStateRead.model_validate(state)
+    read = LiveStateRead.model_validate(state)
+    return read.model_copy(update={"updated_at": as_utc(read.updated_at)})
 
 
 @router.get("/positions/latest")

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends, status
+from fastapi import APIRouter, Depends, Request, status
 
-from driftmap.api.deps import ADMIN, SessionDep
+from driftmap.api.deps import ADMIN, SessionDep, forget_principals
 from driftmap.api.schemas_access import UserCreate, UserRead, UserUpdate
 from driftmap.services import users as user_service
 
@@ -31,14 +31,21 @@ def get_user(user_id: int, session: SessionDep) -> UserRead:
 
 
 @router.patch("/{user_id}")
-def update_user(user_id: int, body: UserUpdate, session: SessionDep) -> UserRead:
+def update_user(user_id: int, body: UserUpdate, session: SessionDep, request: Request) -> UserRead:
     """Change a user's role or password."""
     user = user_service.get_user(session, user_id)
     role = body.role.value if body.role is not None else None
-    return UserRead.model_validate(user_service.update_user(session, user, role=role, password=body.password))
+    updated = UserRead.model_validate(
+        user_service.update_user(session, user, role=role, password=body.password)
+    )
+    session.commit()
+    forget_principals(request)
+    return updated
 
 
 @router.delete("/{user_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_user(user_id: int, session: SessionDep) -> None:
+def delete_user(user_id: int, session: SessionDep, request: Request) -> None:
     """Remove a user (not the last admin)."""
     user_service.delete_user(session, user_service.get_user(session, user_id))
+    session.commit()
+    forget_principals(request)

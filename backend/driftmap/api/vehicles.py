@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends, status
+from fastapi import APIRouter, Depends, Request, status
 
-from driftmap.api.deps import ADMIN, VIEWER, SessionDep
+from driftmap.api.deps import ADMIN, VIEWER, SessionDep, forget_principals
 from driftmap.api.schemas_access import VehicleCreate, VehicleRead, VehicleWithToken
 from driftmap.services import vehicles as vehicle_service
 
@@ -35,14 +35,18 @@ def get_vehicle(vehicle_id: int, session: SessionDep) -> VehicleRead:
 
 
 @router.post("/{vehicle_id}/token", dependencies=[Depends(ADMIN)])
-def rotate_token(vehicle_id: int, session: SessionDep) -> VehicleWithToken:
+def rotate_token(vehicle_id: int, session: SessionDep, request: Request) -> VehicleWithToken:
     """Give the vehicle a new token; the old one stops working."""
     vehicle = vehicle_service.get_vehicle(session, vehicle_id)
     token = vehicle_service.rotate_token(session, vehicle)
+    session.commit()
+    forget_principals(request)
     return _with_token(vehicle, token)
 
 
 @router.delete("/{vehicle_id}", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(ADMIN)])
-def delete_vehicle(vehicle_id: int, session: SessionDep) -> None:
+def delete_vehicle(vehicle_id: int, session: SessionDep, request: Request) -> None:
     """Remove a vehicle with its position history."""
     vehicle_service.delete_vehicle(session, vehicle_service.get_vehicle(session, vehicle_id))
+    session.commit()
+    forget_principals(request)

@@ -32,6 +32,7 @@ from driftmap.store.db import Database
 from driftmap.store.models import MapVersion, Site, utc_now
 
 FrameStatus = Literal["processed", "skipped", "out_of_order"]
+STALE_RETRIES = 3  # attempts when another process changed the vehicle's state between read and write
 
 
 class LiveMaps:
@@ -148,7 +149,7 @@ def localise_live_frame(
     vehicle_id: int,
     t_s: float,
     frame: NDArray[np.uint8],
-    skipped_before: int,
+    unsaved_counts: tuple[int, int],
     slot: LiveSlot | None,
 ) -> tuple[FrameOutcome, LiveSlot | None]:
     """Localise one frame of a vehicle and store the estimate and the new state (one transaction).
@@ -160,7 +161,8 @@ def localise_live_frame(
         vehicle_id: the vehicle.
         t_s: the frame's timestamp on the vehicle's clock, seconds.
         frame: (H, W) uint8 grey frame.
-        skipped_before: frames of this vehicle dropped on purpose since the last stored one (added to its count).
+        unsaved_counts: frames of this vehicle skipped under overload and refused as out of order since
+            the last stored frame (added to its counts).
         slot: this process's localiser of the vehicle from the previous frame, or None.
 
     Returns:
@@ -168,69 +170,96 @@ def localise_live_frame(
     """
     if not np.isfinite(t_s):
         raise BadInputError(f"t must be a finite number of seconds, got {t_s}", field="t")
-    try:
-        with db.session() as session:
-            vehicle = session.get(Vehicle, vehicle_id)
-            if vehicle is None:
-                raise NotFoundError(f"no vehicle with id {vehicle_id}")
-            version = latest_map_version(session, vehicle.site_id)
-            state = _live_state(session, vehicle_id)
-            state.skipped += skipped_before
-            stored_revision = state.revision
-            if state.last_t_s is not None and t_s <= state.last_t_s:
-                state.out_of_order += 1
-                session.flush()
-                if slot is not None and slot.revision == stored_revision:
-                    slot.revision = state.revision  # the belief did not change, the slot stays valid
-                return _outcome(vehicle, state, t_s, "out_of_order"), slot
-            if slot is None or slot.map_version_id != version.id or slot.revision != stored_revision:
-                localiser = make_localiser(maps.get(session, blobs, version))
-                if state.map_version_id == version.id and state.state_npz is not None:
-                    localiser.restore(decode_state(state.state_npz))
-                slot = LiveSlot(version.id, localiser, -1)
-            estimate = slot.localiser.step(frame, t_s)
-            received_at = utc_now()
-            state.map_version_id = version.id
-            state.last_t_s = t_s
-            state.state_npz = encode_state(slot.localiser.state())
-            state.processed += 1
-            position = VehiclePosition(
-                vehicle_id=vehicle_id,
-                map_version_id=version.id,
-                t_s=t_s,
-                node=estimate.node,
-                x_m=estimate.x_m,
-                y_m=estimate.y_m,
-                confidence=estimate.score,
-                matched=estimate.matched,
-                lost=estimate.lost,
-                received_at=received_at,
-            )
-            session.add(position)
+    for _attempt in range(STALE_RETRIES):
+        try:
+            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, unsaved_counts, slot)
+        except StaleDataError:
+            slot = None  # another process advanced the vehicle: start again from the stored state
+    raise ConflictError(
+        f"vehicle {vehicle_id}'s state keeps being advanced by other server processes; frame t={t_s} not processed"
+    )
+
+
+def _localise_once(
+    db: Database,
+    blobs: BlobStore,
+    maps: LiveMaps,
+    vehicle_id: int,
+    t_s: float,
+    frame: NDArray[np.uint8],
+    unsaved_counts: tuple[int, int],
+    slot: LiveSlot | None,
+) -> tuple[FrameOutcome, LiveSlot | None]:
+    with db.session() as session:
+        vehicle = session.get(Vehicle, vehicle_id)
+        if vehicle is None:
+            raise NotFoundError(f"no vehicle with id {vehicle_id}")
+        version = latest_map_version(session, vehicle.site_id)
+        state = _live_state(session, vehicle_id)
+        state.skipped += unsaved_counts[0]
+        state.out_of_order += unsaved_counts[1]
+        stored_revision = state.revision
+        if state.last_t_s is not None and t_s <= state.last_t_s:
+            state.out_of_order += 1
             session.flush()
-            slot.revision = state.revision
-            outcome = FrameOutcome(
-                vehicle.id,
-                vehicle.name,
-                vehicle.site_id,
-                t_s,
-                "processed",
-                state.processed,
-                state.skipped,
-                state.out_of_order,
-                seq=position.id,
-                node=estimate.node,
-                x=estimate.x_m,
-                y=estimate.y_m,
-                confidence=estimate.score,
-                matched=estimate.matched,
-                lost=estimate.lost,
-                map_version=version.version,
-                received_at=received_at,
-                ms=estimate.ms,
-            )
-    except StaleDataError as exc:
-        raise ConflictError(
-            f"vehicle {vehicle_id}'s state was advanced by another server process; frame t={t_s} not processed"
-        ) from exc
+            if slot is not None and slot.revision == stored_revision:
+                slot.revision = state.revision  # the belief did not change, the slot stays valid
+            return _outcome(vehicle, state, t_s, "out_of_order"), slot
+        if slot is None or slot.map_version_id != version.id or slot.revision != stored_revision:
+            localiser = make_localiser(maps.get(session, blobs, version))
+            if state.map_version_id == version.id and state.state_npz is not None:
+                localiser.restore(decode_state(state.state_npz))
+            slot = LiveSlot(version.id, localiser, -1)
+        estimate = slot.localiser.step(frame, t_s)
+        received_at = utc_now()
+        state.map_version_id = version.id
+        state.last_t_s = t_s
+        state.state_npz = encode_state(slot.localiser.state())
+        state.processed += 1
+        position = VehiclePosition(
+            vehicle_id=vehicle_id,
+            map_version_id=version.id,
+            t_s=t_s,
+            node=estimate.node,
+            x_m=estimate.x_m,
+            y_m=estimate.y_m,
+            confidence=estimate.score,
+            matched=estimate.matched,
+            lost=estimate.lost,
+            received_at=received_at,
+        )
+        session.add(position)
+        session.flush()
+        slot.revision = state.revision
+        outcome = FrameOutcome(
+            vehicle.id,
+            vehicle.name,
+            vehicle.site_id,
+            t_s,
+            "processed",
+            state.processed,
+            state.skipped,
+            state.out_of_order,
+            seq=position.id,
+            node=estimate.node,
+            x=estimate.x_m,
+            y=estimate.y_m,
+            confidence=estimate.score,
+            matched=estimate.matched,
+            lost=estimate.lost,
+            map_version=version.version,
+            received_at=received_at,
+            ms=estimate.ms,
+        )
     return outcome, slot
+
+
+def add_counts(db: Database, vehicle_id: int, skipped: int, out_of_order: int) -> tuple[int | None, int]:
+    """Add frames skipped and refused to a vehicle's stored counts; returns its revision before and after."""
+    with db.session() as session:
+        state = _live_state(session, vehicle_id)
+        before = state.revision
+        state.skipped += skipped
+        state.out_of_order += out_of_order
+        session.flush()
+        return before, state.revision
