@@ -30,7 +30,7 @@ def users(settings: Settings) -> Iterator[ApiUsers]:
 
 @pytest.fixture
 def site_id(users: ApiUsers, mini_site: Path) -> int:
-    import_site(users.storage, mini_site, name="tiny")
+    import_site(users.storage, mini_site, name="tiny", kinds=("mapping", "localisation"))
     return int(users.get("/api/sites")["items"][0]["id"])
 
 
@@ -97,7 +97,8 @@ class TestCompareAndDelete:
         compared = users.get(f"/api/sites/{site_id}/maps/compare", params={"a": 2, "b": 3})
         assert compared["frames"] == 200 and (compared["only_in_a"], compared["only_in_b"]) == (0, 0)
         assert compared["max_m"] > 1.0 and compared["p95_m"] <= compared["max_m"]
-        drive_ids = {d["id"] for d in users.get(f"/api/sites/{site_id}/drives")["items"]}
+        drives = users.get(f"/api/sites/{site_id}/drives")["items"]
+        drive_ids = {d["id"] for d in drives if d["kind"] == "mapping"}
         assert {d["drive_id"] for d in compared["per_drive"]} == drive_ids
         assert sum(d["frames"] for d in compared["per_drive"]) == 200
 
@@ -105,7 +106,8 @@ class TestCompareAndDelete:
         self, users: ApiUsers, site_id: int
     ) -> None:
         build(users, site_id)
-        drive_id = users.get(f"/api/sites/{site_id}/drives")["items"][0]["id"]
+        drives = users.get(f"/api/sites/{site_id}/drives")["items"]
+        drive_id = next(d["id"] for d in drives if d["kind"] == "mapping")
         blocked = users.client.delete(f"/api/drives/{drive_id}", headers=users.auth("admin"))
         assert blocked.status_code == 409 and "map version(s) 1" in blocked.json()["detail"]
         with users.storage.db.session() as session:
@@ -122,3 +124,31 @@ class TestCompareAndDelete:
         assert users.get(f"/api/sites/{site_id}/maps")["total"] == 0
         assert not users.storage.blobs.exists(sha)
         assert users.client.delete(f"/api/drives/{drive_id}", headers=users.auth("admin")).status_code == 204
+
+
+class TestLocalise:
+    def test_a_stored_drive_is_localised_by_a_job_with_its_csv(self, users: ApiUsers, site_id: int) -> None:
+        drives = users.get(f"/api/sites/{site_id}/drives")["items"]
+        drive = next(d for d in drives if d["kind"] == "localisation")
+        before = users.client.post(
+            f"/api/drives/{drive['id']}/localise", json={}, headers=users.auth("surveyor")
+        )
+        assert users.job(before.json()["id"])["status"] == "failed"  # no map yet: the job says why
+        assert "map version" in users.job(before.json()["id"])["error"]
+        build(users, site_id)
+        response = users.client.post(
+            f"/api/drives/{drive['id']}/localise", json={"map_version": 1}, headers=users.auth("surveyor")
+        )
+        assert response.status_code == 202, response.text
+        job = users.job(response.json()["id"])
+        assert job["status"] == "succeeded", job["error"]
+        assert (job["result"]["frames"], job["result"]["map_version"]) == (100, 1)
+        assert job["result"]["median_error_m"] is not None
+        csv = users.client.get(f"/api/jobs/{job['id']}/localisation.csv", headers=users.auth("viewer"))
+        lines = csv.text.splitlines()
+        assert lines[0] == "frame,node,x,y,score,matched" and len(lines) == 101
+        assert sum(int(line.rsplit(",", 1)[1]) for line in lines[1:]) == job["result"]["matched"]
+        none = users.client.get(
+            f"/api/jobs/{before.json()['id']}/localisation.csv", headers=users.auth("viewer")
+        )
+        assert none.status_code == 404
