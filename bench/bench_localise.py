@@ -7,6 +7,11 @@ frame and the fraction of frames on the right node for the filter as driftmap ru
 states plus probes) and for the full-comparison baseline (every node, every frame, no pruning), and the
 ratio of their medians. Target: median <= 10 ms per frame.
 
+Two more runs feed raw 320x240 uint8 camera frames (the textures enlarged, with sensor noise) so that the
+localiser pre-processes each frame itself: once with holistic SAD and once with SESAME salient masks (paper
+001 eq. 5-7: patch entropy at 160x76 and three patch sizes per frame, masked SAD of eq. 6), to show what
+SESAME adds per frame.
+
 Usage: ``.venv/bin/python bench/bench_localise.py [--frames 300] [--baseline-frames 60]``
 """
 
@@ -28,6 +33,7 @@ from driftmap.core import hmm  # noqa: E402
 from driftmap.core.adjacency import shortest_paths  # noqa: E402
 from driftmap.core.images import patch_normalise  # noqa: E402
 from driftmap.core.localiser import Localiser, LocaliserMap  # noqa: E402
+from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT  # noqa: E402
 
 COLS, ROWS = 50, 40  # grid nodes: 2,000
 SPACING_M = 5.0
@@ -74,14 +80,25 @@ def snake(n_nodes: int) -> list[int]:
     return out[:n_nodes]
 
 
-def drive(loc: Localiser, tex: NDArray[np.float32], frames: int, seed: int) -> tuple[list[float], float]:
+def raw_frame(tex: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.uint8]:
+    """A 320x240 uint8 camera frame of a (32, 64) texture with sensor noise."""
+    big = cv2.resize(tex, (320, 240), interpolation=cv2.INTER_LINEAR)
+    return np.clip(big + rng.normal(0.0, NOISE, big.shape), 0, 255).astype(np.uint8)
+
+
+def drive(
+    loc: Localiser, tex: NDArray[np.float32], frames: int, seed: int, raw: bool = False
+) -> tuple[list[float], float]:
     """Per-frame milliseconds (first, global frame excluded) and the fraction of frames on the right node."""
     rng = np.random.default_rng(seed)
     path = snake(frames // FRAMES_PER_NODE_STEP + 1)
     ms, right = [], 0
     for k in range(frames):
         node = path[k // FRAMES_PER_NODE_STEP]
-        query = patch_normalise(tex[node] + rng.normal(0.0, NOISE, tex.shape[1:]).astype(np.float32))
+        if raw:
+            query: NDArray[np.generic] = raw_frame(tex[node], rng)
+        else:
+            query = patch_normalise(tex[node] + rng.normal(0.0, NOISE, tex.shape[1:]).astype(np.float32))
         est = loc.step(query, k * DT_S)
         right += est.node == node
         if k:
@@ -100,19 +117,29 @@ def main() -> None:
     print(
         f"{m} nodes x {FRAMES_PER_NODE} frames, 64x32 thumbnails, {COLS}x{ROWS} grid, {SPACING_M:g} m spacing"
     )
-    runs = {
-        f"pruned (n_t={hmm.DEFAULT.n_t}, probes={hmm.DEFAULT.n_probe})": (hmm.DEFAULT, args.frames),
-        "full comparison": (hmm.HmmParams(n_t=m, n_probe=0, lost_frames=0), args.baseline_frames),
+    full = hmm.HmmParams(n_t=m, n_probe=0, lost_frames=0)
+    runs = {  # name: (params, frames, raw camera frames, SESAME)
+        f"pruned (n_t={hmm.DEFAULT.n_t}, probes={hmm.DEFAULT.n_probe})": (
+            hmm.DEFAULT,
+            args.frames,
+            False,
+            False,
+        ),
+        "full comparison": (full, args.baseline_frames, False, False),
+        "pruned, raw 320x240 frames": (hmm.DEFAULT, args.frames, True, False),
+        "pruned, raw frames + SESAME": (hmm.DEFAULT, args.frames, True, True),
     }
     medians = []
-    print(f"{'filter':>28} {'frames':>6} {'median ms':>9} {'p95 ms':>7} {'on node':>7}")
-    for name, (params, frames) in runs.items():
-        ms, right = drive(Localiser(lmap, params), tex, frames, seed=1)
+    print(f"{'filter':>30} {'frames':>6} {'median ms':>9} {'p95 ms':>7} {'on node':>7}")
+    for name, (params, frames, raw, sesame) in runs.items():
+        loc = Localiser(lmap, params, sesame=SESAME_DEFAULT if sesame else None)
+        ms, right = drive(loc, tex, frames, seed=1, raw=raw)
         med = statistics.median(ms)
         medians.append(med)
         p95 = float(np.percentile(ms, 95))
-        print(f"{name:>28} {frames:>6} {med:>9.2f} {p95:>7.2f} {right:>7.1%}")
+        print(f"{name:>30} {frames:>6} {med:>9.2f} {p95:>7.2f} {right:>7.1%}")
     print(f"full / pruned median time: {medians[1] / medians[0]:.1f}x (target: pruned <= 10 ms/frame)")
+    print(f"SESAME / holistic on raw frames: {medians[3] / medians[2]:.2f}x")
 
 
 if __name__ == "__main__":

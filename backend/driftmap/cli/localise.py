@@ -73,6 +73,10 @@ def report_localisation(
     map_version: Annotated[
         int | None, typer.Option("--map-version", help="Map version (default: latest).")
     ] = None,
+    single_image_stride: Annotated[
+        int,
+        typer.Option("--single-image-stride", min=1, help="Score single-image methods on every n-th frame."),
+    ] = 1,
 ) -> None:
     """Precision-recall of SAD, SAD+SESAME, HMM+SAD and HMM+SESAME over the site's localisation drives."""
     storage = open_storage()
@@ -92,7 +96,13 @@ def report_localisation(
             ]
         with stage_progress("localisation report") as report:
             result = run_localisation_report(
-                lmap, drives, sesame_params, tolerance_m=tolerance_m, out_dir=folder, progress=report
+                lmap,
+                drives,
+                sesame_params,
+                tolerance_m=tolerance_m,
+                out_dir=folder,
+                single_image_stride=single_image_stride,
+                progress=report,
             )
     console.print(result.table())
     console.print(f"figure: {result.figure}\ntable: {result.table_path}")

@@ -131,9 +131,12 @@ class LocalisationReport:
 
 
 def _run_drive(
-    drive: RecordedDrive, localisers: dict[str, Localiser], results: dict[str, MethodResult]
+    drive: RecordedDrive, localisers: dict[str, Localiser], results: dict[str, MethodResult], stride: int
 ) -> None:
-    """Every method on one drive; the frame is pre-processed and masked once, shared by the methods."""
+    """Every method on one drive; the frame is pre-processed and masked once, shared by the methods.
+
+    Single-image methods see every ``stride``-th frame only (they keep no state between frames).
+    """
     if drive.truth_xy_m is None:
         raise BadInputError(f"drive {drive.name!r} has no ground truth on every frame", field="truth")
     plain = next(loc for loc in localisers.values() if loc.sesame is None)
@@ -144,6 +147,8 @@ def _run_drive(
         mask = masker.query_mask(frame) if masker is not None else None
         mask_ms = (time.perf_counter() - t0) * 1e3  # charged to the SESAME methods only
         for name, loc in localisers.items():
+            if loc.single_image and k % stride:
+                continue
             est = loc.step(thumb, float(drive.t_s[k]), mask if loc.sesame is not None else None)
             res = results[name]
             res.scores.append(est.score)
@@ -162,6 +167,7 @@ def run_localisation_report(
     tolerance_m: float = 15.0,
     out_dir: Path | None = None,
     params: hmm.HmmParams = hmm.DEFAULT,
+    single_image_stride: int = 1,
     progress: ProgressFn | None = None,
 ) -> LocalisationReport:
     """Run the four methods over every drive, score them, and write the PNG and the table.
@@ -173,6 +179,8 @@ def run_localisation_report(
         tolerance_m: a frame is right when its node centre is within this of the truth, metres.
         out_dir: folder for ``localisation_pr.png`` and ``localisation_table.md``; None writes nothing.
         params: HMM parameters of the temporal methods.
+        single_image_stride: single-image methods score every this-many-th frame (they compare the
+            whole map each frame; the HMM methods always see every frame).
         progress: called with (drive name, fraction of drives done).
 
     Returns:
@@ -180,6 +188,8 @@ def run_localisation_report(
     """
     if not drives:
         raise BadInputError("no localisation drive with ground truth to evaluate", field="drives")
+    if single_image_stride < 1:
+        raise BadInputError(f"must be >= 1, got {single_image_stride}", field="single_image_stride")
     if not tolerance_m > 0:
         raise BadInputError(f"must be positive, got {tolerance_m}", field="tolerance_m")
     report = progress or (lambda _stage, _fraction: None)
@@ -194,7 +204,7 @@ def run_localisation_report(
             for name, masked, temporal in METHODS
         }
         per = {name: results.setdefault((cond, name), MethodResult()) for name, _m, _t in METHODS}
-        _run_drive(drive, localisers, per)
+        _run_drive(drive, localisers, per, single_image_stride)
     report("done", 1.0)
     figure = table_path = None
     result = LocalisationReport(results, tolerance_m, None, None)

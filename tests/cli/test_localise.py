@@ -1,0 +1,84 @@
+"""``driftmap localise`` and ``driftmap report localisation`` end to end on real SQLite files."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from driftmap.cli import app
+from driftmap.config import get_settings
+from driftmap.formats.csv_exports import read_localisation_csv
+from driftmap.formats.drive_folder import read_drive_folder
+from tests.drive_factory import write_test_drive
+from tests.localisation_site import SITE, loc_drive_dir, tiny_map_data_dir
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def tiny_env(
+    tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> Iterator[Path]:
+    data = tiny_map_data_dir(tmp_path_factory, tiny_site_dir)
+    monkeypatch.setenv("DRIFTMAP_DATA_DIR", str(data))
+    monkeypatch.delenv("DRIFTMAP_DATABASE_URL", raising=False)
+    get_settings.cache_clear()
+    yield data
+    get_settings.cache_clear()
+
+
+class TestLocalise:
+    def test_writes_one_row_per_frame(self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path) -> None:
+        drive = loc_drive_dir(tiny_site_dir)
+        out = tmp_path / "est.csv"
+        result = runner.invoke(app, ["localise", SITE, str(drive), "--out", str(out), "--no-sesame"])
+        assert result.exit_code == 0, result.output
+        assert "map version 1" in result.output
+        rows = read_localisation_csv(out)
+        assert [r.frame for r in rows] == [f.frame for f in read_drive_folder(drive).frames]
+        assert sum(r.matched for r in rows) > len(rows) // 2
+
+    def test_bad_drive_folder_names_the_file(self, tiny_env: Path, tmp_path: Path) -> None:
+        drive = tmp_path / "broken"
+        write_test_drive(drive, frames=5)
+        frames_csv = drive / "frames.csv"
+        lines = frames_csv.read_text().splitlines()
+        lines[3] = "2,not-a-time"
+        frames_csv.write_text("\n".join(lines) + "\n")
+        result = runner.invoke(app, ["localise", SITE, str(drive), "--out", str(tmp_path / "e.csv")])
+        assert result.exit_code == 2
+        assert "frames.csv" in result.output and ":4" in result.output
+        assert not (tmp_path / "e.csv").exists()
+
+    def test_missing_drive_folder(self, tiny_env: Path, tmp_path: Path) -> None:
+        result = runner.invoke(
+            app, ["localise", SITE, str(tmp_path / "nowhere"), "--out", str(tmp_path / "e.csv")]
+        )
+        assert result.exit_code == 2
+        assert "nowhere" in result.output
+
+    def test_unknown_map_version(self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path) -> None:
+        result = runner.invoke(
+            app,
+            [
+                "localise",
+                SITE,
+                str(loc_drive_dir(tiny_site_dir)),
+                "--out",
+                str(tmp_path / "e.csv"),
+                "--map-version",
+                "9",
+            ],
+        )
+        assert result.exit_code == 2
+        assert "version 9" in result.output
+
+
+class TestReportCommand:
+    def test_needs_truth_flag(self, tiny_env: Path) -> None:
+        result = runner.invoke(app, ["report", "localisation", SITE])
+        assert result.exit_code == 2
+        assert "--truth" in result.output
