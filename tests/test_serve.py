@@ -8,6 +8,7 @@ import os
 import re
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import time
@@ -17,6 +18,11 @@ from pathlib import Path
 import httpx
 import pytest
 import websockets
+
+from driftmap.config import Settings
+from driftmap.services import users as user_service
+from driftmap.store.storage import Storage
+from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
 
 START_DEADLINE_S = 90.0
 STOP_DEADLINE_S = 60.0
@@ -46,13 +52,14 @@ def env(tmp_path: Path) -> dict[str, str]:
     return out
 
 
-@pytest.fixture
-def server(env: dict[str, str], tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], str, Path]]:
+def _serve(
+    env: dict[str, str], log: Path, *extra: str
+) -> Iterator[tuple[subprocess.Popen[bytes], str, Path]]:
+    """Start ``driftmap serve`` and wait for its health answer; the second ``next`` kills what is left."""
     port = _free_port()
-    log = tmp_path / "serve.log"
     with log.open("wb") as sink:
         process = subprocess.Popen(
-            [sys.executable, "-m", "driftmap", "serve", "--port", str(port)],
+            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *extra],
             env=env,
             stdout=sink,
             stderr=sink,
@@ -74,6 +81,11 @@ def server(env: dict[str, str], tmp_path: Path) -> Iterator[tuple[subprocess.Pop
     if process.poll() is None:
         process.kill()
         process.wait()
+
+
+@pytest.fixture
+def server(env: dict[str, str], tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], str, Path]]:
+    yield from _serve(env, tmp_path / "serve.log")
 
 
 class TestServe:
@@ -112,3 +124,66 @@ class TestServe:
             assert time.monotonic() < deadline, "the worker process outlived the server"
             time.sleep(0.2)
         assert "worker process" in log.read_text() and "stopped" in log.read_text()
+
+
+class TestLiveOnARealServer:
+    def test_frames_over_http_and_websocket_reach_live_watchers(
+        self,
+        env: dict[str, str],
+        tmp_path: Path,
+        tmp_path_factory: pytest.TempPathFactory,
+        tiny_site_dir: Path,
+    ) -> None:
+        data = copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
+        storage = Storage.open(Settings(data_dir=data))
+        with storage.db.session() as session:
+            user_service.create_user(session, "boss", "long-password", "admin")
+        storage.close()
+        env = {**env, "DRIFTMAP_DATA_DIR": str(data)}
+        frames = recorded_frames(localisation_drive(tiny_site_dir), 30)
+        served = _serve(env, tmp_path / "serve.log", "--no-worker")
+        _process, base, _log = next(served)
+        try:
+            login = httpx.post(
+                f"{base}/api/auth/login", json={"username": "boss", "password": "long-password"}
+            )
+            admin = {"Authorization": f"Bearer {login.json()['access_token']}"}
+            vehicle = httpx.post(
+                f"{base}/api/vehicles", json={"name": "lhd", "site_id": 1}, headers=admin
+            ).json()
+            mine = {"Authorization": f"Bearer {vehicle['token']}"}
+            ws_base = base.replace("http", "ws")
+
+            async def run() -> tuple[list[dict], list[dict], list[dict]]:  # type: ignore[type-arg]
+                live_url = f"{ws_base}/api/live?token={login.json()['access_token']}"
+                async with websockets.connect(live_url) as live, httpx.AsyncClient(base_url=base) as client:
+                    assert json.loads(await live.recv())["type"] == "snapshot"
+                    answers = []
+                    for f in frames[:20]:
+                        response = await client.post(
+                            f"/api/vehicles/{vehicle['id']}/frames",
+                            params={"t": f.t},
+                            content=f.data,
+                            headers={**mine, "Content-Type": "image/png"},
+                        )
+                        answers.append(response.json())
+                    stream_url = f"{ws_base}/api/vehicles/{vehicle['id']}/stream"
+                    async with websockets.connect(stream_url, additional_headers=mine) as stream:
+                        for f in frames[20:30]:
+                            await stream.send(struct.pack(">d", f.t) + f.data)
+                        streamed = [
+                            json.loads(await asyncio.wait_for(stream.recv(), 60.0)) for _ in range(10)
+                        ]
+                    processed = len(answers) + sum(a["status"] == "processed" for a in streamed)
+                    updates = [
+                        json.loads(await asyncio.wait_for(live.recv(), 60.0)) for _ in range(processed)
+                    ]
+                return answers, streamed, updates
+
+            answers, streamed, updates = asyncio.run(run())
+        finally:
+            next(served, None)
+        assert [a["status"] for a in answers] == ["processed"] * 20
+        assert sorted(a["t"] for a in streamed) == [f.t for f in frames[20:30]]
+        assert [u["seq"] for u in updates[:20]] == [a["seq"] for a in answers]
+        assert [u["t"] for u in updates] == sorted(u["t"] for u in updates)
