@@ -33,3 +33,13 @@ def tiny_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from tests.sim_site import make_tiny_site
 
     return make_tiny_site(tmp_path_factory.mktemp("tiny-site") / "site")
+
+
+@pytest.fixture(scope="session")
+def small_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The small simulated site (seed 7, obscured copies included), written once per test session."""
+    from driftmap.sim import simulate_site
+
+    out = tmp_path_factory.mktemp("small-site") / "site"
+    simulate_site(out, seed=7, size="small")
+    return out
