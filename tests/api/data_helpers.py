@@ -119,9 +119,11 @@ def create_site_with_survey(users: ApiUsers, site_dir: Path, name: str = "mini")
 
 
 def start_worker(settings: Settings, *, stale_after_s: float = 3.0) -> subprocess.Popen[bytes]:
-    """A real ``driftmap worker`` process on ``settings``' data dir, with quick heartbeats for tests."""
+    """A real ``driftmap worker`` process on ``settings``' data dir (and Redis queue if set), quick heartbeats."""
     env = {**os.environ, "DRIFTMAP_DATA_DIR": str(settings.data_dir)}
     env.pop("DRIFTMAP_REDIS_URL", None)
+    if settings.redis_url:
+        env["DRIFTMAP_REDIS_URL"] = settings.redis_url
     command = [sys.executable, "-m", "driftmap", "worker", "--heartbeat", "0.5"]
     command += ["--stale-after", str(stale_after_s), "--reap-every", "0.5"]
     settings.data_dir.mkdir(parents=True, exist_ok=True)

@@ -7,11 +7,16 @@ worker with SIGKILL in the middle of a map build and check that another worker f
 from __future__ import annotations
 
 import json
+import shutil
 import signal
+import socket
+import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+import redis
 from sqlalchemy import func, select
 
 from driftmap.config import Settings
@@ -204,3 +209,66 @@ class TestWorkerStopped:
             stop_worker(second)
         assert job["status"] == "succeeded" and job["attempts"] == 2
         assert _counts(users.storage)[:2] == (1, 200)
+
+
+@pytest.fixture
+def redis_url(tmp_path: Path) -> Iterator[str]:
+    """A private redis-server on a free loopback port (the test is skipped without redis-server)."""
+    binary = shutil.which("redis-server")
+    if binary is None:
+        pytest.skip("redis-server is not installed")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    server = subprocess.Popen(
+        [binary, "--port", str(port), "--bind", "127.0.0.1", "--save", "", "--dir", str(tmp_path)],
+        stdout=subprocess.DEVNULL,
+    )
+    url = f"redis://127.0.0.1:{port}/0"
+    try:
+        client = redis.Redis.from_url(url)
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                client.ping()
+                break
+            except redis.ConnectionError:
+                assert time.monotonic() < deadline, "redis-server did not start"
+                time.sleep(0.1)
+        yield url
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+class TestSharedQueue:
+    @pytest.mark.parametrize("backend", ["sqlite", "redis"])
+    def test_two_workers_share_one_queue(
+        self, backend: str, request: pytest.FixtureRequest, tmp_path: Path, mini_site: Path
+    ) -> None:
+        settings = Settings(data_dir=tmp_path / "data")
+        if backend == "redis":
+            settings = settings.model_copy(update={"redis_url": request.getfixturevalue("redis_url")})
+        shared = api_users(settings, immediate=False)
+        import_site(shared.storage, mini_site, name="tiny")
+        site_id = int(shared.get("/api/sites")["items"][0]["id"])
+        first = start_worker(settings, stale_after_s=600.0)
+        second: subprocess.Popen[bytes] | None = None
+        try:
+            job_a = _build(shared, site_id)
+            shared.wait_job(job_a, _in_odometry)
+            first.send_signal(signal.SIGSTOP)  # frozen mid-job: only another worker can run the next one
+            second = start_worker(settings, stale_after_s=600.0)
+            job_b = shared.wait_job(_build(shared, site_id))
+            first.send_signal(signal.SIGCONT)
+            job_a_done = shared.wait_job(job_a)
+        finally:
+            first.send_signal(signal.SIGCONT)
+            stop_worker(first)
+            if second is not None:
+                stop_worker(second)
+            shared.client.close()
+        assert (job_a_done["status"], job_b["status"]) == ("succeeded", "succeeded")
+        pids = [int(str(j["worker_id"]).split(":")[1]) for j in (job_a_done, job_b)]
+        assert pids == [first.pid, second.pid]
+        assert sorted(j["result"]["version"] for j in (job_a_done, job_b)) == [1, 2]
