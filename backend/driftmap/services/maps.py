@@ -241,7 +241,7 @@ def get_map_version(session: Session, site: Site, version: int | None = None) ->
     )
     found = session.scalars(query.limit(1)).first()
     if found is None:
-        what = f"version {version}" if version is not None else "any map version"
+        what = f"version {version}" if version is not None else "map version yet"
         raise NotFoundError(f"site {site.name!r} has no {what}; run `driftmap map build {site.name}`")
     return found
 
