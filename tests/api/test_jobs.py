@@ -7,14 +7,17 @@ worker with SIGKILL in the middle of a map build and check that another worker f
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import socket
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import httpx
 import pytest
 import redis
 from sqlalchemy import func, select
@@ -272,3 +275,76 @@ class TestSharedQueue:
         pids = [int(str(j["worker_id"]).split(":")[1]) for j in (job_a_done, job_b)]
         assert pids == [first.pid, second.pid]
         assert sorted(j["result"]["version"] for j in (job_a_done, job_b)) == [1, 2]
+
+
+class TestServe:
+    def test_driftmap_serve_imports_and_builds_over_real_http(self, tmp_path: Path, mini_site: Path) -> None:
+        """`driftmap serve` (uvicorn and the worker process it starts): the jobs only run if that worker does."""
+        env = {**os.environ, "DRIFTMAP_DATA_DIR": str(tmp_path / "data")}
+        env.pop("DRIFTMAP_REDIS_URL", None)
+        command = [sys.executable, "-m", "driftmap"]
+        subprocess.run(
+            [*command, "user", "add", "boss", "--role", "admin", "--password-stdin"],
+            input=b"long enough password\n",
+            env=env,
+            check=True,
+            capture_output=True,
+        )
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        log = (tmp_path / "serve.log").open("wb")
+        server = subprocess.Popen([*command, "serve", "--port", str(port)], env=env, stdout=log, stderr=log)
+        base = f"http://127.0.0.1:{port}/api"
+        try:
+            with httpx.Client(base_url=base, timeout=60) as http:
+                deadline = time.monotonic() + 120
+                while True:
+                    try:
+                        if http.get("/health").status_code == 200:
+                            break
+                    except httpx.TransportError:
+                        pass
+                    assert time.monotonic() < deadline, (tmp_path / "serve.log").read_text()
+                    time.sleep(0.2)
+                token = http.post(
+                    "/auth/login", json={"username": "boss", "password": "long enough password"}
+                )
+                http.headers["Authorization"] = f"Bearer {token.json()['access_token']}"
+                http.cookies.clear()
+                site_id = http.post("/sites", json={"name": "mini"}).json()["id"]
+                survey = (mini_site / "survey.dxf").read_bytes()
+                assert (
+                    http.post(f"/sites/{site_id}/survey", files={"file": ("survey.dxf", survey)}).status_code
+                    == 201
+                )
+                jobs = [
+                    http.post(
+                        f"/sites/{site_id}/drives/zip", files={"file": (f"{f.name}.zip", zip_folder(f))}
+                    ).json()["id"]
+                    for f in drive_folders(mini_site, "map")
+                ]
+                for job_id in jobs:
+                    assert _wait_http(http, job_id)["status"] == "succeeded"
+                build_id = http.post(f"/sites/{site_id}/maps", json={"preset": "fast"}).json()["id"]
+                events = []
+                with http.stream("GET", f"/jobs/{build_id}/events") as stream:
+                    for line in stream.iter_lines():
+                        if line.startswith("data: "):
+                            events.append(json.loads(line.removeprefix("data: ")))
+                assert events[-1]["status"] == "succeeded", events[-1]["error"]
+                residuals = http.get(f"/sites/{site_id}/maps/1/residuals").json()
+                assert len(residuals) == 2
+        finally:
+            server.terminate()
+            server.wait(timeout=60)
+            log.close()
+
+
+def _wait_http(http: httpx.Client, job_id: int) -> dict[str, object]:
+    """Poll a job over HTTP until it ends (or fail at the deadline)."""
+    deadline = time.monotonic() + 240
+    while (job := http.get(f"/jobs/{job_id}").json())["status"] in ("queued", "running"):
+        assert time.monotonic() < deadline, job
+        time.sleep(0.1)
+    return dict(job)
