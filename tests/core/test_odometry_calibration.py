@@ -5,8 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from driftmap.core import posegraph
 from driftmap.core.alignment import dead_reckon
-from driftmap.core.odometry_calibration import NO_BIAS, OdometryBias, apply_bias, estimate_bias
+from driftmap.core.odometry_calibration import (
+    NO_BIAS,
+    OdometryBias,
+    apply_bias,
+    estimate_bias,
+    solve_with_calibration,
+)
 from driftmap.errors import BadInputError
 
 SCALE_TOL = 0.003  # fitted scale within this of the truth
@@ -54,3 +61,30 @@ class TestEstimateBias:
     def test_shapes_are_checked(self) -> None:
         with pytest.raises(BadInputError, match="wTi"):
             estimate_bias(np.zeros((5, 3)), np.zeros((5, 3)))
+
+
+class TestSolveWithCalibration:
+    def test_groundings_calibrate_a_biased_drive(self) -> None:
+        truth = true_steps(seed=2)
+        wTi_true = dead_reckon(truth, np.array([0.0, 0.0, 0.0]))
+        raw = measured(truth, OdometryBias(0.98, np.radians(0.8)))
+        chain = posegraph.OdometryChain(raw, np.array([0.02, 0.02, 0.002]))
+        grounded = range(0, len(wTi_true), 150)
+        groundings = [
+            posegraph.Grounding(
+                frame=(0, i), xy_m=(float(wTi_true[i, 0]), float(wTi_true[i, 1])), sigma_m=0.3
+            )
+            for i in grounded
+        ]
+        first = posegraph.optimise_pose_graph([chain], [], groundings, posegraph.ROBUST)
+        solved, biases = solve_with_calibration(first, [chain], [], groundings, posegraph.ROBUST, 5, 15.0)
+        before = np.hypot(*(first.wTi[0][:, :2] - wTi_true[:, :2]).T).mean()
+        after = np.hypot(*(solved.wTi[0][:, :2] - wTi_true[:, :2]).T).mean()
+        assert after < 0.5 * before
+        assert biases[0].scale == pytest.approx(0.98, abs=0.01)
+
+    def test_an_uninformed_drive_is_left_alone(self) -> None:
+        chain = posegraph.OdometryChain(true_steps(200), np.array([0.02, 0.02, 0.002]))
+        first = posegraph.optimise_pose_graph([chain], [], [], posegraph.ROBUST)
+        solved, biases = solve_with_calibration(first, [chain], [], [], posegraph.ROBUST, 2, 15.0)
+        assert solved is first and biases == [NO_BIAS]

@@ -21,12 +21,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core import alignment, posegraph
 from driftmap.core import loops as loop_search
+from driftmap.core import posegraph
 from driftmap.core.camera import CameraModel
 from driftmap.core.images import preprocess
 from driftmap.core.odometry import dead_reckon
-from driftmap.core.odometry_calibration import NO_BIAS, OdometryBias, apply_bias, estimate_bias
+from driftmap.core.odometry_calibration import NO_BIAS, solve_with_calibration
 from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
 from driftmap.core.place_database import DATABASE_DEFAULT, DatabaseParams, database_selector, frame_stats
 from driftmap.core.topomap import PAPER as TOPO_PAPER
@@ -71,9 +71,7 @@ class MappingParams:
     grounding_sigma_m: float = 0.5  # surveyor click accuracy, metres
     use_loop_closures: bool = True  # Table I variants switch these two off
     use_groundings: bool = True
-    calibration_rounds: int = (
-        2  # odometry self-calibration passes (scale, heading rate) after the first solve
-    )
+    calibration_rounds: int = 5  # most odometry self-calibration passes (scale, heading rate)
     calibration_window_m: float = 15.0  # travel per window when fitting the calibration, metres
 
 
@@ -279,7 +277,15 @@ def solve_map(
         for i, x, y in drive.groundings
     ]
     graph = posegraph.optimise_pose_graph(chains, closures, groundings, params.graph)
-    graph, biases = _self_calibrate(graph, chains, closures, groundings, params)
+    graph, biases = solve_with_calibration(
+        graph,
+        chains,
+        closures,
+        groundings,
+        params.graph,
+        params.calibration_rounds,
+        params.calibration_window_m,
+    )
     report("pose graph", 1.0)
     timings["pose_graph_s"] = time.perf_counter() - start
 
@@ -324,38 +330,6 @@ def solve_map(
         stats=stats,
         reference_thumbs=np.concatenate(prepared.thumbs)[topomap.chosen],
     )
-
-
-def _self_calibrate(
-    graph: posegraph.PoseGraphResult,
-    chains: Sequence[posegraph.OdometryChain],
-    closures: Sequence[posegraph.LoopClosure],
-    groundings: Sequence[posegraph.Grounding],
-    params: MappingParams,
-) -> tuple[posegraph.PoseGraphResult, list[OdometryBias]]:
-    """Alternate odometry self-calibration and the pose-graph solve ``calibration_rounds`` times.
-
-    Only drives the solution can correct are calibrated: those with two groundings or more, or with an
-    accepted loop closure. Each round fits every such drive's bias to the latest solution from its raw
-    steps (:func:`driftmap.core.odometry_calibration.estimate_bias`) and solves again.
-    """
-    accepted = [c for c, ok in zip(closures, graph.closure_accepted, strict=True) if ok]
-    touched = {c.a[0] for c in accepted} | {c.b[0] for c in accepted}
-    grounded = [sum(g.frame[0] == k for g in groundings) for k in range(len(chains))]
-    informed = [k in touched or grounded[k] >= 2 for k in range(len(chains))]
-    biases = [NO_BIAS] * len(chains)
-    for _ in range(params.calibration_rounds if any(informed) else 0):
-        biases = [
-            estimate_bias(chain.iTj, wTi, params.calibration_window_m) if ok else NO_BIAS
-            for chain, wTi, ok in zip(chains, graph.wTi, informed, strict=True)
-        ]
-        fixed = []
-        for chain, bias in zip(chains, biases, strict=True):
-            steps = apply_bias(chain.iTj, bias)
-            start = None if chain.wTi_init is None else alignment.dead_reckon(steps, chain.wTi_init[0])
-            fixed.append(replace(chain, iTj=steps, wTi_init=start))
-        graph = posegraph.optimise_pose_graph(fixed, closures, groundings, params.graph)
-    return graph, biases
 
 
 def _topomap_with_database(

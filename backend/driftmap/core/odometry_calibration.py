@@ -12,7 +12,7 @@ Groundings and loop closures reveal both: after an optimisation, the optimised t
 stretches less or more than the odometry said, consistently. :func:`estimate_bias` fits one scale and one
 heading rate per drive by comparing the raw odometry with the optimised poses over windows of
 ``window_m`` metres; :func:`apply_bias` corrects the raw steps. The map build alternates the two with the
-pose-graph solve a few times (see :mod:`driftmap.core.mapping`). A drive with nothing to correct it
+pose-graph solve a few times (:func:`solve_with_calibration`). A drive with nothing to correct it
 (no grounding, no closure) is left as it is.
 
 Poses are [x_m, y_m, yaw_rad]; steps [dx_m, dy_m, dtheta_rad] in the earlier frame.
@@ -21,14 +21,16 @@ Poses are [x_m, y_m, yaw_rad]; steps [dx_m, dy_m, dtheta_rad] in the earlier fra
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
+from driftmap.core import alignment, posegraph
 from driftmap.errors import BadInputError
 
-__all__ = ["NO_BIAS", "OdometryBias", "apply_bias", "estimate_bias"]
+__all__ = ["NO_BIAS", "OdometryBias", "apply_bias", "estimate_bias", "solve_with_calibration"]
 
 F64 = NDArray[np.float64]
 
@@ -42,6 +44,7 @@ class OdometryBias:
 
 
 NO_BIAS = OdometryBias(1.0, 0.0)
+LOOSE_ODOMETRY_GAIN = 4.0  # odometry noise multiplier of the solves that the calibration is fitted to
 
 
 def _check(iTj: F64, wTi: F64) -> None:
@@ -120,3 +123,71 @@ def apply_bias(iTj: F64, bias: OdometryBias) -> F64:
     out[:, :2] *= bias.scale
     out[:, 2] -= bias.yaw_rate_rad_per_m * iTj[:, 0]
     return out
+
+
+def solve_with_calibration(
+    graph: posegraph.PoseGraphResult,
+    chains: Sequence[posegraph.OdometryChain],
+    closures: Sequence[posegraph.LoopClosure],
+    groundings: Sequence[posegraph.Grounding],
+    graph_params: posegraph.PoseGraphParams,
+    rounds: int,
+    window_m: float,
+) -> tuple[posegraph.PoseGraphResult, list[OdometryBias]]:
+    """Alternate odometry self-calibration and the pose-graph solve ``rounds`` times after a first solve.
+
+    Only drives the solution can correct are calibrated: those with two groundings or more, or with an
+    accepted loop closure. Each round solves the graph of the latest corrected steps with the odometry
+    noise ``LOOSE_ODOMETRY_GAIN`` times larger, so the solution follows the groundings and closures
+    rather than the biased odometry, and fits every such drive's bias to it from its raw steps
+    (:func:`estimate_bias`). The last solve uses the corrected steps with their own noise.
+
+    Args:
+        graph: the first solution of the graph of ``chains``, ``closures`` and ``groundings``.
+        chains, closures, groundings, graph_params: that graph, as given to
+            :func:`driftmap.core.posegraph.optimise_pose_graph`.
+        rounds: at most this many calibration passes; fewer when the fit settles (0: ``graph`` as it is).
+        window_m: travel per fitting window, metres.
+
+    Returns:
+        The last solution and each chain's fitted bias (:data:`NO_BIAS` for drives left alone).
+    """
+    accepted = [c for c, ok in zip(closures, graph.closure_accepted, strict=True) if ok]
+    touched = {c.a[0] for c in accepted} | {c.b[0] for c in accepted}
+    grounded = [sum(g.frame[0] == k for g in groundings) for k in range(len(chains))]
+    informed = [k in touched or grounded[k] >= 2 for k in range(len(chains))]
+    biases = [NO_BIAS] * len(chains)
+    if not any(informed) or rounds <= 0:
+        return graph, biases
+    fixed = list(chains)
+    for _ in range(rounds):
+        loose = [_loosened(chain, LOOSE_ODOMETRY_GAIN) for chain in fixed]
+        fitted = posegraph.optimise_pose_graph(loose, closures, groundings, graph_params)
+        previous, biases = (
+            biases,
+            [
+                estimate_bias(chain.iTj, wTi, window_m) if ok else NO_BIAS
+                for chain, wTi, ok in zip(chains, fitted.wTi, informed, strict=True)
+            ],
+        )
+        fixed = [_corrected(chain, bias) for chain, bias in zip(chains, biases, strict=True)]
+        if all(_settled(a, b) for a, b in zip(previous, biases, strict=True)):
+            break
+    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params), biases
+
+
+def _settled(a: OdometryBias, b: OdometryBias) -> bool:
+    """Whether two successive fits agree to 0.1 % in scale and 0.01 degree per 100 m in heading rate."""
+    return abs(a.scale - b.scale) < 1e-3 and abs(a.yaw_rate_rad_per_m - b.yaw_rate_rad_per_m) < 2e-6
+
+
+def _corrected(chain: posegraph.OdometryChain, bias: OdometryBias) -> posegraph.OdometryChain:
+    steps = apply_bias(chain.iTj, bias)
+    start = None if chain.wTi_init is None else alignment.dead_reckon(steps, chain.wTi_init[0])
+    return replace(chain, iTj=steps, wTi_init=start)
+
+
+def _loosened(chain: posegraph.OdometryChain, gain: float) -> posegraph.OdometryChain:
+    """The chain with its odometry noise ``gain`` times larger (information ``gain``^2 times smaller)."""
+    information = None if chain.information is None else chain.information / gain**2
+    return replace(chain, sigmas=np.asarray(chain.sigmas) * gain, information=information)
