@@ -16,13 +16,17 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import get_args
 
 import httpx
 import pytest
 import redis
 from sqlalchemy import func, select
 
+from driftmap.api.jobs import JobKind, JobStatus
 from driftmap.config import Settings
+from driftmap.services.jobs import JOB_KINDS
+from driftmap.store.job_models import JOB_STATUSES
 from driftmap.store.models import Frame, MapPose, MapVersion
 from driftmap.store.storage import Storage
 from tests.api.data_helpers import (
@@ -348,3 +352,11 @@ def _wait_http(http: httpx.Client, job_id: int) -> dict[str, object]:
         assert time.monotonic() < deadline, job
         time.sleep(0.1)
     return dict(job)
+
+
+class TestListFilters:
+    def test_filters_are_the_stored_kinds_and_statuses(self, users: ApiUsers) -> None:
+        assert set(get_args(JobKind)) == set(JOB_KINDS) and set(get_args(JobStatus)) == set(JOB_STATUSES)
+        response = users.client.get("/api/jobs", params={"status": "done"}, headers=users.auth("viewer"))
+        assert response.status_code == 422
+        assert users.get("/api/jobs", params={"status": "queued", "kind": "map.build"})["total"] == 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 from collections.abc import AsyncIterator
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import Response, StreamingResponse
@@ -19,6 +19,8 @@ from driftmap.services import jobs as job_service
 from driftmap.store.storage import Storage
 
 router = APIRouter(tags=["jobs"])
+JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+JobKind = Literal["map.build", "drive.localise", "drive.import", "site.simulate"]
 
 STREAM_POLL_S = 0.5  # how often the progress stream looks at the job row
 STREAM_KEEPALIVE_S = 15.0  # a comment line this often keeps proxies from closing a quiet stream
@@ -40,8 +42,8 @@ QueueDep = Annotated[JobQueue, Depends(_queue)]
 def list_jobs(
     session: SessionDep,
     site_id: int | None = None,
-    status: str | None = None,
-    kind: str | None = None,
+    status: JobStatus | None = None,
+    kind: JobKind | None = None,
     offset: Annotated[int, Query(ge=0)] = 0,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
 ) -> Page[JobRead]:
