@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import time
+
 from huey import RedisHuey, SqliteHuey
 from sqlalchemy import select
 
 from driftmap.config import Settings
 from driftmap.jobs.queue import JobQueue, make_huey
 from driftmap.jobs.runtime import process_worker_prefix
-from driftmap.jobs.worker import enqueue_orphans, release_own_jobs
+from driftmap.jobs.worker import enqueue_orphans, release_own_jobs, sweep_scratch
 from driftmap.services import jobs as job_service
 from driftmap.store.job_models import Job
 from driftmap.store.models import utc_now
@@ -72,3 +75,20 @@ class TestShutdown:
             statuses = {j.id: j.status for j in session.scalars(select(Job))}
         assert statuses == {mine: "queued", other: "running"}
         assert queue.pending_job_ids() == {mine}
+
+
+class TestScratch:
+    def test_folders_of_dead_jobs_and_old_uploads_are_swept(
+        self, settings: Settings, storage: Storage
+    ) -> None:
+        running = _row(storage, "running", "elsewhere:1:abcd1234")
+        finished = _row(storage, "failed")
+        root = settings.data_dir / "tmp"
+        keep = [root / f"job-{running}-abc", root / "upload-fresh"]
+        drop = [root / f"job-{finished}-abc", root / "upload-old"]
+        for folder in keep + drop:
+            (folder / "inner").mkdir(parents=True)
+        old = time.time() - 7 * 3600
+        os.utime(root / "upload-old", (old, old))
+        assert sweep_scratch(settings, storage) == 2
+        assert [f.exists() for f in keep + drop] == [True, True, False, False]

@@ -1,7 +1,8 @@
 """The worker process: a huey consumer running the job tasks, plus a reaper of jobs whose worker died.
 
-``driftmap worker`` calls :func:`run_worker`. On start it upgrades the schema, re-enqueues queued jobs that
-are not on the queue (an enqueue lost between a commit and a crash), and starts the reaper thread: every
+``driftmap worker`` calls :func:`run_worker`. On start it upgrades the schema, removes scratch folders that
+killed processes left behind, re-enqueues queued jobs that are not on the queue (an enqueue lost between a
+commit and a crash), and starts the reaper thread: every
 ``reap_every_s`` it re-queues running jobs whose heartbeat is older than ``stale_after_s``
 (:func:`driftmap.services.jobs.requeue_stale`). Several workers, on one machine with the SQLite queue or on
 several with Redis, share the queue; the conditional updates on the jobs row make sure one job runs on one
@@ -12,7 +13,9 @@ jobs it was running are put back on the queue before the process exits.
 from __future__ import annotations
 
 import logging
+import shutil
 import threading
+import time
 from dataclasses import dataclass
 
 from sqlalchemy import select, update
@@ -25,6 +28,8 @@ from driftmap.store.job_models import Job
 from driftmap.store.storage import Storage
 
 log = logging.getLogger(__name__)
+
+UPLOAD_SCRATCH_AGE_S = 6 * 3600.0  # an upload's scratch folder older than this belongs to no live request
 
 
 @dataclass(frozen=True)
@@ -73,6 +78,28 @@ def release_own_jobs(queue: JobQueue, storage: Storage) -> list[int]:
     return [job_id for _kind, job_id in released]
 
 
+def sweep_scratch(settings: Settings, storage: Storage, *, upload_age_s: float = UPLOAD_SCRATCH_AGE_S) -> int:
+    """Remove scratch folders a killed process left in ``<data_dir>/tmp``; returns how many.
+
+    ``job-<id>-*`` folders go unless job ``id`` is running (on any worker); ``upload-*`` folders of API
+    requests go once older than ``upload_age_s``.
+    """
+    root = settings.data_dir / "tmp"
+    if not root.is_dir():
+        return 0
+    with storage.db.session() as session:
+        running = {str(i) for i in session.scalars(select(Job.id).where(Job.status == "running"))}
+    removed = 0
+    for folder in root.iterdir():
+        parts = folder.name.split("-")
+        stale_job = parts[0] == "job" and len(parts) > 2 and parts[1] not in running
+        old_upload = parts[0] == "upload" and time.time() - folder.stat().st_mtime > upload_age_s
+        if folder.is_dir() and (stale_job or old_upload):
+            shutil.rmtree(folder, ignore_errors=True)
+            removed += 1
+    return removed
+
+
 class Reaper(threading.Thread):
     """Re-queues stale jobs every ``timings.reap_every_s`` until stopped."""
 
@@ -101,6 +128,9 @@ def run_worker(settings: Settings, *, workers: int = 1, timings: WorkerTimings |
     storage = Storage.open(settings)
     runtime = JobRuntime(settings=settings, storage=storage, heartbeat_s=timings.heartbeat_s)
     queue = JobQueue(settings, runtime=runtime)
+    swept = sweep_scratch(settings, storage)
+    if swept:
+        log.warning("removed %d scratch folders left by stopped processes", swept)
     orphans = enqueue_orphans(queue, storage)
     if orphans:
         log.warning("enqueued %d queued jobs missing from the queue: %s", len(orphans), orphans)
