@@ -79,7 +79,7 @@ async def _events(request: Request, storage: Storage, job_id: int) -> AsyncItera
     while True:
         snapshot = await run_in_threadpool(_snapshot, storage, job_id)
         if snapshot != last:
-            yield f"event: job\nid: {snapshot['status']}-{snapshot['progress']}\ndata: {json.dumps(snapshot)}\n\n"
+            yield f"event: job\ndata: {json.dumps(snapshot)}\n\n"
             last, quiet_s = snapshot, 0.0
         if snapshot["status"] in job_service.FINAL_STATUSES or await request.is_disconnected():
             return
