@@ -140,7 +140,8 @@ class TestZipUpload:
 
     def test_uploads_over_the_limit_are_refused(self, tmp_path: Path, mini_site: Path) -> None:
         small = api_users(Settings(data_dir=tmp_path / "small", max_upload_bytes=10_000))
-        site_id = small.client.post("/api/sites", json={"name": "s"}, headers=small.auth("admin")).json()["id"]
+        created = small.client.post("/api/sites", json={"name": "s"}, headers=small.auth("admin"))
+        site_id = created.json()["id"]
         response = upload_zip(small, site_id, "big.zip", zip_folder(drive_folders(mini_site, "map")[0]))
         assert response.status_code == 413, response.text
         assert _stored(small.storage)[:4] == (0, 0, 0, 0)
