@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from fnmatch import fnmatch
 from pathlib import Path
 from typing import Annotated
 
@@ -77,6 +78,12 @@ def report_localisation(
         int,
         typer.Option("--single-image-stride", min=1, help="Score single-image methods on every n-th frame."),
     ] = 1,
+    drive: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--drive", help="Only drives whose names match this glob (repeatable), e.g. 'loc-0[12]*'."
+        ),
+    ] = None,
 ) -> None:
     """Precision-recall of SAD, SAD+SESAME, HMM+SAD and HMM+SESAME over the site's localisation drives."""
     storage = open_storage()
@@ -92,7 +99,7 @@ def report_localisation(
             drives = [
                 d
                 for d in loc_service.load_localisation_drives(session, storage.blobs, record)
-                if d.truth_xy_m is not None
+                if d.truth_xy_m is not None and (not drive or any(fnmatch(d.name, g) for g in drive))
             ]
         with stage_progress("localisation report") as report:
             result = run_localisation_report(

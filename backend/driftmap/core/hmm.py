@@ -67,7 +67,7 @@ class HmmParams:
     lost_confidence: float = 0.02  # a frame with X_i(b(i)) below this counts as lost
     lost_distinct_ratio: float = 0.95  # lost when d(b(i)) / median d of the compared nodes is above this
     lost_elsewhere_ratio: float = 1.0  # lost when d(b(i)) / least d of compared far nodes is above this
-    lost_frames: int = 5  # this many lost frames in a row re-initialise the belief globally; 0 disables
+    lost_frames: int = 20  # this many lost frames in a row (2 s at 10 fps) re-initialise globally; 0: never
 
     def __post_init__(self) -> None:
         for name in ("max_speed_mps", "min_a_t_m", "a_t_quantum_m", "epsilon", "lost_distinct_ratio"):

@@ -7,8 +7,9 @@ shared store between frames and calls :meth:`Localiser.restore` on the next.
 
 Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i)) is below
 ``lost_confidence`` or the believed place does not look distinctly better than somewhere else: d(i, b(i))
-is above ``lost_distinct_ratio`` times the least d of the compared nodes (evaluated nodes and a few rotating
-probe nodes) that lie beyond the stored shortest paths from b(i). The test is relative to other places of
+is above ``lost_elsewhere_ratio`` times the least d of the compared nodes (evaluated nodes and a few
+rotating probe nodes) more than two frame reaches (2 A_t) of path away from b(i), or above
+``lost_distinct_ratio`` times the median d of the compared nodes. The test is relative to other places of
 the same map, so it holds in mines where every tunnel looks much alike (d of the right place only a few per
 cent below an unrelated one's). After ``lost_frames`` lost frames in a row the belief becomes uniform, so the next frame searches the whole
 map. With ``single_image=True`` there is no filter: every node is compared and b(i) = argmin d.
@@ -302,7 +303,8 @@ class Localiser:
         at_best = d_all[compared == best]
         d_here = float(at_best[0]) if at_best.size else float(np.min(d_all, initial=np.inf))
         typical = 1.0 - self._distinctness(d_all, d_here)
-        elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here)
+        far_m = 2.0 * self.transitions.reach_m(gap_s)
+        elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here, far_m)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
         lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
         lost_count = s.lost_count + 1 if lost else 0
@@ -311,10 +313,13 @@ class Localiser:
         self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1)
         return self._estimate(best, score, lost, int(d_all.size), t0)
 
-    def _elsewhere_ratio(self, compared: I64, d: NDArray[np.floating], best: int, d_here: float) -> float:
-        """d(b(i)) / least d of the compared nodes beyond the stored shortest paths from b(i); 0 if none."""
+    def _elsewhere_ratio(
+        self, compared: I64, d: NDArray[np.floating], best: int, d_here: float, far_m: float
+    ) -> float:
+        """d(b(i)) / least d of the compared nodes more than ``far_m`` metres of path from b(i); 0 if none."""
         adj = self.map.adjacency_m
-        near = adj.indices[adj.indptr[best] : adj.indptr[best + 1]]
+        row = slice(adj.indptr[best], adj.indptr[best + 1])
+        near = adj.indices[row][adj.data[row] <= far_m]
         far = ~np.isin(compared, near) & (compared != best) & np.isfinite(d)
         if not far.any() or not np.isfinite(d_here):
             return 0.0 if not far.any() else float("inf")

@@ -6,10 +6,12 @@ SESAME. Drives are grouped by condition from their names: ``*-dust1``, ``*-dust2
 ``*-water2`` (the simulator's obscured copies, paper 000 IV-A) and ``clean`` for the rest.
 
 A frame's estimate is right when its node centre lies within ``tolerance_m`` of the true floor point
-(15 m for the simulator; paper 000 used 30 m in a larger mine). Sweeping the match threshold over each
-method's score gives the precision-recall curve (:mod:`driftmap.reports.pr_curves`); the table gives its
-area, the recall at 100 % precision, the share of frames the localiser marks matched at its configured
-X_thresh and their mean distance error (node centre to truth, metres).
+(15 m for the simulator; paper 000 used 30 m in a larger mine). Sweeping the match threshold X_thresh over
+each method's score gives the precision-recall curve (:mod:`driftmap.reports.pr_curves`). The match rule is
+the one the localiser applies (eq. 12 and driftmap's lost detection): a frame the filter counts as lost is
+never matched, at any threshold. The table gives the curve's area, the recall at 100 % precision, the share
+of frames the localiser marks matched at its configured X_thresh and their mean distance error (node centre
+to truth, metres).
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ class MethodResult:
     """Per-frame outcomes of one method on one condition (every drive of it, concatenated).
 
     Attributes:
-        scores: (N,) confidence of each frame's estimate.
+        scores: (N,) confidence of each frame's estimate; NaN for a lost frame (never matched).
         error_m: (N,) distance from the estimated node centre to the true floor point, metres.
         matched: (N,) the localiser's own match flag at its configured X_thresh.
         ms: (N,) milliseconds per frame.
@@ -151,7 +153,7 @@ def _run_drive(
                 continue
             est = loc.step(thumb, float(drive.t_s[k]), mask if loc.sesame is not None else None)
             res = results[name]
-            res.scores.append(est.score)
+            res.scores.append(float("nan") if est.lost else est.score)  # lost: never matched
             res.error_m.append(
                 float(np.hypot(est.x_m - drive.truth_xy_m[k, 0], est.y_m - drive.truth_xy_m[k, 1]))
             )
