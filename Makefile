@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 DEMO_DIR ?= data/demo
 DEMO_SEED ?= 7
 
-.PHONY: demo test lint typecheck imports pytest bench clean
+.PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test chromium
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -22,7 +22,22 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $@ $(VENV)/.installed-run
 
-demo: $(VENV)/.installed-run
+# Browser UI (frontend/): npm ci when the lock file changes, then a vite build into frontend/dist.
+frontend/node_modules/.installed: frontend/package-lock.json
+	cd frontend && npm ci --no-audit --no-fund
+	touch $@
+
+frontend: frontend/node_modules/.installed
+	cd frontend && npm run build
+
+frontend-test: frontend
+	cd frontend && npm test -- --run
+
+# Debian's chromium for the browser end-to-end tests (tests/e2e).
+chromium:
+	command -v chromium >/dev/null || (apt-get update && apt-get install -y chromium)
+
+demo: $(VENV)/.installed-run frontend
 	rm -rf $(DEMO_DIR)
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap simulate --seed $(DEMO_SEED) --size small --out $(DEMO_DIR)/site
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap site create demo --survey $(DEMO_DIR)/site/survey.dxf --drives $(DEMO_DIR)/site/drives
@@ -38,10 +53,10 @@ typecheck: $(VENV)/.installed-dev
 imports: $(VENV)/.installed-dev
 	$(BIN)/lint-imports
 
-pytest: $(VENV)/.installed-dev
+pytest: $(VENV)/.installed-dev frontend chromium
 	$(BIN)/pytest -q
 
-test: lint typecheck imports pytest
+test: lint typecheck imports frontend-test pytest
 
 BENCHES := bench_import bench_simulate bench_sad kitti_odometry bench_loops bench_posegraph bench_topomap bench_localise vpr_outside
 

@@ -1,0 +1,123 @@
+// A thin typed fetch wrapper over the generated OpenAPI types (src/api/schema.d.ts, `npm run gen:api`).
+import type { components, paths } from "./schema";
+
+export type Schemas = components["schemas"];
+
+type JsonOf<R> = R extends { content: { "application/json": infer J } } ? J : undefined;
+type Ok<O> = O extends { responses: infer Rs }
+  ? 200 extends keyof Rs
+    ? JsonOf<Rs[200]>
+    : 201 extends keyof Rs
+      ? JsonOf<Rs[201]>
+      : 202 extends keyof Rs
+        ? JsonOf<Rs[202]>
+        : undefined
+  : never;
+type BodyOf<O> = O extends { requestBody: { content: { "application/json": infer B } } } ? B : never;
+type Method = "get" | "post" | "patch" | "put" | "delete";
+type PathsWith<M extends Method> = { [P in keyof paths]: paths[P][M] extends undefined ? never : P }[keyof paths];
+type Op<P extends keyof paths, M extends Method> = NonNullable<paths[P][M]>;
+
+export type Query = Record<string, string | number | boolean | null | undefined>;
+
+/** An error answer of the API: its HTTP status and the ``detail`` text. */
+export class ApiError extends Error {
+  constructor(
+    readonly status: number,
+    message: string,
+  ) {
+    super(message);
+  }
+}
+
+let token: string | null = null;
+let onUnauthorized: (() => void) | null = null;
+
+export function setToken(value: string | null): void {
+  token = value;
+}
+
+export function getToken(): string | null {
+  return token;
+}
+
+export function setUnauthorizedHandler(handler: (() => void) | null): void {
+  onUnauthorized = handler;
+}
+
+/** ``/api/sites/{site_id}`` with ``{site_id: 3}`` and a query -> ``/api/sites/3?...``. */
+export function buildUrl(path: string, params: Record<string, string | number> = {}, query: Query = {}): string {
+  const filled = path.replace(/\{(\w+)\}/g, (_, name: string) => {
+    const value = params[name];
+    if (value === undefined) throw new Error(`missing path parameter ${name} for ${path}`);
+    return encodeURIComponent(String(value));
+  });
+  const search = new URLSearchParams();
+  for (const [key, value] of Object.entries(query)) {
+    if (value !== undefined && value !== null) search.set(key, String(value));
+  }
+  const text = search.toString();
+  return text ? `${filled}?${text}` : filled;
+}
+
+async function send(method: string, url: string, body?: unknown): Promise<unknown> {
+  const headers: Record<string, string> = {};
+  if (token) headers.Authorization = `Bearer ${token}`;
+  let payload: BodyInit | undefined;
+  if (body instanceof FormData) payload = body;
+  else if (body !== undefined) {
+    headers["Content-Type"] = "application/json";
+    payload = JSON.stringify(body);
+  }
+  const response = await fetch(url, { method: method.toUpperCase(), headers, body: payload });
+  if (response.status === 401 && onUnauthorized) onUnauthorized();
+  if (!response.ok) {
+    let detail = response.statusText;
+    try {
+      const json = (await response.json()) as { detail?: unknown };
+      detail = typeof json.detail === "string" ? json.detail : JSON.stringify(json.detail);
+    } catch {
+      /* not JSON */
+    }
+    throw new ApiError(response.status, detail);
+  }
+  if (response.status === 204) return undefined;
+  const type = response.headers.get("content-type") ?? "";
+  return type.includes("json") ? response.json() : response.text();
+}
+
+export function apiGet<P extends PathsWith<"get">>(
+  path: P,
+  params: Record<string, string | number> = {},
+  query: Query = {},
+): Promise<Ok<Op<P, "get">>> {
+  return send("get", buildUrl(path, params, query)) as Promise<Ok<Op<P, "get">>>;
+}
+
+export function apiPost<P extends PathsWith<"post">>(
+  path: P,
+  params: Record<string, string | number>,
+  body?: BodyOf<Op<P, "post">>,
+): Promise<Ok<Op<P, "post">>> {
+  return send("post", buildUrl(path, params), body) as Promise<Ok<Op<P, "post">>>;
+}
+
+export function apiPatch<P extends PathsWith<"patch">>(
+  path: P,
+  params: Record<string, string | number>,
+  body: BodyOf<Op<P, "patch">>,
+): Promise<Ok<Op<P, "patch">>> {
+  return send("patch", buildUrl(path, params), body) as Promise<Ok<Op<P, "patch">>>;
+}
+
+export function apiDelete<P extends PathsWith<"delete">>(
+  path: P,
+  params: Record<string, string | number>,
+): Promise<unknown> {
+  return send("delete", buildUrl(path, params));
+}
+
+/** An image URL that carries the token (for <img>, which cannot send headers): uses the login cookie too. */
+export function imageUrl(path: string): string {
+  return path;
+}

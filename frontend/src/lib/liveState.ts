@@ -1,0 +1,133 @@
+// The monitoring view's model of the fleet, fed by /api/positions/latest and /api/live messages.
+
+export interface PositionMsg {
+  seq: number;
+  vehicle_id: number;
+  vehicle: string;
+  site_id: number;
+  t: number;
+  node: number;
+  x: number;
+  y: number;
+  yaw: number | null;
+  confidence: number;
+  matched: boolean;
+  lost: boolean;
+  map_version: number | null;
+  received_at: string;
+}
+
+export interface VehicleRow {
+  vehicle_id: number;
+  vehicle: string;
+  site_id: number;
+  stale: boolean;
+  position: PositionMsg | null;
+}
+
+export type LiveMessage =
+  | { type: "snapshot"; seq: number; stale_after_s: number; vehicles: VehicleRow[] }
+  | ({ type: "position" } & PositionMsg)
+  | { type: "stale"; vehicle_id: number; received_at: string };
+
+export interface TrailPoint {
+  x: number;
+  y: number;
+  t: number;
+}
+
+export interface VehicleState {
+  id: number;
+  name: string;
+  siteId: number;
+  stale: boolean;
+  position: PositionMsg | null;
+  /** Recent positions, oldest first, within the trail window (by frame time ``t``). */
+  trail: TrailPoint[];
+}
+
+export type VehicleStatus = "moving" | "stopped" | "lost" | "stale" | "no fix";
+
+export const MOVING_SPEED_MPS = 0.2;
+
+/** Speed over the last two trail points, metres per second (0 without two points). */
+export function speedOf(v: VehicleState): number {
+  const n = v.trail.length;
+  if (n < 2) return 0;
+  const a = v.trail[n - 2]!;
+  const b = v.trail[n - 1]!;
+  const dt = b.t - a.t;
+  return dt > 0 ? Math.hypot(b.x - a.x, b.y - a.y) / dt : 0;
+}
+
+export function statusOf(v: VehicleState): VehicleStatus {
+  if (v.stale) return "stale";
+  if (v.position === null) return "no fix";
+  if (v.position.lost) return "lost";
+  return speedOf(v) >= MOVING_SPEED_MPS ? "moving" : "stopped";
+}
+
+/** Fleet state: apply snapshot/position/stale messages in order; ``lastSeq`` is what a reconnect resumes from. */
+export class LiveState {
+  readonly vehicles = new Map<number, VehicleState>();
+  lastSeq: number | null = null;
+  staleAfterS = 10;
+
+  constructor(readonly trailWindowS = 180) {}
+
+  apply(message: LiveMessage): void {
+    switch (message.type) {
+      case "snapshot": {
+        this.staleAfterS = message.stale_after_s;
+        const seen = new Set<number>();
+        for (const row of message.vehicles) {
+          seen.add(row.vehicle_id);
+          const v = this.vehicle(row.vehicle_id, row.vehicle, row.site_id);
+          v.stale = row.stale;
+          if (row.position) this.addPosition(v, row.position);
+        }
+        for (const id of [...this.vehicles.keys()]) if (!seen.has(id)) this.vehicles.delete(id);
+        this.lastSeq = Math.max(this.lastSeq ?? 0, message.seq);
+        break;
+      }
+      case "position": {
+        const { type: _type, ...position } = message;
+        const v = this.vehicle(position.vehicle_id, position.vehicle, position.site_id);
+        v.stale = false;
+        this.addPosition(v, position);
+        this.lastSeq = Math.max(this.lastSeq ?? 0, position.seq);
+        break;
+      }
+      case "stale": {
+        const v = this.vehicles.get(message.vehicle_id);
+        if (v) v.stale = true;
+        break;
+      }
+    }
+  }
+
+  private vehicle(id: number, name: string, siteId: number): VehicleState {
+    let v = this.vehicles.get(id);
+    if (!v) {
+      v = { id, name, siteId, stale: false, position: null, trail: [] };
+      this.vehicles.set(id, v);
+    }
+    v.name = name;
+    return v;
+  }
+
+  private addPosition(v: VehicleState, p: PositionMsg): void {
+    if (v.position !== null && p.seq <= v.position.seq) return; // a replayed or repeated message
+    v.position = p;
+    const last = v.trail[v.trail.length - 1];
+    if (last && p.t < last.t) v.trail = []; // the vehicle's clock restarted
+    v.trail.push({ x: p.x, y: p.y, t: p.t });
+    const oldest = p.t - this.trailWindowS;
+    const first = v.trail.findIndex((q) => q.t >= oldest);
+    if (first > 0) v.trail.splice(0, first);
+  }
+
+  sorted(): VehicleState[] {
+    return [...this.vehicles.values()].sort((a, b) => a.name.localeCompare(b.name) || a.id - b.id);
+  }
+}

@@ -1,0 +1,40 @@
+import { describe, expect, it } from "vitest";
+import { joinResiduals, sortRows } from "./residuals";
+
+const groundings = [
+  { id: 1, drive_id: 1, drive: "east", frame: 10, x_m: 1, y_m: 2 },
+  { id: 2, drive_id: 1, drive: "east", frame: 40, x_m: 3, y_m: 4 },
+  { id: 3, drive_id: 2, drive: "west", frame: 5, x_m: 5, y_m: 6 },
+  { id: 4, drive_id: 2, drive: "west", frame: 9, x_m: 7, y_m: 8 },
+];
+const residuals = [
+  { drive: "east", frame: 10, dx_m: -0.3, dy_m: 0.4, distance_m: 0.5 },
+  { drive: "east", frame: 40, dx_m: 2.0, dy_m: 0.0, distance_m: 2.0 },
+  { drive: "west", frame: 5, dx_m: 0.1, dy_m: -0.1, distance_m: 0.14 },
+];
+
+describe("residual table", () => {
+  const rows = joinResiduals(groundings, residuals);
+
+  it("joins residuals on drive and frame, leaving new groundings without", () => {
+    expect(rows.map((r) => r.distance)).toEqual([0.5, 2.0, 0.14, null]);
+    expect(rows[0]).toMatchObject({ id: 1, driveId: 1, dx: -0.3, dy: 0.4 });
+  });
+
+  it("sorts by distance both ways with unbuilt rows last", () => {
+    expect(sortRows(rows, "distance", "asc").map((r) => r.id)).toEqual([3, 1, 2, 4]);
+    expect(sortRows(rows, "distance", "desc").map((r) => r.id)).toEqual([2, 1, 3, 4]);
+  });
+
+  it("sorts dx by magnitude and drive by name then frame", () => {
+    expect(sortRows(rows, "dx", "asc").map((r) => r.id)).toEqual([3, 1, 2, 4]);
+    expect(sortRows(rows, "drive", "desc").map((r) => r.id)).toEqual([3, 4, 1, 2]);
+    expect(sortRows(rows, "frame", "asc").map((r) => r.id)).toEqual([3, 4, 1, 2]);
+  });
+
+  it("does not change its input", () => {
+    const before = rows.map((r) => r.id);
+    sortRows(rows, "distance", "desc");
+    expect(rows.map((r) => r.id)).toEqual(before);
+  });
+});

@@ -1,0 +1,166 @@
+// The plan view every page shares: survey layers (WebGL when available), pan/zoom, grid readout, scale bar,
+// fit-to-site. Pages add their own layers through ``overlay``, which gets the map and the local origin.
+import { useEffect, useRef, useState, type ReactNode } from "react";
+import OlMap from "ol/Map";
+import View from "ol/View";
+import VectorSource from "ol/source/Vector";
+import VectorLayer from "ol/layer/Vector";
+import WebGLVectorLayer from "ol/layer/WebGLVector";
+import GeoJSON from "ol/format/GeoJSON";
+import ScaleLine from "ol/control/ScaleLine";
+import { defaults as defaultControls } from "ol/control/defaults";
+import { Stroke, Style } from "ol/style";
+import type BaseLayer from "ol/layer/Base";
+import type { Geometry } from "ol/geom";
+import type Feature from "ol/Feature";
+import { apiGet, ApiError } from "../api/client";
+import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
+import { mineGrid, webglAvailable } from "./projection";
+
+export interface MapCtx {
+  map: OlMap;
+  origin: LocalOrigin;
+  siteExtent: Extent | null;
+}
+
+const LAYER_COLOURS = ["#8ca3ba", "#f0b429", "#4dabf7", "#b197fc", "#63e6be", "#ffa8a8", "#d8f5a2"];
+
+interface Props {
+  siteId: number;
+  overlay?: (ctx: MapCtx) => ReactNode;
+  onMapClick?: (x: number, y: number) => void;
+  tools?: ReactNode;
+}
+
+interface SurveyLayer {
+  name: string;
+  layer: BaseLayer;
+  features: number;
+}
+
+export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
+  const target = useRef<HTMLDivElement>(null);
+  const [ctx, setCtx] = useState<MapCtx | null>(null);
+  const [layers, setLayers] = useState<SurveyLayer[]>([]);
+  const [visible, setVisible] = useState<Record<string, boolean>>({});
+  const [readout, setReadout] = useState("");
+  const [error, setError] = useState<string | null>(null);
+  const clickRef = useRef(onMapClick);
+  clickRef.current = onMapClick;
+  const originRef = useRef<LocalOrigin | null>(null);
+  originRef.current = ctx?.origin ?? null;
+
+  useEffect(() => {
+    if (!target.current) return;
+    let cancelled = false;
+    const map = new OlMap({
+      target: target.current,
+      controls: defaultControls({ attribution: false, rotate: false }).extend([new ScaleLine({ units: "metric" })]),
+      view: new View({ projection: mineGrid, center: [0, 0], zoom: 2 }),
+    });
+    const useWebgl = webglAvailable();
+    const added: BaseLayer[] = [];
+    (async () => {
+      let origin = new LocalOrigin(0, 0);
+      let siteExtent: Extent | null = null;
+      try {
+        const survey = await apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId });
+        if (cancelled) return;
+        origin = LocalOrigin.ofExtent(survey.extents);
+        siteExtent = origin.localExtent(survey.extents);
+        const format = new GeoJSON();
+        const made: SurveyLayer[] = [];
+        Object.entries(survey.layers).forEach(([name, collection], i) => {
+          const shifted = shiftCollection(collection, origin);
+          const features = format.readFeatures(shifted) as Feature<Geometry>[];
+          const source = new VectorSource({ features });
+          const colour = LAYER_COLOURS[i % LAYER_COLOURS.length]!;
+          const layer = useWebgl
+            ? new WebGLVectorLayer({ source, style: { "stroke-color": colour, "stroke-width": 1.5 } })
+            : new VectorLayer({ source, style: new Style({ stroke: new Stroke({ color: colour, width: 1.5 }) }) });
+          layer.set("surveyLayer", name);
+          map.addLayer(layer);
+          added.push(layer);
+          made.push({ name, layer, features: features.length });
+        });
+        setLayers(made);
+        setVisible(Object.fromEntries(made.map((l) => [l.name, true])));
+        map.getView().fit(siteExtent, { padding: [40, 40, 40, 40] });
+      } catch (e) {
+        if (cancelled) return;
+        setError(e instanceof ApiError && e.status === 404 ? "this site has no survey plan yet" : String(e));
+      }
+      setCtx({ map, origin, siteExtent });
+    })();
+    map.on("pointermove", (ev) => {
+      const o = originRef.current;
+      if (!o) return;
+      const [x, y] = o.toWorld(ev.coordinate[0]!, ev.coordinate[1]!);
+      setReadout(formatGrid(x, y));
+    });
+    map.on("singleclick", (ev) => {
+      const o = originRef.current;
+      if (!o || !clickRef.current) return;
+      const [x, y] = o.toWorld(ev.coordinate[0]!, ev.coordinate[1]!);
+      clickRef.current(x, y);
+    });
+    return () => {
+      cancelled = true;
+      for (const layer of added) map.removeLayer(layer);
+      map.setTarget(undefined);
+      map.dispose();
+      setCtx(null);
+      setLayers([]);
+    };
+  }, [siteId]);
+
+  useEffect(() => {
+    for (const l of layers) l.layer.setVisible(visible[l.name] ?? true);
+  }, [layers, visible]);
+
+  const fit = () => {
+    if (ctx?.siteExtent) ctx.map.getView().fit(ctx.siteExtent, { padding: [40, 40, 40, 40], duration: 300 });
+  };
+
+  return (
+    <div className="mapwrap">
+      <div className="map" ref={target} data-testid="map" data-ready={ctx ? "yes" : "no"} />
+      {layers.length > 0 && (
+        <div className="overlay-box layers" data-testid="layer-panel">
+          {layers.map((l) => (
+            <label key={l.name}>
+              <input
+                type="checkbox"
+                data-testid={`layer-toggle-${l.name}`}
+                checked={visible[l.name] ?? true}
+                onChange={(e) => setVisible({ ...visible, [l.name]: e.target.checked })}
+              />{" "}
+              {l.name} <span className="muted">({l.features})</span>
+            </label>
+          ))}
+        </div>
+      )}
+      <div className="overlay-box maptools">
+        {tools}
+        <button data-testid="fit-site" onClick={fit} title="Fit the whole site">
+          Fit site
+        </button>
+      </div>
+      <div className="overlay-box readout" data-testid="grid-readout">
+        {error ? <span className="error">{error}</span> : readout || "mine grid (m)"}
+      </div>
+      {ctx && overlay?.(ctx)}
+    </div>
+  );
+}
+
+function shiftCollection(collection: unknown, origin: LocalOrigin): unknown {
+  const c = collection as { features?: { geometry?: { coordinates?: unknown } }[] };
+  return {
+    ...c,
+    features: (c.features ?? []).map((f) => ({
+      ...f,
+      geometry: f.geometry ? { ...f.geometry, coordinates: origin.shiftCoordinates(f.geometry.coordinates) } : null,
+    })),
+  };
+}

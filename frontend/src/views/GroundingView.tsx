@@ -1,0 +1,311 @@
+// Grounding workstation: the latest map version's trajectories over the plan, a keyframe strip per drive,
+// ground the selected keyframe by clicking its surveyed point, a residual table (sortable, colour-coded),
+// delete and undo, and "Build map" with the job's progress.
+import { useCallback, useEffect, useMemo, useState } from "react";
+import { ApiError, apiDelete, apiGet, apiPost, type Schemas } from "../api/client";
+import { MineMap, type MapCtx } from "../map/MineMap";
+import { TrajectoryLayer, type Closure, type Poses } from "../map/TrajectoryLayer";
+import { joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
+import { driveColour, residualClass, rgbCss } from "../lib/colours";
+import { AuthImage } from "./AuthImage";
+
+type Drive = Schemas["DriveRead"];
+type Job = Schemas["JobRead"];
+type Action = { kind: "created"; id: number; driveId: number; frame: number; x: number; y: number } | {
+  kind: "deleted";
+  driveId: number;
+  frame: number;
+  x: number;
+  y: number;
+};
+
+const KEYFRAME_STRIDE = 10;
+const STRIP_PAGE = 12;
+
+export function GroundingView({ siteId, editable }: { siteId: number; editable: boolean }) {
+  const [drives, setDrives] = useState<Drive[]>([]);
+  const [version, setVersion] = useState<number | null>(null);
+  const [poses, setPoses] = useState<Poses | null>(null);
+  const [closures, setClosures] = useState<Closure[]>([]);
+  const [showClosures, setShowClosures] = useState(true);
+  const [groundings, setGroundings] = useState<Schemas["GroundingRead"][]>([]);
+  const [residuals, setResiduals] = useState<Schemas["ResidualRead"][]>([]);
+  const [driveId, setDriveId] = useState<number | null>(null);
+  const [frame, setFrame] = useState<number | null>(null);
+  const [page, setPage] = useState(0);
+  const [sort, setSort] = useState<{ key: SortKey; dir: SortDir }>({ key: "distance", dir: "desc" });
+  const [undo, setUndo] = useState<Action[]>([]);
+  const [message, setMessage] = useState<string | null>(null);
+  const [job, setJob] = useState<Job | null>(null);
+  const [ctx, setCtx] = useState<MapCtx | null>(null);
+
+  const loadGroundings = useCallback(async () => {
+    const page = await apiGet("/api/sites/{site_id}/groundings", { site_id: siteId }, { limit: 10000 });
+    setGroundings(page.items);
+  }, [siteId]);
+
+  const loadVersion = useCallback(async () => {
+    const versions = await apiGet("/api/sites/{site_id}/maps", { site_id: siteId }, { limit: 1000 });
+    const latest = versions.items.reduce<number | null>((m, v) => (m === null || v.version > m ? v.version : m), null);
+    setVersion(latest);
+    if (latest === null) {
+      setPoses(null);
+      setClosures([]);
+      setResiduals([]);
+      return;
+    }
+    const p = { site_id: siteId, version: latest };
+    const [ps, cs, rs] = await Promise.all([
+      apiGet("/api/sites/{site_id}/maps/{version}/poses", p, { limit: 1000000 }),
+      apiGet("/api/sites/{site_id}/maps/{version}/closures", p),
+      apiGet("/api/sites/{site_id}/maps/{version}/residuals", p),
+    ]);
+    setPoses(ps);
+    setClosures(cs);
+    setResiduals(rs);
+  }, [siteId]);
+
+  useEffect(() => {
+    void (async () => {
+      const page = await apiGet("/api/sites/{site_id}/drives", { site_id: siteId }, { limit: 1000 });
+      const mapping = page.items.filter((d) => d.kind === "mapping");
+      setDrives(mapping);
+      setDriveId((d) => d ?? mapping[0]?.id ?? null);
+    })();
+    void loadVersion();
+    void loadGroundings();
+  }, [siteId, loadVersion, loadGroundings]);
+
+  const drive = drives.find((d) => d.id === driveId) ?? null;
+  const keyframes = useMemo(() => {
+    if (!drive) return [];
+    if (poses) {
+      const frames = poses.frame.filter((_, i) => poses.drive_id[i] === drive.id);
+      return frames.filter((_, i) => i % KEYFRAME_STRIDE === 0);
+    }
+    return Array.from({ length: Math.ceil(drive.frame_count / KEYFRAME_STRIDE) }, (_, i) => i * KEYFRAME_STRIDE);
+  }, [drive, poses]);
+  const pageCount = Math.max(1, Math.ceil(keyframes.length / STRIP_PAGE));
+  const stripFrames = keyframes.slice(page * STRIP_PAGE, (page + 1) * STRIP_PAGE);
+
+  const rows = useMemo(
+    () => sortRows(joinResiduals(groundings, residuals), sort.key, sort.dir),
+    [groundings, residuals, sort],
+  );
+
+  const step = useCallback(
+    (delta: number) => {
+      if (keyframes.length === 0) return;
+      const i = frame === null ? 0 : keyframes.indexOf(frame);
+      const next = keyframes[Math.min(keyframes.length - 1, Math.max(0, (i < 0 ? 0 : i) + delta))]!;
+      setFrame(next);
+      setPage(Math.floor(keyframes.indexOf(next) / STRIP_PAGE));
+    },
+    [frame, keyframes],
+  );
+
+  const ground = async (x: number, y: number) => {
+    if (!editable || driveId === null || frame === null) return;
+    try {
+      const g = await apiPost("/api/drives/{drive_id}/groundings", { drive_id: driveId }, { frame, x, y });
+      setUndo((u) => [...u, { kind: "created", id: g.id, driveId, frame, x, y }]);
+      setMessage(`grounded ${drive?.name ?? driveId} frame ${frame} at E ${x.toFixed(2)} N ${y.toFixed(2)}`);
+      await loadGroundings();
+    } catch (e) {
+      setMessage(e instanceof ApiError ? e.message : String(e));
+    }
+  };
+
+  const remove = async (id: number) => {
+    const g = groundings.find((r) => r.id === id);
+    if (!g) return;
+    await apiDelete("/api/groundings/{grounding_id}", { grounding_id: id });
+    setUndo((u) => [...u, { kind: "deleted", driveId: g.drive_id, frame: g.frame, x: g.x_m, y: g.y_m }]);
+    await loadGroundings();
+  };
+
+  const undoLast = async () => {
+    const last = undo[undo.length - 1];
+    if (!last) return;
+    setUndo((u) => u.slice(0, -1));
+    try {
+      if (last.kind === "created") await apiDelete("/api/groundings/{grounding_id}", { grounding_id: last.id });
+      else {
+        const { frame: f, x, y } = last;
+        await apiPost("/api/drives/{drive_id}/groundings", { drive_id: last.driveId }, { frame: f, x, y });
+      }
+      setMessage(last.kind === "created" ? "undid the new grounding" : "restored the deleted grounding");
+    } catch (e) {
+      setMessage(e instanceof ApiError ? e.message : String(e));
+    }
+    await loadGroundings();
+  };
+
+  useEffect(() => {
+    const onKey = (e: KeyboardEvent) => {
+      if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+      if (e.key === "ArrowRight" || e.key === "n") step(1);
+      else if (e.key === "ArrowLeft" || e.key === "p") step(-1);
+      else if (editable && (e.key === "z" || e.key === "u") && (e.ctrlKey || e.key === "u")) void undoLast();
+    };
+    window.addEventListener("keydown", onKey);
+    return () => window.removeEventListener("keydown", onKey);
+  });
+
+  const build = async () => {
+    try {
+      setJob(await apiPost("/api/sites/{site_id}/maps", { site_id: siteId }, { preset: "fast" }));
+    } catch (e) {
+      setMessage(e instanceof ApiError ? e.message : String(e));
+    }
+  };
+
+  useEffect(() => {
+    if (!job || ["succeeded", "failed", "cancelled"].includes(job.status)) return;
+    const timer = setTimeout(async () => {
+      const next = await apiGet("/api/jobs/{job_id}", { job_id: job.id });
+      setJob(next);
+      if (next.status === "succeeded") await loadVersion();
+    }, 1000);
+    return () => clearTimeout(timer);
+  }, [job, loadVersion]);
+
+  const flyTo = (x: number, y: number) => {
+    if (ctx) ctx.map.getView().animate({ center: ctx.origin.toLocal(x, y), zoom: Math.max(ctx.map.getView().getZoom() ?? 0, 5), duration: 400 });
+  };
+
+  const header = (key: SortKey, label: string, num = true) => (
+    <th
+      className={`sortable ${num ? "num" : ""}`}
+      data-testid={`sort-${key}`}
+      onClick={() => setSort((s) => ({ key, dir: s.key === key && s.dir === "desc" ? "asc" : "desc" }))}
+    >
+      {label}
+      {sort.key === key ? (sort.dir === "desc" ? " ▾" : " ▴") : ""}
+    </th>
+  );
+
+  return (
+    <>
+      <MineMap
+        key={siteId}
+        siteId={siteId}
+        onMapClick={(x, y) => void ground(x, y)}
+        tools={
+          <label>
+            <input type="checkbox" data-testid="toggle-closures" checked={showClosures} onChange={(e) => setShowClosures(e.target.checked)} />{" "}
+            loop closures ({closures.length})
+          </label>
+        }
+        overlay={(c) => (
+          <>
+            <CtxSink ctx={c} onCtx={setCtx} />
+            <TrajectoryLayer
+              ctx={c}
+              poses={poses}
+              closures={closures}
+              showClosures={showClosures}
+              groundings={joinResiduals(groundings, residuals)}
+              selected={driveId !== null && frame !== null ? { driveId, frame } : null}
+              keyframeStride={KEYFRAME_STRIDE}
+            />
+          </>
+        )}
+      />
+      <aside className="side" data-testid="grounding-panel">
+        <div className="row">
+          <h2 style={{ margin: 0 }}>Grounding</h2>
+          <span className="spacer" />
+          <span className="muted" data-testid="map-version">{version === null ? "no map yet" : `map v${version}`}</span>
+          {editable && (
+            <button className="primary" data-testid="build-map" onClick={build} disabled={job !== null && !["succeeded", "failed", "cancelled"].includes(job.status)}>
+              Build map
+            </button>
+          )}
+        </div>
+        {job && (
+          <div data-testid="build-job" data-status={job.status}>
+            <div className="progress"><div style={{ width: `${Math.round(job.progress * 100)}%` }} /></div>
+            <span className="muted">job {job.id}: {job.status} {job.stage} {Math.round(job.progress * 100)}%</span>
+            {job.error && <div className="error">{job.error}</div>}
+          </div>
+        )}
+        <div className="row">
+          <select data-testid="drive-select" value={driveId ?? ""} onChange={(e) => { setDriveId(Number(e.target.value)); setFrame(null); setPage(0); }}>
+            {drives.map((d) => (
+              <option key={d.id} value={d.id}>{d.name} ({d.frame_count} frames)</option>
+            ))}
+          </select>
+          {drive && <span className="dot" style={{ background: rgbCss(driveColour(drive.id)) }} />}
+          <span className="spacer" />
+          <button onClick={() => setPage((p) => Math.max(0, p - 1))} disabled={page === 0}>‹</button>
+          <span className="muted">{page + 1}/{pageCount}</span>
+          <button onClick={() => setPage((p) => Math.min(pageCount - 1, p + 1))} disabled={page >= pageCount - 1}>›</button>
+        </div>
+        <div className="strip" data-testid="keyframe-strip">
+          {driveId !== null && stripFrames.map((f) => (
+            <button key={f} className={`thumb ${f === frame ? "selected" : ""}`} data-testid={`keyframe-${f}`} onClick={() => setFrame(f)}>
+              <AuthImage src={`/api/drives/${driveId}/frames/${f}/thumbnail?width=96`} alt={`frame ${f}`} />
+              <span>#{f}</span>
+            </button>
+          ))}
+        </div>
+        {frame !== null && driveId !== null && (
+          <div data-testid="selected-frame" data-frame={frame}>
+            <AuthImage className="bigframe" src={`/api/drives/${driveId}/frames/${frame}`} alt={`frame ${frame} large`} />
+            <div className="muted">
+              {drive?.name} frame {frame}
+              {editable ? " · click its surveyed point on the plan to ground it" : ""}
+            </div>
+          </div>
+        )}
+        {message && <p data-testid="grounding-message">{message}</p>}
+        <div className="row">
+          <h3 style={{ margin: 0 }}>Groundings ({groundings.length})</h3>
+          <span className="spacer" />
+          {editable && (
+            <button data-testid="undo" onClick={undoLast} disabled={undo.length === 0} title="Undo (u or Ctrl+Z)">
+              Undo
+            </button>
+          )}
+        </div>
+        <table data-testid="groundings-table">
+          <thead>
+            <tr>
+              {header("drive", "Drive", false)}
+              {header("frame", "Frame")}
+              {header("dx", "dx m")}
+              {header("dy", "dy m")}
+              {header("distance", "dist m")}
+              {editable && <th />}
+            </tr>
+          </thead>
+          <tbody>
+            {rows.map((r) => (
+              <tr key={r.id} data-testid={`grounding-row-${r.id}`} data-frame={r.frame} data-drive={r.drive} onClick={() => flyTo(r.x, r.y)} style={{ cursor: "pointer" }}>
+                <td>{r.drive}</td>
+                <td className="num">{r.frame}</td>
+                <td className="num">{r.dx === null ? "–" : r.dx.toFixed(2)}</td>
+                <td className="num">{r.dy === null ? "–" : r.dy.toFixed(2)}</td>
+                <td className={`num res-${residualClass(r.distance)}`}>{r.distance === null ? "new" : r.distance.toFixed(2)}</td>
+                {editable && (
+                  <td>
+                    <button className="danger" data-testid={`delete-grounding-${r.id}`} onClick={(e) => { e.stopPropagation(); void remove(r.id); }}>
+                      ✕
+                    </button>
+                  </td>
+                )}
+              </tr>
+            ))}
+          </tbody>
+        </table>
+        <p className="muted">Keys: ←/→ previous/next keyframe · u undo</p>
+      </aside>
+    </>
+  );
+}
+
+function CtxSink({ ctx, onCtx }: { ctx: MapCtx; onCtx: (c: MapCtx) => void }) {
+  useEffect(() => onCtx(ctx), [ctx, onCtx]);
+  return null;
+}

@@ -1,0 +1,185 @@
+// Live monitoring: REST snapshot, then the /api/live WebSocket (auto-reconnect with resume); vehicles on the
+// plan and in a list with their status; click one for its latest estimate and history.
+import { useEffect, useMemo, useRef, useState } from "react";
+import { apiGet, getToken, type Schemas } from "../api/client";
+import { MineMap } from "../map/MineMap";
+import { VehicleLayer } from "../map/VehicleLayer";
+import { LiveState, speedOf, statusOf, type VehicleState } from "../lib/liveState";
+import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
+import { confidenceColour, rgbCss, STALE_GREY } from "../lib/colours";
+
+function liveUrl(since: number | null): string {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const query = new URLSearchParams({ token: getToken() ?? "" });
+  if (since !== null) query.set("since", String(since));
+  return `${scheme}://${location.host}/api/live?${query.toString()}`;
+}
+
+export function MonitorView({ siteId }: { siteId: number }) {
+  const state = useRef(new LiveState());
+  const [version, setVersion] = useState(0);
+  const [connection, setConnection] = useState<ConnectionState>("connecting");
+  const [selectedId, setSelectedId] = useState<number | null>(null);
+
+  useEffect(() => {
+    let cancelled = false;
+    let pending = false;
+    const bump = () => {
+      if (pending) return;
+      pending = true;
+      requestAnimationFrame(() => {
+        pending = false;
+        if (!cancelled) setVersion((v) => v + 1);
+      });
+    };
+    const socket = new LiveSocket({
+      url: liveUrl,
+      lastSeq: () => state.current.lastSeq,
+      onMessage: (m) => {
+        state.current.apply(m);
+        bump();
+      },
+      onState: (s) => !cancelled && setConnection(s),
+    });
+    (async () => {
+      try {
+        const latest = await apiGet("/api/positions/latest");
+        if (cancelled) return;
+        const seq = Math.max(0, ...latest.map((v) => v.position?.seq ?? 0));
+        state.current.apply({ type: "snapshot", seq, stale_after_s: state.current.staleAfterS, vehicles: latest });
+        bump();
+      } catch {
+        /* the WebSocket snapshot follows anyway */
+      }
+      if (!cancelled) socket.start();
+    })();
+    return () => {
+      cancelled = true;
+      socket.stop();
+    };
+  }, []);
+
+  const vehicles = useMemo(
+    () => state.current.sorted().filter((v) => v.siteId === siteId),
+    // eslint-disable-next-line react-hooks/exhaustive-deps
+    [version, siteId],
+  );
+  const selected = vehicles.find((v) => v.id === selectedId) ?? null;
+
+  return (
+    <>
+      <MineMap
+        key={siteId}
+        siteId={siteId}
+        overlay={(ctx) => (
+          <VehicleLayer ctx={ctx} vehicles={vehicles} selectedId={selectedId} onSelect={setSelectedId} />
+        )}
+      />
+      <aside className="side">
+        <div className="row">
+          <h2 style={{ margin: 0 }}>Vehicles</h2>
+          <span className="spacer" />
+          <span className={`conn ${connection}`} data-testid="live-connection">
+            {connection === "open" ? "live" : connection}
+          </span>
+        </div>
+        <table className="vehicle-list" data-testid="vehicle-list">
+          <thead>
+            <tr>
+              <th>Name</th>
+              <th>Status</th>
+              <th className="num">Conf.</th>
+              <th className="num">E</th>
+              <th className="num">N</th>
+            </tr>
+          </thead>
+          <tbody>
+            {vehicles.map((v) => (
+              <VehicleRow key={v.id} v={v} selected={v.id === selectedId} onClick={() => setSelectedId(v.id)} />
+            ))}
+          </tbody>
+        </table>
+        {vehicles.length === 0 && <p className="muted">No vehicles on this site.</p>}
+        {selected && <VehicleDetails v={selected} />}
+      </aside>
+    </>
+  );
+}
+
+function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boolean; onClick: () => void }) {
+  const status = statusOf(v);
+  const p = v.position;
+  const colour = v.stale || !p ? STALE_GREY : confidenceColour(p.confidence);
+  return (
+    <tr
+      className={selected ? "selected" : ""}
+      onClick={onClick}
+      data-testid={`vehicle-row-${v.name}`}
+      data-status={status}
+      data-seq={p?.seq ?? ""}
+    >
+      <td>
+        <span className="dot" style={{ background: rgbCss(colour) }} />
+        {v.name}
+      </td>
+      <td>
+        <span className={`status ${status.replace(" ", "-")}`}>{status}</span>
+      </td>
+      <td className="num">{p ? p.confidence.toFixed(2) : "–"}</td>
+      <td className="num">{p ? p.x.toFixed(1) : "–"}</td>
+      <td className="num">{p ? p.y.toFixed(1) : "–"}</td>
+    </tr>
+  );
+}
+
+function VehicleDetails({ v }: { v: VehicleState }) {
+  const [history, setHistory] = useState<Schemas["PositionRead"][]>([]);
+  const seq = v.position?.seq;
+  useEffect(() => {
+    let cancelled = false;
+    apiGet("/api/vehicles/{vehicle_id}/positions", { vehicle_id: v.id })
+      .then((rows) => !cancelled && setHistory(rows.slice(-12).reverse()))
+      .catch(() => !cancelled && setHistory([]));
+    return () => {
+      cancelled = true;
+    };
+  }, [v.id, seq]);
+  const p = v.position;
+  return (
+    <section data-testid="vehicle-details">
+      <h3>{v.name}</h3>
+      {p ? (
+        <table>
+          <tbody>
+            <tr><th>Status</th><td>{statusOf(v)}</td></tr>
+            <tr><th>Position</th><td>E {p.x.toFixed(2)} N {p.y.toFixed(2)}</td></tr>
+            <tr><th>Heading</th><td>{p.yaw === null ? "–" : `${((p.yaw * 180) / Math.PI).toFixed(0)}°`}</td></tr>
+            <tr><th>Confidence</th><td>{p.confidence.toFixed(2)} {p.matched ? "(matched)" : "(unmatched)"}</td></tr>
+            <tr><th>Speed</th><td>{speedOf(v).toFixed(2)} m/s</td></tr>
+            <tr><th>Node</th><td>{p.node}</td></tr>
+            <tr><th>Frame time</th><td>{p.t.toFixed(1)} s</td></tr>
+            <tr><th>Received</th><td>{new Date(p.received_at).toLocaleTimeString()}</td></tr>
+          </tbody>
+        </table>
+      ) : (
+        <p className="muted">No position yet.</p>
+      )}
+      <h3>History</h3>
+      <table data-testid="vehicle-history">
+        <thead>
+          <tr><th className="num">t (s)</th><th className="num">E</th><th className="num">N</th><th className="num">Conf.</th></tr>
+        </thead>
+        <tbody>
+          {history.map((h) => (
+            <tr key={h.seq}>
+              <td className="num">{h.t.toFixed(1)}</td>
+              <td className="num">{h.x.toFixed(1)}</td>
+              <td className="num">{h.y.toFixed(1)}</td>
+              <td className="num">{h.confidence.toFixed(2)}</td>
+            </tr>
+          ))}
+        </tbody>
+      </table>
+    </section>
+  );
+}
