@@ -29,6 +29,8 @@ class Settings(BaseSettings):
     """Largest accepted upload (drive zip, video, DXF), bytes."""
     max_frame_bytes: int = 8 * 1024**2
     """Largest accepted live frame image, bytes."""
+    live_processes: int = 2
+    """Localiser worker processes of each API process (live frames), about one per core."""
 
     def resolved_database_url(self) -> str:
         """The database URL in force: the configured one or the embedded SQLite file."""

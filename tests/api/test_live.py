@@ -53,7 +53,7 @@ def frames(tiny_site_dir: Path) -> list[RecordedFrame]:
 
 @pytest.fixture
 def actors(built: Path) -> Iterator[Actors]:
-    made = make_actors(Settings(data_dir=built, stale_after_s=3600.0), site_name="tiny")
+    made = make_actors(Settings(data_dir=built, stale_after_s=3600.0, live_processes=1), site_name="tiny")
     with made.client:
         yield made
 
@@ -97,10 +97,10 @@ class TestFrames:
     def test_state_carries_over_to_another_server_on_the_same_database(
         self, built: Path, frames: list[RecordedFrame]
     ) -> None:
-        first = make_actors(Settings(data_dir=built), site_name="tiny")
+        first = make_actors(Settings(data_dir=built, live_processes=1), site_name="tiny")
         with first.client:
             nodes = [post(first, f)["node"] for f in frames[:30]]
-        with TestClient(create_app(Settings(data_dir=built))) as client:
+        with TestClient(create_app(Settings(data_dir=built, live_processes=1))) as client:
             for f in frames[30:60]:
                 response = client.post(
                     f"/api/vehicles/{first.vehicle_id}/frames",
@@ -203,7 +203,7 @@ class TestOverload:
                 session, "burst", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, queue_depth=1)
+        live = LiveService(settings, storage, queue_depth=1, processes=1)
         burst = [(f.t, f.data) for f in frames[:12]]
 
         async def run() -> list:  # type: ignore[type-arg]
@@ -239,7 +239,7 @@ class TestOverload:
                 session, "shuffled", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, queue_depth=1)
+        live = LiveService(settings, storage, queue_depth=1, processes=1)
         order = [3, 1, 2, 0, 5, 4]
 
         async def run() -> list:  # type: ignore[type-arg]
@@ -308,7 +308,7 @@ class TestWatch:
     def test_a_silent_vehicle_turns_stale_and_keeps_its_last_position(
         self, built: Path, frames: list[RecordedFrame]
     ) -> None:
-        actors = make_actors(Settings(data_dir=built, stale_after_s=0.0), site_name="tiny")
+        actors = make_actors(Settings(data_dir=built, stale_after_s=0.0, live_processes=1), site_name="tiny")
         with actors.client:
             answer = post(actors, frames[0])
             latest = actors.client.get("/api/positions/latest", headers=actors.auth("viewer")).json()

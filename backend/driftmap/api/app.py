@@ -30,10 +30,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """The application for ``settings`` (the environment's when None); opens and upgrades the database."""
     settings = settings or get_settings()
     storage = Storage.open(settings)
-    live = LiveService(settings, storage)
+    live = LiveService(settings, storage, processes=settings.live_processes)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        await live.workers.start()
         yield
         live.close()
         storage.close()

@@ -1,7 +1,8 @@
 """Per-vehicle lanes that feed frames to the localiser in order, off the event loop.
 
-Each vehicle has a lane: at most one frame of it is being localised (in a thread of a small pool, so the
-event loop stays responsive) and at most ``queue_depth`` wait behind it, ordered by ``t``. A frame whose
+Each vehicle has a lane: at most one frame of it is being localised (in a localiser worker process,
+:mod:`driftmap.services.live_workers`, so the event loop stays responsive) and at most ``queue_depth`` wait
+behind it, ordered by ``t``. A frame whose
 ``t`` is not after the newest frame handed to the localiser (or equals a waiting one) is refused as
 ``out_of_order``. When the waiting room overflows, its oldest frame is skipped on purpose: its caller gets
 ``status="skipped"``. Both counts are stored with the vehicle's next processed frame. Frames are never
@@ -13,14 +14,13 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 from driftmap.api.hub import InMemoryHub, LiveHub, Message
 from driftmap.config import Settings
-from driftmap.formats.frame_images import check_complete, decode_gray
-from driftmap.services import live as live_service
-from driftmap.services.live import FrameOutcome, FrameStatus, LiveMaps, LiveSlot
+from driftmap.formats.frame_images import check_complete
+from driftmap.services.live import FrameOutcome, FrameStatus
+from driftmap.services.live_workers import LocaliserWorkers
 from driftmap.services.positions import PositionView
 from driftmap.store.storage import Storage
 
@@ -45,7 +45,10 @@ class _Lane:
     running: bool = False
     unsaved_skips: int = 0
     unsaved_out_of_order: int = 0
-    slot: LiveSlot | None = None
+    in_flight: tuple[int, int] = (0, 0)
+    stored_before_last: tuple[int, int] = (0, 0)
+    """(skipped, out of order) stored while ``last`` is still None (no frame processed in this process)."""
+    """(skipped, out of order) handed to a worker and not yet in ``last``."""
     last: FrameOutcome | None = None
 
 
@@ -93,14 +96,14 @@ def _view(outcome: FrameOutcome) -> PositionView:
 
 
 class LiveService:
-    """The process's live localisation: lanes, the thread pool, the map cache and the hub.
+    """The process's live localisation: lanes, the localiser worker processes and the hub.
 
     Args:
         settings: server settings.
         storage: the database and blob store.
         hub: where estimates are published (an in-process hub when None).
         queue_depth: frames of one vehicle that may wait behind the one being localised.
-        threads: localiser threads (CPU-bound numpy work; about one per core).
+        processes: localiser worker processes (about one per core).
     """
 
     def __init__(
@@ -110,19 +113,18 @@ class LiveService:
         hub: LiveHub | None = None,
         *,
         queue_depth: int = 1,
-        threads: int = 2,
+        processes: int = 2,
     ) -> None:
         self.settings = settings
         self.storage = storage
         self.hub: LiveHub = hub if hub is not None else InMemoryHub()
         self.queue_depth = max(1, queue_depth)
-        self.maps = LiveMaps()
-        self._pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="driftmap-live")
+        self.workers = LocaliserWorkers(settings, processes)
         self._lanes: dict[int, _Lane] = {}
 
     def close(self) -> None:
-        """Stop the thread pool (waits for frames being localised)."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        """Stop the worker processes (after the frames being localised)."""
+        self.workers.close()
 
     async def submit(self, vehicle_id: int, name: str, site_id: int, t: float, data: bytes) -> FrameOutcome:
         """Localise a frame (PNG or JPEG bytes) of a vehicle in its turn; returns its outcome.
@@ -164,43 +166,34 @@ class LiveService:
             t,
             status,
             last.processed if last else 0,
-            (last.skipped if last else 0) + lane.unsaved_skips,
-            (last.out_of_order if last else 0) + lane.unsaved_out_of_order,
+            (last.skipped if last else lane.stored_before_last[0]) + lane.unsaved_skips + lane.in_flight[0],
+            (last.out_of_order if last else lane.stored_before_last[1])
+            + lane.unsaved_out_of_order
+            + lane.in_flight[1],
         )
 
     async def _store_counts(self, lane: _Lane) -> None:
         """Store the lane's unsaved skip and out-of-order counts (when no frame is left to carry them)."""
-        counts = lane.unsaved_skips, lane.unsaved_out_of_order
+        counts = lane.in_flight = lane.unsaved_skips, lane.unsaved_out_of_order
         lane.unsaved_skips = lane.unsaved_out_of_order = 0
-        loop = asyncio.get_running_loop()
         try:
-            before, after = await loop.run_in_executor(
-                self._pool, live_service.add_counts, self.storage.db, lane.vehicle_id, *counts
-            )
+            await self.workers.store_counts(lane.vehicle_id, *counts)
         except Exception:
             log.warning("could not store the frame counts of vehicle %s", lane.vehicle_id, exc_info=True)
-            lane.slot = None
             return
-        if lane.slot is not None and lane.slot.revision == before:
-            lane.slot.revision = after  # only the counts changed: the localiser stays valid
+        finally:
+            lane.in_flight = (0, 0)
         if lane.last is not None:
             lane.last = replace(
                 lane.last,
                 skipped=lane.last.skipped + counts[0],
                 out_of_order=lane.last.out_of_order + counts[1],
             )
-
-    def _localise(
-        self, vehicle_id: int, item: _Waiting, counts: tuple[int, int], slot: LiveSlot | None
-    ) -> tuple[FrameOutcome, LiveSlot | None]:
-        frame = decode_gray(item.data, "frame")
-        storage = self.storage
-        return live_service.localise_live_frame(
-            storage.db, storage.blobs, self.maps, vehicle_id, item.t, frame, counts, slot
-        )
+        else:
+            done = lane.stored_before_last
+            lane.stored_before_last = (done[0] + counts[0], done[1] + counts[1])
 
     async def _drain(self, lane: _Lane) -> None:
-        loop = asyncio.get_running_loop()
         try:
             while lane.waiting or lane.unsaved_skips or lane.unsaved_out_of_order:
                 if not lane.waiting:
@@ -208,20 +201,18 @@ class LiveService:
                     continue
                 item = lane.waiting.popleft()
                 lane.started_t = item.t
-                counts = lane.unsaved_skips, lane.unsaved_out_of_order
+                counts = lane.in_flight = lane.unsaved_skips, lane.unsaved_out_of_order
                 lane.unsaved_skips = lane.unsaved_out_of_order = 0
                 try:
-                    outcome, lane.slot = await loop.run_in_executor(
-                        self._pool, self._localise, lane.vehicle_id, item, counts, lane.slot
-                    )
+                    outcome = await self.workers.localise(lane.vehicle_id, item.t, item.data, counts)
                 except Exception as exc:
-                    lane.slot = None  # the stored state is the truth again
+                    lane.in_flight = (0, 0)
                     lane.unsaved_skips += counts[0]
                     lane.unsaved_out_of_order += counts[1]
                     if not item.answer.done():
                         item.answer.set_exception(exc)
                     continue
-                lane.last = outcome
+                lane.last, lane.in_flight = outcome, (0, 0)
                 if not item.answer.done():
                     item.answer.set_result(outcome)
                 if outcome.status == "processed":

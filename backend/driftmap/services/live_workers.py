@@ -1,0 +1,124 @@
+"""Localiser worker processes of the live server.
+
+The localiser step (SAD over the candidate nodes) and the database write are CPU-bound Python and numpy; in
+threads they would hold the GIL against the event loop that answers every other request. So each server
+process runs ``processes`` single-process pools and sends every frame of a vehicle to the same one
+(``vehicle_id % processes``): that process keeps the vehicle's :class:`~driftmap.services.live.LiveSlot`
+(the localiser with its cached transition matrices) between frames and the map cache of its vehicles' sites.
+The vehicle's state row in the database stays the truth: a process that meets a newer revision than its
+slot's reloads the state from it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import multiprocessing
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import TypeVar
+
+from driftmap.config import Settings
+from driftmap.errors import ConflictError
+from driftmap.formats.frame_images import decode_gray
+from driftmap.services import live as live_service
+from driftmap.services.live import FrameOutcome, LiveMaps, LiveSlot
+from driftmap.store.storage import Storage
+
+R = TypeVar("R")
+
+# State of one worker process (set by _start_worker).
+_storage: Storage | None = None
+_maps = LiveMaps()
+_slots: dict[int, LiveSlot] = {}
+
+
+def _start_worker(settings_json: str) -> None:
+    global _storage
+    _storage = Storage.open(Settings.model_validate_json(settings_json), upgrade=False)
+
+
+def _opened() -> Storage:
+    assert _storage is not None, "worker process not started"
+    return _storage
+
+
+def _ping() -> bool:
+    return _storage is not None
+
+
+def _localise(vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int]) -> FrameOutcome:
+    storage = _opened()
+    frame = decode_gray(data, "frame")
+    slot = _slots.pop(vehicle_id, None)
+    outcome, slot = live_service.localise_live_frame(
+        storage.db, storage.blobs, _maps, vehicle_id, t_s, frame, counts, slot
+    )
+    if slot is not None:
+        _slots[vehicle_id] = slot
+    return outcome
+
+
+def _store_counts(vehicle_id: int, skipped: int, out_of_order: int) -> None:
+    before, after = live_service.add_counts(_opened().db, vehicle_id, skipped, out_of_order)
+    slot = _slots.get(vehicle_id)
+    if slot is not None and slot.revision == before:
+        slot.revision = after  # only the counts changed: the localiser stays valid
+
+
+class LocaliserWorkers:
+    """``processes`` localiser processes, started on first use (or by :meth:`start`).
+
+    Args:
+        settings: the server settings (the workers open the same database and blob store).
+        processes: number of worker processes (about one per core).
+    """
+
+    def __init__(self, settings: Settings, processes: int = 2) -> None:
+        self._settings_json = settings.model_dump_json()
+        self._pools: list[ProcessPoolExecutor | None] = [None] * max(1, processes)
+
+    def _pool(self, vehicle_id: int) -> ProcessPoolExecutor:
+        index = vehicle_id % len(self._pools)
+        pool = self._pools[index]
+        if pool is None:
+            pool = ProcessPoolExecutor(
+                max_workers=1,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_start_worker,
+                initargs=(self._settings_json,),
+            )
+            self._pools[index] = pool
+        return pool
+
+    async def start(self) -> None:
+        """Start every worker process now (instead of at the first frame)."""
+        loop = asyncio.get_running_loop()
+        await asyncio.gather(*(loop.run_in_executor(self._pool(i), _ping) for i in range(len(self._pools))))
+
+    async def localise(
+        self, vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int]
+    ) -> FrameOutcome:
+        """Decode and localise one frame of ``vehicle_id`` in its worker process; see ``localise_live_frame``."""
+        return await self._run(vehicle_id, _localise, vehicle_id, t_s, data, counts)
+
+    async def store_counts(self, vehicle_id: int, skipped: int, out_of_order: int) -> None:
+        """Add skipped and out-of-order frames to the vehicle's stored counts, in its worker process."""
+        await self._run(vehicle_id, _store_counts, vehicle_id, skipped, out_of_order)
+
+    async def _run(self, vehicle_id: int, fn: Callable[..., R], *args: object) -> R:
+        pool = self._pool(vehicle_id)
+        try:
+            return await asyncio.get_running_loop().run_in_executor(pool, fn, *args)
+        except BrokenProcessPool as exc:
+            self._pools[vehicle_id % len(self._pools)] = None  # started again on the next frame
+            raise ConflictError(
+                f"the localiser process of vehicle {vehicle_id} died; send the frame again"
+            ) from exc
+
+    def close(self) -> None:
+        """Stop the worker processes (after the frames they are localising)."""
+        for pool in self._pools:
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
+        self._pools = [None] * len(self._pools)

@@ -1,0 +1,203 @@
+"""Load benchmark of live localisation: simulated vehicles post real frames to a real server over loopback.
+
+Simulates the tiny (or small) site, imports it, builds a FAST map, starts ``driftmap serve --no-worker`` on a
+free port and registers ``--vehicles`` vehicles. Each vehicle replays the site's localisation drive as a
+camera would: one frame every 1/``--fps`` seconds, posted without waiting for the previous answer (open
+loop), to ``POST /api/vehicles/{id}/frames``. Prints the p50 and p99 latency of the frame endpoint, the
+answers by status, and checks from the stored history that no frame was lost, reordered or processed twice:
+per vehicle, processed + skipped + out of order equals frames sent and the stored positions' ``t`` strictly
+increase. The baseline is the same frames localised in this process without HTTP (decode + localiser step +
+database write), one vehicle at a time; the ratio of the HTTP p50 to it is the cost of the server.
+Target (issue 5): 5 vehicles at 10 frames/s, p99 <= 150 ms.
+
+Usage: ``.venv/bin/python bench/bench_live.py [--vehicles 5] [--fps 10] [--seconds 20] [--size tiny]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import itertools
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+from driftmap.config import Settings
+from driftmap.core.mapping import FAST
+from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
+from driftmap.formats.frame_images import decode_gray
+from driftmap.services import drives as drive_service
+from driftmap.services import live as live_service
+from driftmap.services import maps as map_service
+from driftmap.services import sites as site_service
+from driftmap.services import users as user_service
+from driftmap.services import vehicles as vehicle_service
+from driftmap.sim import simulate_site
+from driftmap.store.storage import Storage
+
+TARGET_P99_MS = 150.0
+
+
+def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]]]:
+    """A data dir with the simulated site and its map; the localisation drive's (t, PNG bytes)."""
+    site_dir = work / "site"
+    simulate_site(site_dir, seed=3, size=size, obscurants=False)
+    data = work / "data"
+    storage = Storage.open(Settings(data_dir=data))
+    with storage.blobs.batch() as batch, storage.db.session() as session:
+        site = site_service.create_site(session, "bench")
+        site_service.add_survey_map(
+            session, batch, site, (site_dir / "survey.dxf").read_bytes(), "survey.dxf"
+        )
+    folders = drive_service.drive_folders_in(site_dir / "drives")
+    for folder in (f for f in folders if f.name.startswith("map")):
+        with storage.blobs.batch() as batch, storage.db.session() as session:
+            drive_service.import_drive(session, batch, site_service.get_site(session, "bench"), folder)
+    with storage.blobs.batch() as batch, storage.db.session() as session:
+        map_service.build_site_map(
+            session, storage.blobs, batch, site_service.get_site(session, "bench"), FAST
+        )
+        user_service.create_user(session, "bench", "bench-password", "admin")
+    storage.close()
+    loc = read_drive_folder(next(f for f in folders if f.name.startswith("loc")))
+    return data, [(row.t_s, blob) for row, blob in iter_frame_images(loc)]
+
+
+def baseline_ms(data: Path, frames: list[tuple[float, bytes]], count: int) -> float:
+    """Median ms per frame localised in-process (decode, step, database write), one vehicle."""
+    storage = Storage.open(Settings(data_dir=data))
+    with storage.db.session() as session:
+        vehicle, _token = vehicle_service.create_vehicle(session, "baseline", 1)
+        vid = vehicle.id
+    maps, slot, times = live_service.LiveMaps(), None, []
+    for t_s, blob in frames[:count]:
+        t0 = time.perf_counter()
+        _outcome, slot = live_service.localise_live_frame(
+            storage.db, storage.blobs, maps, vid, t_s, decode_gray(blob), (0, 0), slot
+        )
+        times.append((time.perf_counter() - t0) * 1e3)
+    storage.close()
+    return statistics.median(times[1:])
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+async def drive_vehicle(
+    client: httpx.AsyncClient,
+    admin: dict[str, str],
+    k: int,
+    frames: list[tuple[float, bytes]],
+    args: argparse.Namespace,
+) -> tuple[list[float], list[str], bool, int]:
+    """Replay frames as vehicle ``k``; returns latencies, statuses, history check, frames sent."""
+    vehicle = (await client.post("/api/vehicles", json={"name": f"v{k}", "site_id": 1}, headers=admin)).json()
+    headers = {"Authorization": f"Bearer {vehicle['token']}", "Content-Type": "image/png"}
+    url = f"/api/vehicles/{vehicle['id']}/frames"
+    latencies: list[float] = []
+    statuses: list[str] = []
+
+    async def post(t_s: float, blob: bytes) -> None:
+        t0 = time.perf_counter()
+        response = await client.post(url, params={"t": t_s}, content=blob, headers=headers)
+        latencies.append((time.perf_counter() - t0) * 1e3)
+        statuses.append(response.json().get("status", str(response.status_code)))
+
+    n = int(args.seconds * args.fps)
+    start = time.perf_counter() + 0.2
+    tasks = []
+    for i in range(n):
+        _t, blob = frames[(i + 37 * k) % len(frames)]
+        delay = start + i / args.fps - time.perf_counter()
+        if delay > 0:
+            await asyncio.sleep(delay)
+        tasks.append(asyncio.create_task(post(i / args.fps, blob)))
+    await asyncio.gather(*tasks)
+    await asyncio.sleep(0.5)  # let the lane store its last counts
+    history = (await client.get(f"/api/vehicles/{vehicle['id']}/positions", headers=admin)).json()
+    state = (await client.get(f"/api/vehicles/{vehicle['id']}/live-state", headers=admin)).json()
+    ts = [p["t"] for p in history]
+    accounted = state["processed"] + state["skipped"] + state["out_of_order"] == n
+    in_order = all(a < b for a, b in itertools.pairwise(ts)) and len(ts) == state["processed"]
+    return latencies, statuses, accounted and in_order, n
+
+
+async def load(base: str, frames: list[tuple[float, bytes]], args: argparse.Namespace) -> None:
+    async with httpx.AsyncClient(
+        base_url=base, timeout=120.0, limits=httpx.Limits(max_connections=200)
+    ) as client:
+        login = await client.post("/api/auth/login", json={"username": "bench", "password": "bench-password"})
+        admin = {"Authorization": f"Bearer {login.json()['access_token']}"}
+        results = await asyncio.gather(
+            *(drive_vehicle(client, admin, k, frames, args) for k in range(args.vehicles))
+        )
+    latencies = np.array([x for r in results for x in r[0]])
+    statuses = Counter(s for r in results for s in r[1])
+    p50, p99 = float(np.median(latencies)), float(np.percentile(latencies, 99))
+    print(
+        f"{args.vehicles} vehicles x {args.fps:g} frames/s x {args.seconds:g} s = {sum(r[3] for r in results)} frames"
+    )
+    print(f"frame endpoint latency: p50 {p50:.1f} ms, p99 {p99:.1f} ms (target p99 <= {TARGET_P99_MS:g} ms)")
+    print("answers: " + ", ".join(f"{k} {v}" for k, v in sorted(statuses.items())))
+    ok = all(r[2] for r in results)
+    print(f"lost, reordered or double-processed frames: {'0' if ok else 'SOME (check failed)'}")
+    args.p50 = p50
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--vehicles", type=int, default=5)
+    parser.add_argument("--fps", type=float, default=10.0)
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--size", default="tiny", choices=["tiny", "small"])
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="driftmap-bench-live-") as tmp:
+        t0 = time.perf_counter()
+        data, frames = prepare(Path(tmp), args.size)
+        print(f"{args.size} site simulated, imported and mapped in {time.perf_counter() - t0:.0f} s")
+        base_ms = baseline_ms(data, frames, 100)
+        port = free_port()
+        env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data)}
+        log = Path(tmp) / "serve.log"
+        with log.open("wb") as sink:
+            server = subprocess.Popen(
+                [sys.executable, "-m", "driftmap", "serve", "--port", str(port), "--no-worker"],
+                env=env,
+                stdout=sink,
+                stderr=sink,
+            )
+        try:
+            base = f"http://127.0.0.1:{port}"
+            deadline = time.monotonic() + 120.0
+            while True:
+                try:
+                    if httpx.get(f"{base}/api/health").status_code == 200:
+                        break
+                except httpx.TransportError:
+                    pass
+                if time.monotonic() > deadline or server.poll() is not None:
+                    sys.exit(f"server did not start:\n{log.read_text()}")
+                time.sleep(0.2)
+            asyncio.run(load(base, frames, args))
+        finally:
+            server.terminate()
+            server.wait(30)
+        print(f"baseline (in-process decode + step + store, one vehicle): {base_ms:.1f} ms/frame")
+        print(f"ratio HTTP p50 / baseline: {args.p50 / base_ms:.2f}")
+
+
+if __name__ == "__main__":
+    main()
