@@ -42,6 +42,10 @@ demo: $(VENV)/.installed-run frontend
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap simulate --seed $(DEMO_SEED) --size small --out $(DEMO_DIR)/site
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap site create demo --survey $(DEMO_DIR)/site/survey.dxf --drives $(DEMO_DIR)/site/drives
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap drive list demo
+	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap map build demo
+	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap map show demo
+	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap localise demo $(DEMO_DIR)/site/drives/loc-01 --out $(DEMO_DIR)/loc-01.csv
+	@echo "demo ready: DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap user add admin --role admin, then DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap serve"
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check backend tests bench migrations
