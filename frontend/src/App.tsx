@@ -34,7 +34,7 @@ export function App() {
   }, []);
 
   const loadSites = useCallback(async () => {
-    const page = await apiGet("/api/sites", {}, { limit: 1000 });
+    const page = await apiGet("/api/sites", {}, { limit: 500 });
     setSites(page.items);
     setSiteId((current) =>
       current !== null && page.items.some((s) => s.id === current) ? current : (page.items[0]?.id ?? null),

@@ -45,7 +45,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   }, [siteId]);
 
   const loadVersion = useCallback(async () => {
-    const versions = await apiGet("/api/sites/{site_id}/maps", { site_id: siteId }, { limit: 1000 });
+    const versions = await apiGet("/api/sites/{site_id}/maps", { site_id: siteId }, { limit: 500 });
     const latest = versions.items.reduce<number | null>((m, v) => (m === null || v.version > m ? v.version : m), null);
     setVersion(latest);
     if (latest === null) {
@@ -67,7 +67,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
 
   useEffect(() => {
     void (async () => {
-      const page = await apiGet("/api/sites/{site_id}/drives", { site_id: siteId }, { limit: 1000 });
+      const page = await apiGet("/api/sites/{site_id}/drives", { site_id: siteId }, { limit: 500 });
       const mapping = page.items.filter((d) => d.kind === "mapping");
       setDrives(mapping);
       setDriveId((d) => d ?? mapping[0]?.id ?? null);
@@ -244,7 +244,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         </div>
         <div className="strip" data-testid="keyframe-strip">
           {driveId !== null && stripFrames.map((f) => (
-            <button key={f} className={`thumb ${f === frame ? "selected" : ""}`} data-testid={`keyframe-${f}`} onClick={() => setFrame(f)}>
+            <button key={f} className={`thumb ${f === frame ? "selected" : ""}`} data-testid={`keyframe-${f}`} data-frame={f} onClick={() => setFrame(f)}>
               <AuthImage src={`/api/drives/${driveId}/frames/${f}/thumbnail?width=96`} alt={`frame ${f}`} />
               <span>#{f}</span>
             </button>

@@ -8,6 +8,8 @@ import { LiveState, speedOf, statusOf, type VehicleState } from "../lib/liveStat
 import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
 import { confidenceColour, rgbCss, STALE_GREY } from "../lib/colours";
 
+const HISTORY_S = 300; // the details panel's history: the last five minutes of frame time
+
 function liveUrl(since: number | null): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
   const query = new URLSearchParams({ token: getToken() ?? "" });
@@ -135,15 +137,16 @@ function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boole
 function VehicleDetails({ v }: { v: VehicleState }) {
   const [history, setHistory] = useState<Schemas["PositionRead"][]>([]);
   const seq = v.position?.seq;
+  const since = v.position ? v.position.t - HISTORY_S : null;
   useEffect(() => {
     let cancelled = false;
-    apiGet("/api/vehicles/{vehicle_id}/positions", { vehicle_id: v.id })
+    apiGet("/api/vehicles/{vehicle_id}/positions", { vehicle_id: v.id }, { start: since })
       .then((rows) => !cancelled && setHistory(rows.slice(-12).reverse()))
       .catch(() => !cancelled && setHistory([]));
     return () => {
       cancelled = true;
     };
-  }, [v.id, seq]);
+  }, [v.id, seq, since]);
   const p = v.position;
   return (
     <section data-testid="vehicle-details">

@@ -1,0 +1,227 @@
+"""The browser UI against a real server: login, survey layers, roles, live monitoring, grounding, admin.
+
+Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from pathlib import Path
+from typing import Any
+
+from playwright.sync_api import Page, expect
+
+from tests.api.access_helpers import localisation_drive, recorded_frames
+from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
+
+DEADLINE_S = 60.0
+FRAME_PERIOD_S = 0.1  # the posted frames' spacing in vehicle time, seconds
+
+
+def log_in(page: Page, server: Server, username: str, password: str) -> None:
+    page.goto(f"{server.base}/")
+    page.fill("#username", username)
+    page.fill("#password", password)
+    page.click("button[type=submit]")
+    expect(page.get_by_test_id("whoami")).to_contain_text(username)
+
+
+def grid_readout(page: Page) -> tuple[float, float]:
+    """The easting and northing shown under the pointer."""
+    text = page.get_by_test_id("grid-readout").inner_text()
+    match = re.search(r"E (-?[\d.]+)\s+N (-?[\d.]+)", text)
+    assert match, text
+    return float(match.group(1)), float(match.group(2))
+
+
+def make_user(server: Server, name: str, role: str) -> str:
+    password = f"{name}-password"
+    created = server.api("POST", "/api/users", json={"username": name, "password": password, "role": role})
+    assert created.status_code in (200, 201), created.text
+    return password
+
+
+class TestLoginAndSurvey:
+    def test_wrong_password_then_survey_layers_toggle_readout_and_fit(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        p.goto(f"{server.base}/")
+        p.fill("#username", "admin")
+        p.fill("#password", "not-the-password")
+        p.click("button[type=submit]")
+        expect(p.get_by_test_id("login-error")).to_contain_text("wrong user name or password")
+        page.errors.clear()  # the browser logs the expected 401
+
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        layers = server.api("GET", "/api/sites/1/survey/layers").json()
+        for name in layers["layers"]:
+            expect(p.get_by_test_id(f"layer-toggle-{name}")).to_be_checked()
+        first = sorted(layers["layers"])[0]
+        p.get_by_test_id(f"layer-toggle-{first}").uncheck()
+        expect(p.get_by_test_id(f"layer-toggle-{first}")).not_to_be_checked()
+        p.get_by_test_id(f"layer-toggle-{first}").check()
+
+        p.get_by_test_id("fit-site").click()
+        box = p.get_by_test_id("map").bounding_box()
+        assert box is not None
+        p.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        expect(p.get_by_test_id("grid-readout")).to_contain_text("E ")
+        x, y = grid_readout(p)
+        min_x, min_y, max_x, max_y = layers["extents"]
+        assert min_x <= x <= max_x and min_y <= y <= max_y, (x, y, layers["extents"])
+        screenshot(p, "ui_survey")
+        assert page.errors == []
+
+
+class TestRoles:
+    def test_viewer_sees_no_editing_controls(self, server: Server, page: PageWithLog) -> None:
+        password = make_user(server, "watcher", "viewer")
+        p = page.page
+        log_in(p, server, "watcher", password)
+        expect(p.get_by_test_id("nav-survey")).to_be_visible()
+        expect(p.get_by_test_id("nav-admin")).to_have_count(0)
+        p.get_by_test_id("nav-grounding").click()
+        expect(p.get_by_test_id("groundings-table").locator("tbody tr").first).to_be_visible()
+        expect(p.get_by_test_id("build-map")).to_have_count(0)
+        expect(p.get_by_test_id("undo")).to_have_count(0)
+        expect(p.locator("[data-testid^=delete-grounding-]")).to_have_count(0)
+        assert page.errors == []
+
+
+class TestMonitoring:
+    def test_two_vehicles_update_and_one_turns_stale(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path
+    ) -> None:
+        tokens = {}
+        for name in ("lhd-a", "lhd-b"):
+            made = server.api("POST", "/api/vehicles", json={"name": name, "site_id": 1})
+            assert made.status_code in (200, 201), made.text
+            tokens[name] = (made.json()["id"], made.json()["token"])
+        frames = recorded_frames(localisation_drive(tiny_site_dir), 30)
+
+        def post(name: str, i: int) -> int:
+            """Post the ``i``-th frame (images repeat after 30; ``t`` always increases) and return its seq."""
+            vehicle_id, token = tokens[name]
+            answer = server.api(
+                "POST",
+                f"/api/vehicles/{vehicle_id}/frames",
+                token=token,
+                params={"t": FRAME_PERIOD_S * i},
+                content=frames[i % len(frames)].data,
+                headers={"Content-Type": "image/png"},
+            )
+            assert answer.status_code == 200, answer.text
+            assert answer.json()["status"] == "processed", answer.text
+            seq: int = answer.json()["seq"]
+            return seq
+
+        def latest(name: str) -> dict[str, Any]:
+            rows: list[dict[str, Any]] = server.api("GET", "/api/positions/latest").json()
+            return next(v for v in rows if v["vehicle"] == name)
+
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-monitor").click()
+        expect(p.get_by_test_id("live-connection")).to_have_text("live")
+
+        for i in range(3):
+            post("lhd-a", i)
+            post("lhd-b", i)
+        for name in ("lhd-a", "lhd-b"):
+            position = latest(name)["position"]
+            row = p.get_by_test_id(f"vehicle-row-{name}")
+            expect(row).to_have_attribute("data-seq", str(position["seq"]))
+            expect(row).not_to_have_attribute("data-status", "stale")
+            expect(row).to_contain_text(f"{position['x']:.1f}")
+
+        # lhd-a keeps reporting, lhd-b goes quiet: b turns stale (greyed, last position kept), a does not
+        row_a = p.get_by_test_id("vehicle-row-lhd-a")
+        row_b = p.get_by_test_id("vehicle-row-lhd-b")
+        deadline = time.monotonic() + DEADLINE_S
+        i = 3
+        while row_b.get_attribute("data-status") != "stale":
+            assert time.monotonic() < deadline, f"lhd-b did not turn stale within {DEADLINE_S} s"
+            post("lhd-a", i)
+            i += 1
+        expect(row_a).to_have_attribute("data-seq", str(post("lhd-a", i)))
+        expect(row_a).not_to_have_attribute("data-status", "stale")
+        stale_b = latest("lhd-b")
+        assert stale_b["stale"] is True
+        expect(row_b).to_contain_text(f"{stale_b['position']['x']:.1f}")
+
+        row_a.click()
+        expect(p.get_by_test_id("vehicle-details")).to_contain_text("lhd-a")
+        expect(p.get_by_test_id("vehicle-history").locator("tbody tr").first).to_be_visible()
+        expect(row_a).to_have_attribute("data-seq", str(post("lhd-a", i + 1)))  # live again for the picture
+        screenshot(p, "ui_monitoring")
+        assert page.errors == []
+
+
+class TestGrounding:
+    def test_ground_a_keyframe_by_clicking_the_map_then_undo(self, server: Server, page: PageWithLog) -> None:
+        def groundings() -> list[dict[str, object]]:
+            items: list[dict[str, object]] = server.api("GET", "/api/sites/1/groundings").json()["items"]
+            return items
+
+        before = groundings()
+        grounded = {(g["drive_id"], g["frame"]) for g in before}
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        table_rows = p.get_by_test_id("groundings-table").locator("tbody tr")
+        expect(table_rows).to_have_count(len(before))
+        thumbs = p.get_by_test_id("keyframe-strip").locator("[data-frame]")
+        expect(thumbs.first).to_be_visible()  # drawn once the drives have loaded
+        drive_id = int(p.get_by_test_id("drive-select").input_value())
+        frames = [int(t.get_attribute("data-frame") or "-1") for t in thumbs.all()]
+        frame = next(f for f in frames if (drive_id, f) not in grounded)
+        p.get_by_test_id(f"keyframe-{frame}").click()
+        expect(p.get_by_test_id("selected-frame")).to_have_attribute("data-frame", str(frame))
+
+        expect(p.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
+        box = p.get_by_test_id("map").bounding_box()
+        assert box is not None
+        at = (box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.55)
+        p.mouse.move(*at)
+        expect(p.get_by_test_id("grid-readout")).to_contain_text("E ")
+        x, y = grid_readout(p)
+        p.mouse.click(*at)
+
+        expect(table_rows).to_have_count(len(before) + 1)
+        new = [g for g in groundings() if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+        assert len(new) == 1
+        assert abs(float(new[0]["x_m"]) - x) < 0.05 and abs(float(new[0]["y_m"]) - y) < 0.05  # type: ignore[arg-type]
+        expect(p.get_by_test_id(f"grounding-row-{new[0]['id']}")).to_contain_text("new")
+
+        # residuals of the latest build, sorted by distance (largest first by default)
+        residuals = server.api("GET", "/api/sites/1/maps/1/residuals").json()
+        largest = max(residuals, key=lambda r: r["distance_m"])
+        expect(table_rows.first).to_contain_text(f"{largest['distance_m']:.2f}")
+        p.get_by_test_id("sort-distance").click()
+        smallest = min(residuals, key=lambda r: r["distance_m"])
+        expect(table_rows.first).to_contain_text(f"{smallest['distance_m']:.2f}")
+        screenshot(p, "ui_grounding")
+
+        p.get_by_test_id("undo").click()
+        expect(table_rows).to_have_count(len(before))
+        assert not [g for g in groundings() if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+        assert page.errors == []
+
+
+class TestAdmin:
+    def test_create_a_vehicle_shows_its_token_once(self, server: Server, page: PageWithLog) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-admin").click()
+        p.get_by_test_id("new-vehicle-name").fill("truck-7")
+        p.get_by_role("button", name="Add vehicle").click()
+        token = p.get_by_test_id("vehicle-token").locator(".token")
+        expect(token).to_contain_text("dmv_")
+        expect(p.get_by_test_id("admin-vehicle-truck-7")).to_be_visible()
+        assert any(v["name"] == "truck-7" for v in server.api("GET", "/api/vehicles").json())
+        screenshot(p, "ui_admin")
+        p.get_by_role("button", name="Done").click()
+        expect(p.get_by_test_id("vehicle-token")).to_have_count(0)
+        assert page.errors == []
