@@ -7,6 +7,8 @@ simulator's ground truth. Overload is produced by submitting a burst of frames a
 from __future__ import annotations
 
 import asyncio
+import os
+import signal
 import struct
 from collections.abc import Iterator
 from pathlib import Path
@@ -18,6 +20,7 @@ from fastapi.testclient import TestClient
 from driftmap.api.app import create_app
 from driftmap.api.live_service import LiveService
 from driftmap.config import Settings
+from driftmap.errors import ConflictError
 from driftmap.formats.frame_images import decode_gray, encode_png
 from driftmap.services import localisation as loc_service
 from driftmap.services import sites as site_service
@@ -254,6 +257,44 @@ class TestOverload:
         processed = [o.t for o in sorted(outcomes, key=lambda o: o.seq or 0) if o.status == "processed"]
         assert processed == sorted(processed) and frames[5].t in processed
         assert set(status.values()) <= {"processed", "skipped", "out_of_order"} and len(status) == len(order)
+
+
+class TestWorkerProcesses:
+    def test_a_killed_localiser_process_costs_one_frame_and_is_restarted(
+        self, built: Path, frames: list[RecordedFrame]
+    ) -> None:
+        settings = Settings(data_dir=built)
+        storage = Storage.open(settings)
+        with storage.db.session() as session:
+            vehicle, _token = vehicle_service.create_vehicle(
+                session, "crash", site_service.get_site(session, "tiny").id
+            )
+            vid, site_id = vehicle.id, vehicle.site_id
+        live = LiveService(settings, storage, processes=1)
+
+        async def run() -> list[str]:
+            first = await live.submit(vid, "crash", site_id, frames[0].t, frames[0].data)
+            pool = live.workers._pools[0]
+            assert pool is not None
+            for process in list(pool._processes.values()):  # the worker dies (OOM killer, segfault, ...)
+                os.kill(process.pid, signal.SIGKILL)
+            statuses = [first.status]
+            for f in frames[1:3]:
+                try:
+                    statuses.append((await live.submit(vid, "crash", site_id, f.t, f.data)).status)
+                except ConflictError as exc:
+                    assert "died" in str(exc)
+                    statuses.append("error")
+            return statuses
+
+        statuses = asyncio.run(run())
+        live.close()
+        with storage.db.session() as session:
+            state = session.get(VehicleLiveState, vid)
+            assert state is not None and state.processed == statuses.count("processed")
+        storage.close()
+        assert statuses[0] == "processed" and statuses[-1] == "processed"
+        assert statuses.count("error") <= 1
 
 
 def _framed(frame: RecordedFrame) -> bytes:
