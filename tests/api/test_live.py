@@ -18,6 +18,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from driftmap.api.app import create_app
+from driftmap.api.hub import InMemoryHub
 from driftmap.api.live_service import LiveService
 from driftmap.config import Settings
 from driftmap.errors import ConflictError
@@ -297,6 +298,22 @@ class TestWorkerProcesses:
         assert statuses.count("error") <= 1
 
 
+class TestHub:
+    def test_a_full_queue_marks_the_watcher_for_a_resync(self) -> None:
+        async def run() -> tuple[bool, bool, int]:
+            hub = InMemoryHub(queue_size=1)
+            watcher = hub.subscribe()
+            await hub.publish({"seq": 1})
+            await hub.publish({"seq": 2})
+            overflowed = watcher.overflowed
+            watcher.drain()
+            hub.unsubscribe(watcher)
+            await hub.publish({"seq": 3})
+            return overflowed, watcher.overflowed, watcher.queue.qsize()
+
+        assert asyncio.run(run()) == (True, False, 0)
+
+
 def _framed(frame: RecordedFrame) -> bytes:
     return struct.pack(">d", frame.t) + frame.data
 
@@ -345,6 +362,16 @@ class TestWatch:
         mine = next(v for v in snapshot["vehicles"] if v["vehicle_id"] == actors.vehicle_id)
         assert not mine["stale"] and mine["position"]["t"] == frames[3].t
         assert [m["t"] for m in replay] == [f.t for f in frames[1:4]]
+
+    def test_watchers_get_every_position_once_in_order_with_a_tiny_queue(
+        self, actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        actors.app.state.live.hub.queue_size = 1  # a watcher that falls behind resyncs from the history
+        with actors.client.websocket_connect("/api/live", headers=actors.auth("viewer")) as ws:
+            assert ws.receive_json()["type"] == "snapshot"
+            answers = [post(actors, f) for f in frames[:8]]
+            updates = [ws.receive_json() for _ in range(8)]
+        assert [u["seq"] for u in updates] == [a["seq"] for a in answers]
 
     def test_a_silent_vehicle_turns_stale_and_keeps_its_last_position(
         self, built: Path, frames: list[RecordedFrame]
