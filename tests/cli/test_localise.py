@@ -34,12 +34,23 @@ class TestLocalise:
     def test_writes_one_row_per_frame(self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path) -> None:
         drive = loc_drive_dir(tiny_site_dir)
         out = tmp_path / "est.csv"
-        result = runner.invoke(app, ["localise", SITE, str(drive), "--out", str(out), "--no-sesame"])
+        result = runner.invoke(app, ["localise", SITE, str(drive), "--out", str(out)])
         assert result.exit_code == 0, result.output
         assert "map version 1" in result.output
         rows = read_localisation_csv(out)
-        assert [r.frame for r in rows] == [f.frame for f in read_drive_folder(drive).frames]
+        frames = [f.frame for f in read_drive_folder(drive).frames]
+        assert [r.frame for r in rows] == frames
         assert sum(r.matched for r in rows) > len(rows) // 2
+
+    def test_holistic_single_image(self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path) -> None:
+        drive = loc_drive_dir(tiny_site_dir)
+        out = tmp_path / "est.csv"
+        args = ["localise", SITE, str(drive), "--out", str(out), "--no-sesame", "--no-temporal"]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        rows = read_localisation_csv(out)
+        assert len(rows) == len(read_drive_folder(drive).frames)
+        assert all(0.0 <= r.score <= 1.0 for r in rows)
 
     def test_bad_drive_folder_names_the_file(self, tiny_env: Path, tmp_path: Path) -> None:
         drive = tmp_path / "broken"

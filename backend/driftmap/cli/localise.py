@@ -29,7 +29,11 @@ def localise(
         int | None, typer.Option("--map-version", help="Map version (default: latest).")
     ] = None,
     sesame: Annotated[
-        bool, typer.Option("--sesame/--no-sesame", help="SESAME salient masks (paper 001 eq. 6).")
+        bool,
+        typer.Option(
+            "--sesame/--no-sesame",
+            help="SESAME masks (eq. 6) and salient database; --no-sesame: holistic SAD on paper 000's references.",
+        ),
     ] = True,
     temporal: Annotated[
         bool, typer.Option("--temporal/--no-temporal", help="HMM temporal filter (paper 000 III-B).")
@@ -42,7 +46,9 @@ def localise(
         with storage.db.session() as session:
             record = site_service.get_site(session, site)
             version = map_service.get_map_version(session, record, map_version)
-            lmap = loc_service.load_version_localiser_map(session, storage.blobs, version)
+            lmap = loc_service.load_version_localiser_map(
+                session, storage.blobs, version, holistic=not sesame
+            )
             sesame_params = loc_service.sesame_params_of(version) if sesame else None
             number = version.version
         localiser = loc_service.make_localiser(lmap, sesame=sesame_params, temporal=temporal)
@@ -95,6 +101,7 @@ def report_localisation(
             record = site_service.get_site(session, site)
             version = map_service.get_map_version(session, record, map_version)
             lmap = loc_service.load_version_localiser_map(session, storage.blobs, version)
+            holistic = loc_service.load_version_localiser_map(session, storage.blobs, version, holistic=True)
             sesame_params = loc_service.sesame_params_of(version)
             drives = [
                 d
@@ -109,6 +116,7 @@ def report_localisation(
                 tolerance_m=tolerance_m,
                 out_dir=folder,
                 single_image_stride=single_image_stride,
+                holistic_map=holistic,
                 progress=report,
             )
     console.print(result.table())

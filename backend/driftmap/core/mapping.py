@@ -118,6 +118,9 @@ class MapBuild:
         odometry_confidence: per drive, (N_d,) confidence of the step into each frame (1 for frame 0).
         stats: figures of the build (counts, errors, seconds per stage).
         reference_thumbs: (S, h, w) float32 thumbnails of ``topomap.chosen``, the localiser's references.
+        holistic_ptr: (M + 1,) int64 node offsets of paper 000's plain selection (the topomap's default
+            selector), kept for holistic-SAD localisation when the SESAME database chose ``topomap.chosen``.
+        holistic_thumbs: (S', h, w) float32 thumbnails of that plain selection, node by node.
     """
 
     wTi: tuple[F64, ...]
@@ -129,6 +132,8 @@ class MapBuild:
     odometry_confidence: tuple[F64, ...]
     stats: dict[str, float | int] = field(default_factory=dict)
     reference_thumbs: NDArray[np.float32] | None = None
+    holistic_ptr: NDArray[np.int64] | None = None
+    holistic_thumbs: NDArray[np.float32] | None = None
 
 
 def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
@@ -291,7 +296,7 @@ def solve_map(
 
     start = time.perf_counter()
     report("topological map", 0.0)
-    topomap, database_stats = _topomap_with_database(graph.wTi, prepared, drives, params)
+    topomap, database_stats, plain = _topomap_with_database(graph.wTi, prepared, drives, params)
     report("topological map", 1.0)
     timings["topomap_s"] = time.perf_counter() - start
 
@@ -329,17 +334,22 @@ def solve_map(
         odometry_confidence=prepared.confidence,
         stats=stats,
         reference_thumbs=np.concatenate(prepared.thumbs)[topomap.chosen],
+        holistic_ptr=None if plain is None else plain.chosen_ptr,
+        holistic_thumbs=None if plain is None else np.concatenate(prepared.thumbs)[plain.chosen],
     )
 
 
 def _topomap_with_database(
     wTi: Sequence[F64], prepared: PreparedDrives, drives: Sequence[MappingDrive], params: MappingParams
-) -> tuple[TopoMap, dict[str, float | int]]:
-    """Stage 5: the topological map, each node's frames chosen by the SESAME database when it is on."""
+) -> tuple[TopoMap, dict[str, float | int], TopoMap | None]:
+    """Stage 5: the topological map, each node's frames chosen by the SESAME database when it is on.
+
+    Returns the map, figures of the database, and (database on) the map with the plain default selection.
+    """
     db = params.database
+    plain = build_topomap(list(wTi), quality=list(prepared.confidence), params=params.topomap)
     if not db.enabled:
-        topomap = build_topomap(list(wTi), quality=list(prepared.confidence), params=params.topomap)
-        return topomap, {"reference_frames": int(topomap.chosen.size)}
+        return plain, {"reference_frames": int(plain.chosen.size)}, None
     counts = [t.shape[0] for t in prepared.thumbs]
     stats = frame_stats([d.frames for d in drives], counts, db, params.images)
     chain_ptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
@@ -355,7 +365,7 @@ def _topomap_with_database(
     }
     if stats.classifier is not None:
         figures["quality_holdout_accuracy"] = stats.classifier.holdout_accuracy
-    return topomap, figures
+    return topomap, figures, plain
 
 
 def build_map(

@@ -1,8 +1,10 @@
 """Localisation evaluated like both papers: precision-recall per condition and method (paper 000 Fig. 9).
 
-Every localisation drive with ground truth is run through four localisers on the same stored map:
-holistic single-image SAD, single-image SAD with SESAME masks, the HMM filter with SAD, and the HMM with
-SESAME. Drives are grouped by condition from their names: ``*-dust1``, ``*-dust2``, ``*-water1``,
+Every localisation drive with ground truth is run through four localisers on the same stored map version:
+holistic single-image SAD, single-image SAD with SESAME, the HMM filter with SAD, and the HMM with SESAME.
+As in paper 001, "SESAME" is the whole method: salient query masks (eq. 6) against the SESAME database
+(quality filter and Algorithm 1); the holistic methods compare whole images against paper 000's plain
+references (a few frames per node), when the map version holds both. Drives are grouped by condition from their names: ``*-dust1``, ``*-dust2``, ``*-water1``,
 ``*-water2`` (the simulator's obscured copies, paper 000 IV-A) and ``clean`` for the rest.
 
 A frame's estimate is right when its node centre lies within ``tolerance_m`` of the true floor point
@@ -170,6 +172,7 @@ def run_localisation_report(
     out_dir: Path | None = None,
     params: hmm.HmmParams = hmm.DEFAULT,
     single_image_stride: int = 1,
+    holistic_map: LocaliserMap | None = None,
     progress: ProgressFn | None = None,
 ) -> LocalisationReport:
     """Run the four methods over every drive, score them, and write the PNG and the table.
@@ -183,6 +186,7 @@ def run_localisation_report(
         params: HMM parameters of the temporal methods.
         single_image_stride: single-image methods score every this-many-th frame (they compare the
             whole map each frame; the HMM methods always see every frame).
+        holistic_map: the references of the holistic methods (paper 000's plain selection); None: ``lmap``.
         progress: called with (drive name, fraction of drives done).
 
     Returns:
@@ -202,7 +206,12 @@ def run_localisation_report(
         cond = condition_of(drive.name)
         report(drive.name, done / len(drives))
         localisers = {
-            name: Localiser(lmap, params, single_image=not temporal, sesame=sesame if masked else None)
+            name: Localiser(
+                lmap if masked or holistic_map is None else holistic_map,
+                params,
+                single_image=not temporal,
+                sesame=sesame if masked else None,
+            )
             for name, masked, temporal in METHODS
         }
         per = {name: results.setdefault((cond, name), MethodResult()) for name, _m, _t in METHODS}

@@ -79,13 +79,15 @@ def sesame_params_of(version: MapVersion) -> SesameParams:
 
 
 def _stored_database(
-    blobs: BlobStore, version: MapVersion
+    blobs: BlobStore, version: MapVersion, holistic: bool
 ) -> tuple[NDArray[np.float32], NDArray[np.int64]] | None:
     sha = (version.stats or {}).get(LOCALISER_DB_KEY)
     if not isinstance(sha, str) or not blobs.exists(sha):
         return None
     with np.load(io.BytesIO(blobs.get(sha))) as arrays:
-        return np.asarray(arrays["thumbs"], dtype=np.float32), np.asarray(arrays["node_ptr"], dtype=np.int64)
+        prefix = "holistic_" if holistic and "holistic_thumbs" in arrays.files else ""
+        thumbs = np.asarray(arrays[f"{prefix}thumbs"], dtype=np.float32)
+        return thumbs, np.asarray(arrays[f"{prefix}node_ptr"], dtype=np.int64)
 
 
 def _thumbs_from_frames(
@@ -104,11 +106,17 @@ def _thumbs_from_frames(
     return stack.astype(np.float32), np.r_[0, np.cumsum(counts)].astype(np.int64)
 
 
-def load_version_localiser_map(session: Session, blobs: BlobStore, version: MapVersion) -> LocaliserMap:
-    """The :class:`LocaliserMap` of one stored map version (see the module docstring for the sources)."""
+def load_version_localiser_map(
+    session: Session, blobs: BlobStore, version: MapVersion, *, holistic: bool = False
+) -> LocaliserMap:
+    """The :class:`LocaliserMap` of one stored map version (see the module docstring for the sources).
+
+    ``holistic`` takes paper 000's plain reference selection (a few frames per node by heading) instead of
+    the SESAME database, when the version holds both; it is what holistic SAD is compared against.
+    """
     topomap = load_topomap(blobs, version)
     image_params = image_params_of(version)
-    stored = _stored_database(blobs, version)
+    stored = _stored_database(blobs, version, holistic)
     if stored is None:
         log.info("map version %s has no localisation database blob; decoding its node frames", version.id)
         stored = _thumbs_from_frames(session, blobs, version, topomap.n_nodes, image_params)
@@ -129,14 +137,19 @@ def load_version_localiser_map(session: Session, blobs: BlobStore, version: MapV
 
 
 def load_localiser_map(
-    session: Session, blobs: BlobStore, site: Site, version: int | None = None
+    session: Session, blobs: BlobStore, site: Site, version: int | None = None, *, holistic: bool = False
 ) -> LocaliserMap:
     """The localiser's map of ``site``'s map version ``version`` (latest when None).
+
+    ``holistic``: paper 000's plain reference frames instead of the SESAME database (see
+    :func:`load_version_localiser_map`).
 
     Raises:
         NotFoundError: the site has no (such) map version.
     """
-    return load_version_localiser_map(session, blobs, get_map_version(session, site, version))
+    return load_version_localiser_map(
+        session, blobs, get_map_version(session, site, version), holistic=holistic
+    )
 
 
 def make_localiser(

@@ -36,7 +36,8 @@ from driftmap.store.models import (
 ProgressFn = Callable[[str, float], None]
 LOCALISER_DB_KEY = "localiser_db_sha256"
 """``MapVersion.stats`` key of the localisation database blob: an ``.npz`` of ``thumbs`` (S, h, w) float16
-reference thumbnails of every node's chosen frames, node by node, and ``node_ptr`` (M + 1,) int64 offsets."""
+reference thumbnails of every node's chosen frames, node by node, and ``node_ptr`` (M + 1,) int64 offsets;
+with the SESAME database on, also ``holistic_thumbs``/``holistic_node_ptr``: paper 000's plain selection."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,7 +135,11 @@ def store_map_version(
     if build.reference_thumbs is not None:
         database = io.BytesIO()
         thumbs = build.reference_thumbs.astype(np.float16)
-        np.savez(database, thumbs=thumbs, node_ptr=build.topomap.chosen_ptr.astype(np.int64))
+        arrays = {"thumbs": thumbs, "node_ptr": build.topomap.chosen_ptr.astype(np.int64)}
+        if build.holistic_thumbs is not None and build.holistic_ptr is not None:
+            arrays["holistic_thumbs"] = build.holistic_thumbs.astype(np.float16)
+            arrays["holistic_node_ptr"] = build.holistic_ptr.astype(np.int64)
+        np.savez(database, **arrays)  # type: ignore[arg-type]
         stats[LOCALISER_DB_KEY] = batch.put(database.getvalue())
     version = MapVersion(
         site_id=site.id,
