@@ -160,7 +160,9 @@ class TestMonitoring:
 
 
 class TestGrounding:
-    def test_ground_a_keyframe_by_clicking_the_map_then_undo(self, server: Server, page: PageWithLog) -> None:
+    def test_ground_a_keyframe_by_clicking_the_map_undo_redo_delete(
+        self, server: Server, page: PageWithLog
+    ) -> None:
         def groundings() -> list[dict[str, object]]:
             items: list[dict[str, object]] = server.api("GET", "/api/sites/1/groundings").json()["items"]
             return items
@@ -204,9 +206,19 @@ class TestGrounding:
         expect(table_rows.first).to_contain_text(f"{smallest['distance_m']:.2f}")
         screenshot(p, "ui_grounding")
 
+        def mine() -> list[dict[str, object]]:
+            return [g for g in groundings() if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+
         p.get_by_test_id("undo").click()
         expect(table_rows).to_have_count(len(before))
-        assert not [g for g in groundings() if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+        assert not mine()
+        p.get_by_test_id("redo").click()
+        expect(table_rows).to_have_count(len(before) + 1)
+        (restored,) = mine()
+        assert (restored["x_m"], restored["y_m"]) == (new[0]["x_m"], new[0]["y_m"])
+        p.get_by_test_id(f"delete-grounding-{restored['id']}").click()
+        expect(table_rows).to_have_count(len(before))
+        assert not mine()
         assert page.errors == []
 
 

@@ -121,3 +121,24 @@ export function apiDelete<P extends PathsWith<"delete">>(
 export function imageUrl(path: string): string {
   return path;
 }
+
+/** PUT a multipart form (e.g. a CSV upload) to a route. */
+export function apiPutForm<P extends PathsWith<"put">>(
+  path: P,
+  params: Record<string, string | number>,
+  form: FormData,
+): Promise<Ok<Op<P, "put">>> {
+  return send("put", buildUrl(path, params), form) as Promise<Ok<Op<P, "put">>>;
+}
+
+/** Download a route's answer (with the bearer token) as a file named ``filename``. */
+export async function apiDownload(url: string, filename: string): Promise<void> {
+  const response = await fetch(url, { headers: token ? { Authorization: `Bearer ${token}` } : {} });
+  if (!response.ok) throw new ApiError(response.status, response.statusText);
+  const href = URL.createObjectURL(await response.blob());
+  const link = document.createElement("a");
+  link.href = href;
+  link.download = filename;
+  link.click();
+  setTimeout(() => URL.revokeObjectURL(href), 0);
+}

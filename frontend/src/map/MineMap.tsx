@@ -15,12 +15,15 @@ import type { Geometry } from "ol/geom";
 import type Feature from "ol/Feature";
 import { apiGet, ApiError } from "../api/client";
 import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
+import { snapTargetsOf, type SnapTargets } from "../lib/snap";
 import { mineGrid, webglAvailable } from "./projection";
 
 export interface MapCtx {
   map: OlMap;
   origin: LocalOrigin;
   siteExtent: Extent | null;
+  /** The plan's vertices and centreline segments for snapping (world coordinates). */
+  snap: SnapTargets | null;
 }
 
 const LAYER_COLOURS = ["#8ca3ba", "#f0b429", "#4dabf7", "#b197fc", "#63e6be", "#ffa8a8", "#d8f5a2"];
@@ -63,11 +66,13 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
     (async () => {
       let origin = new LocalOrigin(0, 0);
       let siteExtent: Extent | null = null;
+      let snap: SnapTargets | null = null;
       try {
         const survey = await apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId });
         if (cancelled) return;
         origin = LocalOrigin.ofExtent(survey.extents);
         siteExtent = origin.localExtent(survey.extents);
+        snap = snapTargetsOf(survey.layers, (name) => /centre|center/i.test(name));
         const format = new GeoJSON();
         const made: SurveyLayer[] = [];
         Object.entries(survey.layers).forEach(([name, collection], i) => {
@@ -90,7 +95,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
         if (cancelled) return;
         setError(e instanceof ApiError && e.status === 404 ? "this site has no survey plan yet" : String(e));
       }
-      setCtx({ map, origin, siteExtent });
+      setCtx({ map, origin, siteExtent, snap });
     })();
     map.on("pointermove", (ev) => {
       const o = originRef.current;

@@ -2,11 +2,12 @@
 // ground the selected keyframe by clicking its surveyed point, a residual table (sortable, colour-coded),
 // delete and undo, and "Build map" with the job's progress.
 import { useCallback, useEffect, useMemo, useState } from "react";
-import { ApiError, apiDelete, apiGet, apiPost, type Schemas } from "../api/client";
+import { ApiError, apiDelete, apiDownload, apiGet, apiPost, apiPutForm, type Schemas } from "../api/client";
 import { MineMap, type MapCtx } from "../map/MineMap";
 import { TrajectoryLayer, type Closure, type Poses } from "../map/TrajectoryLayer";
 import { joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
 import { driveColour, residualClass, rgbCss } from "../lib/colours";
+import { snapPoint } from "../lib/snap";
 import { AuthImage } from "./AuthImage";
 
 type Drive = Schemas["DriveRead"];
@@ -21,6 +22,7 @@ type Action = { kind: "created"; id: number; driveId: number; frame: number; x: 
 
 const KEYFRAME_STRIDE = 10;
 const STRIP_PAGE = 12;
+const SNAP_TOLERANCE_PX = 12;
 
 export function GroundingView({ siteId, editable }: { siteId: number; editable: boolean }) {
   const [drives, setDrives] = useState<Drive[]>([]);
@@ -35,9 +37,11 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const [page, setPage] = useState(0);
   const [sort, setSort] = useState<{ key: SortKey; dir: SortDir }>({ key: "distance", dir: "desc" });
   const [undo, setUndo] = useState<Action[]>([]);
+  const [redo, setRedo] = useState<Action[]>([]);
   const [message, setMessage] = useState<string | null>(null);
   const [job, setJob] = useState<Job | null>(null);
   const [ctx, setCtx] = useState<MapCtx | null>(null);
+  const [snapOn, setSnapOn] = useState(false);
 
   const loadGroundings = useCallback(async () => {
     const page = await apiGet("/api/sites/{site_id}/groundings", { site_id: siteId }, { limit: 10000 });
@@ -104,11 +108,18 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     [frame, keyframes],
   );
 
-  const ground = async (x: number, y: number) => {
+  const ground = async (clickX: number, clickY: number) => {
     if (!editable || driveId === null || frame === null) return;
+    let x = clickX;
+    let y = clickY;
+    if (snapOn && ctx?.snap) {
+      const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
+      ({ x, y } = snapPoint(ctx.snap, clickX, clickY, tolerance));
+    }
     try {
       const g = await apiPost("/api/drives/{drive_id}/groundings", { drive_id: driveId }, { frame, x, y });
       setUndo((u) => [...u, { kind: "created", id: g.id, driveId, frame, x, y }]);
+      setRedo([]);
       setMessage(`grounded ${drive?.name ?? driveId} frame ${frame} at E ${x.toFixed(2)} N ${y.toFixed(2)}`);
       await loadGroundings();
     } catch (e) {
@@ -121,36 +132,67 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     if (!g) return;
     await apiDelete("/api/groundings/{grounding_id}", { grounding_id: id });
     setUndo((u) => [...u, { kind: "deleted", driveId: g.drive_id, frame: g.frame, x: g.x_m, y: g.y_m }]);
+    setRedo([]);
     await loadGroundings();
   };
 
-  const undoLast = async () => {
-    const last = undo[undo.length - 1];
+  // Undo and redo: each step replays the inverse call (a re-created grounding gets a new id).
+  const invert = async (a: Action): Promise<Action> => {
+    if (a.kind === "created") {
+      await apiDelete("/api/groundings/{grounding_id}", { grounding_id: a.id });
+      return { kind: "deleted", driveId: a.driveId, frame: a.frame, x: a.x, y: a.y };
+    }
+    const g = await apiPost("/api/drives/{drive_id}/groundings", { drive_id: a.driveId }, { frame: a.frame, x: a.x, y: a.y });
+    return { kind: "created", id: g.id, driveId: a.driveId, frame: a.frame, x: a.x, y: a.y };
+  };
+
+  const replay = async (from: Action[], setFrom: typeof setUndo, setTo: typeof setUndo, verb: string) => {
+    const last = from[from.length - 1];
     if (!last) return;
-    setUndo((u) => u.slice(0, -1));
+    setFrom(from.slice(0, -1));
     try {
-      if (last.kind === "created") await apiDelete("/api/groundings/{grounding_id}", { grounding_id: last.id });
-      else {
-        const { frame: f, x, y } = last;
-        await apiPost("/api/drives/{drive_id}/groundings", { drive_id: last.driveId }, { frame: f, x, y });
-      }
-      setMessage(last.kind === "created" ? "undid the new grounding" : "restored the deleted grounding");
+      const done = await invert(last);
+      setTo((t) => [...t, done]);
+      setMessage(`${verb}: ${done.kind === "created" ? "grounding restored" : "grounding removed"}`);
     } catch (e) {
       setMessage(e instanceof ApiError ? e.message : String(e));
     }
     await loadGroundings();
   };
+  const undoLast = () => replay(undo, setUndo, setRedo, "undone");
+  const redoLast = () => replay(redo, setRedo, setUndo, "redone");
 
   useEffect(() => {
     const onKey = (e: KeyboardEvent) => {
       if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
       if (e.key === "ArrowRight" || e.key === "n") step(1);
       else if (e.key === "ArrowLeft" || e.key === "p") step(-1);
-      else if (editable && (e.key === "z" || e.key === "u") && (e.ctrlKey || e.key === "u")) void undoLast();
+      else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void undoLast();
+      else if (editable && (e.key === "r" || (e.ctrlKey && e.key === "y"))) void redoLast();
     };
     window.addEventListener("keydown", onKey);
     return () => window.removeEventListener("keydown", onKey);
   });
+
+  const exportCsv = async () => {
+    if (!drive) return;
+    await apiDownload(`/api/drives/${drive.id}/groundings.csv`, `${drive.name}-groundings.csv`);
+  };
+
+  const importCsv = async (file: File) => {
+    if (!drive) return;
+    const form = new FormData();
+    form.append("file", file);
+    try {
+      const result = await apiPutForm("/api/drives/{drive_id}/groundings.csv", { drive_id: drive.id }, form);
+      setMessage(`imported ${result.imported} groundings into ${drive.name} (replacing its old ones)`);
+      setUndo([]);
+      setRedo([]);
+    } catch (e) {
+      setMessage(e instanceof ApiError ? e.message : String(e));
+    }
+    await loadGroundings();
+  };
 
   const build = async () => {
     try {
@@ -192,10 +234,17 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         siteId={siteId}
         onMapClick={(x, y) => void ground(x, y)}
         tools={
+          <>
           <label>
             <input type="checkbox" data-testid="toggle-closures" checked={showClosures} onChange={(e) => setShowClosures(e.target.checked)} />{" "}
             loop closures ({closures.length})
           </label>
+          {editable && (
+            <label title="Snap groundings to DXF vertices, else to centrelines">
+              <input type="checkbox" data-testid="toggle-snap" checked={snapOn} onChange={(e) => setSnapOn(e.target.checked)} /> snap
+            </label>
+          )}
+          </>
         }
         overlay={(c) => (
           <>
@@ -263,9 +312,32 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         <div className="row">
           <h3 style={{ margin: 0 }}>Groundings ({groundings.length})</h3>
           <span className="spacer" />
+          <button onClick={() => void exportCsv()} disabled={!drive} data-testid="export-csv" title="Export this drive's groundings">
+            CSV ↓
+          </button>
+          {editable && (
+            <label className="filebutton" title={`Import groundings.csv into ${drive?.name ?? "the drive"} (replaces its groundings)`}>
+              CSV ↑
+              <input
+                type="file"
+                accept=".csv,text/csv"
+                data-testid="import-csv"
+                onChange={(e) => {
+                  const file = e.target.files?.[0];
+                  e.target.value = "";
+                  if (file) void importCsv(file);
+                }}
+              />
+            </label>
+          )}
           {editable && (
             <button data-testid="undo" onClick={undoLast} disabled={undo.length === 0} title="Undo (u or Ctrl+Z)">
               Undo
+            </button>
+          )}
+          {editable && (
+            <button data-testid="redo" onClick={redoLast} disabled={redo.length === 0} title="Redo (r or Ctrl+Y)">
+              Redo
             </button>
           )}
         </div>
@@ -299,7 +371,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
             ))}
           </tbody>
         </table>
-        <p className="muted">Keys: ←/→ previous/next keyframe · u undo</p>
+        <p className="muted">Keys: ←/→ previous/next keyframe · u undo · r redo</p>
       </aside>
     </>
   );
