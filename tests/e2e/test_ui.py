@@ -87,6 +87,10 @@ class TestRoles:
         expect(p.get_by_test_id("build-map")).to_have_count(0)
         expect(p.get_by_test_id("undo")).to_have_count(0)
         expect(p.locator("[data-testid^=delete-grounding-]")).to_have_count(0)
+        p.keyboard.press("?")
+        expect(p.get_by_test_id("help-overlay")).to_contain_text("next keyframe")
+        p.keyboard.press("Escape")
+        expect(p.get_by_test_id("help-overlay")).to_have_count(0)
         assert page.errors == []
 
 

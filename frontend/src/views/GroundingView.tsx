@@ -23,6 +23,7 @@ type Action = { kind: "created"; id: number; driveId: number; frame: number; x: 
 const KEYFRAME_STRIDE = 10;
 const STRIP_PAGE = 12;
 const SNAP_TOLERANCE_PX = 12;
+const PLAY_STEP_MS = 250; // keyframe strip playback: one keyframe per step
 
 export function GroundingView({ siteId, editable }: { siteId: number; editable: boolean }) {
   const [drives, setDrives] = useState<Drive[]>([]);
@@ -42,6 +43,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const [job, setJob] = useState<Job | null>(null);
   const [ctx, setCtx] = useState<MapCtx | null>(null);
   const [snapOn, setSnapOn] = useState(false);
+  const [playing, setPlaying] = useState(false);
+  const [help, setHelp] = useState(false);
 
   const loadGroundings = useCallback(async () => {
     const page = await apiGet("/api/sites/{site_id}/groundings", { site_id: siteId }, { limit: 10000 });
@@ -108,6 +111,17 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     [frame, keyframes],
   );
 
+  useEffect(() => {
+    if (!playing) return;
+    const last = keyframes[keyframes.length - 1];
+    if (frame !== null && frame === last) {
+      setPlaying(false);
+      return;
+    }
+    const timer = setTimeout(() => step(1), PLAY_STEP_MS);
+    return () => clearTimeout(timer);
+  }, [playing, frame, keyframes, step]);
+
   const ground = async (clickX: number, clickY: number) => {
     if (!editable || driveId === null || frame === null) return;
     let x = clickX;
@@ -165,7 +179,12 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   useEffect(() => {
     const onKey = (e: KeyboardEvent) => {
       if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
-      if (e.key === "ArrowRight" || e.key === "n") step(1);
+      if (e.key === "?") setHelp((h) => !h);
+      else if (e.key === "Escape") setHelp(false);
+      else if (e.key === " ") {
+        e.preventDefault();
+        setPlaying((p) => !p);
+      } else if (e.key === "ArrowRight" || e.key === "n") step(1);
       else if (e.key === "ArrowLeft" || e.key === "p") step(-1);
       else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void undoLast();
       else if (editable && (e.key === "r" || (e.ctrlKey && e.key === "y"))) void redoLast();
@@ -287,6 +306,9 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           </select>
           {drive && <span className="dot" style={{ background: rgbCss(driveColour(drive.id)) }} />}
           <span className="spacer" />
+          <button data-testid="play" onClick={() => setPlaying((p) => !p)} title="Play the drive's keyframes (space)">
+            {playing ? "❚❚" : "▶"}
+          </button>
           <button onClick={() => setPage((p) => Math.max(0, p - 1))} disabled={page === 0}>‹</button>
           <span className="muted">{page + 1}/{pageCount}</span>
           <button onClick={() => setPage((p) => Math.min(pageCount - 1, p + 1))} disabled={page >= pageCount - 1}>›</button>
@@ -371,7 +393,27 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
             ))}
           </tbody>
         </table>
-        <p className="muted">Keys: ←/→ previous/next keyframe · u undo · r redo</p>
+        <p className="muted">
+          Press <button onClick={() => setHelp(true)} data-testid="help">?</button> for keyboard shortcuts
+        </p>
+        {help && (
+          <div className="help" data-testid="help-overlay" onClick={() => setHelp(false)}>
+            <div className="card">
+              <h2>Keyboard shortcuts</h2>
+              <table>
+                <tbody>
+                  <tr><td>← / p</td><td>previous keyframe</td></tr>
+                  <tr><td>→ / n</td><td>next keyframe</td></tr>
+                  <tr><td>space</td><td>play / pause the drive</td></tr>
+                  <tr><td>click on the plan</td><td>ground the selected keyframe there{editable ? "" : " (surveyors)"}</td></tr>
+                  <tr><td>u / Ctrl+Z</td><td>undo</td></tr>
+                  <tr><td>r / Ctrl+Y</td><td>redo</td></tr>
+                  <tr><td>? / Esc</td><td>show / hide this help</td></tr>
+                </tbody>
+              </table>
+            </div>
+          </div>
+        )}
       </aside>
     </>
   );

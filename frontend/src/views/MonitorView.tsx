@@ -85,6 +85,11 @@ export function MonitorView({ siteId }: { siteId: number }) {
             {connection === "open" ? "live" : connection}
           </span>
         </div>
+        {vehicles.some((v) => statusOf(v) === "lost") && (
+          <div className="alert" data-testid="lost-alert" role="alert">
+            Lost: {vehicles.filter((v) => statusOf(v) === "lost").map((v) => v.name).join(", ")}
+          </div>
+        )}
         <table className="vehicle-list" data-testid="vehicle-list">
           <thead>
             <tr>
