@@ -2,17 +2,19 @@
 // With DRIFTMAP_URL set (e.g. http://127.0.0.1:8000) it reads `$DRIFTMAP_URL/api/openapi.json` from a running
 // server; otherwise it dumps `create_app().openapi()` with the repository's Python (../.venv/bin/python).
 import { execFileSync } from "node:child_process";
-import { mkdtempSync, writeFileSync } from "node:fs";
+import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 
 const out = "src/api/schema.d.ts";
 let source;
+let scratch = null;
 if (process.env.DRIFTMAP_URL) {
   source = `${process.env.DRIFTMAP_URL.replace(/\/$/, "")}/api/openapi.json`;
 } else {
   const python = process.env.PYTHON ?? "../.venv/bin/python";
   const dir = mkdtempSync(join(tmpdir(), "driftmap-openapi-"));
+  scratch = dir;
   const code =
     "import json, sys\n" +
     "from driftmap.api.app import create_app\n" +
@@ -23,4 +25,8 @@ if (process.env.DRIFTMAP_URL) {
   source = join(dir, "openapi.json");
   writeFileSync(source, schema);
 }
-execFileSync("npx", ["openapi-typescript", source, "-o", out], { stdio: "inherit" });
+try {
+  execFileSync("npx", ["openapi-typescript", source, "-o", out], { stdio: "inherit" });
+} finally {
+  if (scratch) rmSync(scratch, { recursive: true, force: true });
+}
