@@ -94,6 +94,8 @@ class Server:
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Iterator[Server]:
     """``driftmap serve`` (no job worker) over a private copy of the tiny site with its FAST map."""
+    if chromium_path() is None:  # skip before building anything
+        pytest.skip("chromium is not installed (make test installs it with apt-get)")
     _ensure_frontend_built()
     work = tmp_path_factory.mktemp("e2e")
     data = copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), work / "data")

@@ -37,6 +37,7 @@ function markerStyle(feature: FeatureLike): Style[] {
         });
   return [
     new Style({
+      zIndex: stale ? 0 : selected ? 2 : 1, // live vehicles over stale ones
       image: shape,
       text: new Text({
         text: feature.get("name") as string,
