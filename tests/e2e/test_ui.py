@@ -47,6 +47,11 @@ class TestLoginAndSurvey:
         self, server: Server, page: PageWithLog
     ) -> None:
         p = page.page
+        zooms: list[int] = []
+        p.on(
+            "request",
+            lambda r: zooms.extend(int(z) for z in re.findall(r"survey/layers\?zoom=(\d+)", r.url)),
+        )
         p.goto(f"{server.base}/")
         p.fill("#username", "admin")
         p.fill("#password", "not-the-password")
@@ -71,6 +76,12 @@ class TestLoginAndSurvey:
         x, y = grid_readout(p)
         min_x, min_y, max_x, max_y = layers["extents"]
         assert min_x <= x <= max_x and min_y <= y <= max_y, (x, y, layers["extents"])
+        # a coarse plan first, then the detail of the fitted view (half a pixel; the tiny plan fits zoom >= 1)
+        deadline = time.monotonic() + DEADLINE_S
+        while max(zooms, default=0) < 1:
+            assert time.monotonic() < deadline, f"no detailed survey request, zooms asked: {zooms}"
+            p.wait_for_timeout(100)
+        assert zooms[0] == 0
         screenshot(p, "ui_survey")
         assert page.errors == []
 

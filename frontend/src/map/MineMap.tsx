@@ -16,14 +16,15 @@ import type Feature from "ol/Feature";
 import { apiGet, ApiError } from "../api/client";
 import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
 import { snapTargetsOf, type SnapTargets } from "../lib/snap";
+import { serverZoomFor } from "../lib/surveyZoom";
 import { mineGrid, webglAvailable } from "./projection";
 
 export interface MapCtx {
   map: OlMap;
   origin: LocalOrigin;
   siteExtent: Extent | null;
-  /** The plan's vertices and centreline segments for snapping (world coordinates). */
-  snap: SnapTargets | null;
+  /** The plan's vertices and centreline segments for snapping (world coordinates; refined with the zoom). */
+  snap: { current: SnapTargets | null };
 }
 
 const LAYER_COLOURS = ["#8ca3ba", "#f0b429", "#4dabf7", "#b197fc", "#63e6be", "#ffa8a8", "#d8f5a2"];
@@ -63,22 +64,31 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
     });
     const useWebgl = webglAvailable();
     const added: BaseLayer[] = [];
+    const snap: { current: SnapTargets | null } = { current: null };
+    const isCentreline = (name: string) => /centre|center/i.test(name);
+    const fetchLayers = (zoom: number) =>
+      apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId }, { zoom });
     (async () => {
       let origin = new LocalOrigin(0, 0);
       let siteExtent: Extent | null = null;
-      let snap: SnapTargets | null = null;
       try {
-        const survey = await apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId });
+        // a coarse plan first (its extents place the origin and the view), then the detail the view needs
+        const survey = await fetchLayers(0);
         if (cancelled) return;
         origin = LocalOrigin.ofExtent(survey.extents);
         siteExtent = origin.localExtent(survey.extents);
-        snap = snapTargetsOf(survey.layers, (name) => /centre|center/i.test(name));
+        const [minX, minY, maxX, maxY] = survey.extents as [number, number, number, number];
+        const sideM = Math.max(maxX - minX, maxY - minY);
+        snap.current = snapTargetsOf(survey.layers, isCentreline);
         const format = new GeoJSON();
+        const read = (collection: unknown, o: LocalOrigin) =>
+          format.readFeatures(shiftCollection(collection, o)) as Feature<Geometry>[];
+        const sources = new Map<string, VectorSource>();
         const made: SurveyLayer[] = [];
         Object.entries(survey.layers).forEach(([name, collection], i) => {
-          const shifted = shiftCollection(collection, origin);
-          const features = format.readFeatures(shifted) as Feature<Geometry>[];
+          const features = read(collection, origin);
           const source = new VectorSource({ features });
+          sources.set(name, source);
           const colour = LAYER_COLOURS[i % LAYER_COLOURS.length]!;
           const layer = useWebgl
             ? new WebGLVectorLayer({ source, style: { "stroke-color": colour, "stroke-width": 1.5 } })
@@ -90,6 +100,29 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
         });
         setLayers(made);
         setVisible(Object.fromEntries(made.map((l) => [l.name, true])));
+        let loadedZoom = 0;
+        let generation = 0;
+        const o = origin;
+        const refine = async () => {
+          const zoom = serverZoomFor(sideM, map.getView().getResolution() ?? 0);
+          if (cancelled || zoom <= loadedZoom) return;
+          loadedZoom = zoom;
+          const mine = ++generation;
+          try {
+            const detail = await fetchLayers(zoom);
+            if (cancelled || mine !== generation) return;
+            for (const [name, collection] of Object.entries(detail.layers)) {
+              const source = sources.get(name);
+              if (!source) continue;
+              source.clear(true);
+              source.addFeatures(read(collection, o));
+            }
+            snap.current = snapTargetsOf(detail.layers, isCentreline);
+          } catch {
+            if (mine === generation) loadedZoom = 0; // try again on the next move
+          }
+        };
+        map.on("moveend", () => void refine());
         map.getView().fit(siteExtent, { padding: [40, 40, 40, 40] });
       } catch (e) {
         if (cancelled) return;

@@ -126,9 +126,9 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     if (!editable || driveId === null || frame === null) return;
     let x = clickX;
     let y = clickY;
-    if (snapOn && ctx?.snap) {
+    if (snapOn && ctx?.snap.current) {
       const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
-      ({ x, y } = snapPoint(ctx.snap, clickX, clickY, tolerance));
+      ({ x, y } = snapPoint(ctx.snap.current, clickX, clickY, tolerance));
     }
     try {
       const g = await apiPost("/api/drives/{drive_id}/groundings", { drive_id: driveId }, { frame, x, y });
