@@ -9,8 +9,7 @@ query is a true positive when its match is acceptable (ground truth), else a fal
 
 The curve has one point per distinct score, from the highest down (tied scores enter together, so the
 order of tied queries cannot flatter the curve). The area under it (AUC) is the step-wise sum of recall
-gain times precision (average precision, no interpolation between points; it is the same convention as
-:mod:`driftmap.reports.pr_curves`); recall at 100 % precision is the largest recall of a point whose
+gain times precision (average precision, no interpolation between points); recall at 100 % precision is the largest recall of a point whose
 precision is exactly 1 (0 when the most confident match is already wrong).
 """
 

@@ -9,7 +9,7 @@ references (a few frames per node), when the map version holds both. Drives are 
 
 A frame's estimate is right when its node centre lies within ``tolerance_m`` of the true floor point
 (15 m for the simulator; paper 000 used 30 m in a larger mine). Sweeping the match threshold X_thresh over
-each method's score gives the precision-recall curve (:mod:`driftmap.reports.pr_curves`). The match rule is
+each method's score gives the precision-recall curve (:mod:`driftmap.core.metrics`). The match rule is
 the one the localiser applies (eq. 12 and driftmap's lost detection): a frame the filter counts as lost is
 never matched, at any threshold. The table gives the curve's area, the recall at 100 % precision, the share
 of frames the localiser marks matched at its configured X_thresh and their mean distance error (node centre
@@ -28,10 +28,10 @@ import numpy as np
 
 from driftmap.core import hmm
 from driftmap.core.localiser import Localiser, LocaliserMap
+from driftmap.core.metrics import PrCurve, pr_curve
 from driftmap.core.saliency import SesameParams
 from driftmap.errors import BadInputError
 from driftmap.reports.plots import new_figure, save
-from driftmap.reports.pr_curves import PrCurve, pr_curve
 from driftmap.services.localisation import RecordedDrive
 
 __all__ = [
@@ -80,7 +80,8 @@ class MethodResult:
 
     def curve(self, tolerance_m: float) -> PrCurve:
         """The precision-recall curve at this ground-truth tolerance."""
-        return pr_curve(np.asarray(self.scores), np.asarray(self.error_m) <= tolerance_m)
+        scores = np.asarray(self.scores, dtype=np.float64)
+        return pr_curve(scores, np.asarray(self.error_m) <= tolerance_m, recallable=max(scores.size, 1))
 
     def matched_error_m(self) -> float:
         """Mean distance error of the matched frames, metres (NaN when none matched)."""

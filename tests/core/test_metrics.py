@@ -1,0 +1,52 @@
+"""Precision-recall sweeps and place metrics on hand-made score lists."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from driftmap.core.metrics import evaluate_matches, pr_curve
+from driftmap.errors import BadInputError
+
+TOL = 1e-12
+
+
+class TestPrCurve:
+    def test_hand_computed_curve(self) -> None:
+        curve = pr_curve(np.array([0.9, 0.8, 0.7, 0.6, 0.5]), np.array([True, True, False, True, False]), 5)
+        assert np.allclose(curve.precision, [1.0, 1.0, 2 / 3, 3 / 4, 3 / 5], atol=TOL)
+        assert np.allclose(curve.recall, [0.2, 0.4, 0.4, 0.6, 0.6], atol=TOL)
+        assert np.allclose(curve.thresholds, [0.9, 0.8, 0.7, 0.6, 0.5], atol=TOL)
+        assert curve.auc == pytest.approx(0.2 + 0.2 + 0.2 * 0.75)
+        assert curve.recall_at_full_precision == pytest.approx(0.4)
+
+    def test_ties_are_taken_together(self) -> None:
+        curve = pr_curve(np.array([0.9, 0.9, 0.1]), np.array([True, False, True]), 3)
+        assert np.allclose(curve.precision, [0.5, 2 / 3], atol=TOL)
+        assert curve.recall_at_full_precision == 0.0
+
+    def test_wrong_top_match_and_unscored_frames(self) -> None:
+        curve = pr_curve(np.array([0.9, np.nan, 0.5]), np.array([False, True, True]), 3)
+        assert curve.recall_at_full_precision == 0.0
+        assert curve.recall[-1] == pytest.approx(1 / 3)  # the NaN frame counts in recall, never matches
+
+    def test_perfect_ranking(self) -> None:
+        curve = pr_curve(np.array([3.0, 2.0, 1.0]), np.array([True, True, True]), 3)
+        assert curve.auc == pytest.approx(1.0)
+        assert curve.recall_at_full_precision == pytest.approx(1.0)
+
+    def test_bad_input_names_the_field(self) -> None:
+        with pytest.raises(BadInputError, match="one shape"):
+            pr_curve(np.zeros(3), np.zeros(2, dtype=bool), 3)
+        with pytest.raises(BadInputError, match="no query"):
+            pr_curve(np.zeros(3), np.zeros(3, dtype=bool), 0)
+
+
+def test_evaluate_matches_counts_only_recallable_queries() -> None:
+    gt = np.array([[True, False, False], [False, True, False], [False, False, False]])
+    best = np.array([0, 2, 1])
+    metrics, curve = evaluate_matches(best, np.array([0.9, 0.8, 0.7]), gt)
+    assert metrics.recallable == 2 and metrics.queries == 3
+    assert metrics.recall_at_1 == pytest.approx(0.5)
+    assert metrics.recall_at_full_precision == pytest.approx(0.5)
+    assert curve.precision[0] == pytest.approx(1.0)
