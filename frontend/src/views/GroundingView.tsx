@@ -6,9 +6,10 @@ import { ApiError, apiDelete, apiDownload, apiGet, apiPost, apiPutForm, type Sch
 import { MineMap, type MapCtx } from "../map/MineMap";
 import { TrajectoryLayer, type Closure, type Poses } from "../map/TrajectoryLayer";
 import { joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
-import { driveColour, residualClass, rgbCss } from "../lib/colours";
+import { driveColour, rgbCss } from "../lib/colours";
 import { snapPoint } from "../lib/snap";
 import { AuthImage } from "./AuthImage";
+import { GroundingsTable, ShortcutHelp } from "./GroundingsTable";
 
 type Drive = Schemas["DriveRead"];
 type Job = Schemas["JobRead"];
@@ -235,17 +236,6 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     if (ctx) ctx.map.getView().animate({ center: ctx.origin.toLocal(x, y), zoom: Math.max(ctx.map.getView().getZoom() ?? 0, 5), duration: 400 });
   };
 
-  const header = (key: SortKey, label: string, num = true) => (
-    <th
-      className={`sortable ${num ? "num" : ""}`}
-      data-testid={`sort-${key}`}
-      onClick={() => setSort((s) => ({ key, dir: s.key === key && s.dir === "desc" ? "asc" : "desc" }))}
-    >
-      {label}
-      {sort.key === key ? (sort.dir === "desc" ? " ▾" : " ▴") : ""}
-    </th>
-  );
-
   return (
     <>
       <MineMap
@@ -363,57 +353,18 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
             </button>
           )}
         </div>
-        <table data-testid="groundings-table">
-          <thead>
-            <tr>
-              {header("drive", "Drive", false)}
-              {header("frame", "Frame")}
-              {header("dx", "dx m")}
-              {header("dy", "dy m")}
-              {header("distance", "dist m")}
-              {editable && <th />}
-            </tr>
-          </thead>
-          <tbody>
-            {rows.map((r) => (
-              <tr key={r.id} data-testid={`grounding-row-${r.id}`} data-frame={r.frame} data-drive={r.drive} onClick={() => flyTo(r.x, r.y)} style={{ cursor: "pointer" }}>
-                <td>{r.drive}</td>
-                <td className="num">{r.frame}</td>
-                <td className="num">{r.dx === null ? "–" : r.dx.toFixed(2)}</td>
-                <td className="num">{r.dy === null ? "–" : r.dy.toFixed(2)}</td>
-                <td className={`num res-${residualClass(r.distance)}`}>{r.distance === null ? "new" : r.distance.toFixed(2)}</td>
-                {editable && (
-                  <td>
-                    <button className="danger" data-testid={`delete-grounding-${r.id}`} onClick={(e) => { e.stopPropagation(); void remove(r.id); }}>
-                      ✕
-                    </button>
-                  </td>
-                )}
-              </tr>
-            ))}
-          </tbody>
-        </table>
+        <GroundingsTable
+          rows={rows}
+          sort={sort}
+          onSort={setSort}
+          editable={editable}
+          onFly={flyTo}
+          onDelete={(id) => void remove(id)}
+        />
         <p className="muted">
           Press <button onClick={() => setHelp(true)} data-testid="help">?</button> for keyboard shortcuts
         </p>
-        {help && (
-          <div className="help" data-testid="help-overlay" onClick={() => setHelp(false)}>
-            <div className="card">
-              <h2>Keyboard shortcuts</h2>
-              <table>
-                <tbody>
-                  <tr><td>← / p</td><td>previous keyframe</td></tr>
-                  <tr><td>→ / n</td><td>next keyframe</td></tr>
-                  <tr><td>space</td><td>play / pause the drive</td></tr>
-                  <tr><td>click on the plan</td><td>ground the selected keyframe there{editable ? "" : " (surveyors)"}</td></tr>
-                  <tr><td>u / Ctrl+Z</td><td>undo</td></tr>
-                  <tr><td>r / Ctrl+Y</td><td>redo</td></tr>
-                  <tr><td>? / Esc</td><td>show / hide this help</td></tr>
-                </tbody>
-              </table>
-            </div>
-          </div>
-        )}
+        {help && <ShortcutHelp editable={editable} onClose={() => setHelp(false)} />}
       </aside>
     </>
   );

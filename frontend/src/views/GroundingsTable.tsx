@@ -1,0 +1,107 @@
+// The grounding workstation's table (residuals of the latest build, sortable, colour-coded) and its
+// keyboard-shortcut help.
+import type { Dispatch, SetStateAction } from "react";
+import { residualClass } from "../lib/colours";
+import type { GroundingRow, SortDir, SortKey } from "../lib/residuals";
+
+type Sort = { key: SortKey; dir: SortDir };
+
+interface Props {
+  rows: GroundingRow[];
+  sort: Sort;
+  onSort: Dispatch<SetStateAction<Sort>>;
+  editable: boolean;
+  onFly: (x: number, y: number) => void;
+  onDelete: (id: number) => void;
+}
+
+export function GroundingsTable({ rows, sort, onSort, editable, onFly, onDelete }: Props) {
+  const header = (key: SortKey, label: string, num = true) => (
+    <th
+      className={`sortable ${num ? "num" : ""}`}
+      data-testid={`sort-${key}`}
+      onClick={() => onSort((s) => ({ key, dir: s.key === key && s.dir === "desc" ? "asc" : "desc" }))}
+    >
+      {label}
+      {sort.key === key ? (sort.dir === "desc" ? " ▾" : " ▴") : ""}
+    </th>
+  );
+  return (
+    <table data-testid="groundings-table">
+      <thead>
+        <tr>
+          {header("drive", "Drive", false)}
+          {header("frame", "Frame")}
+          {header("dx", "dx m")}
+          {header("dy", "dy m")}
+          {header("distance", "dist m")}
+          {editable && <th />}
+        </tr>
+      </thead>
+      <tbody>
+        {rows.map((r) => (
+          <tr
+            key={r.id}
+            data-testid={`grounding-row-${r.id}`}
+            data-frame={r.frame}
+            data-drive={r.drive}
+            onClick={() => onFly(r.x, r.y)}
+            style={{ cursor: "pointer" }}
+          >
+            <td>{r.drive}</td>
+            <td className="num">{r.frame}</td>
+            <td className="num">{r.dx === null ? "–" : r.dx.toFixed(2)}</td>
+            <td className="num">{r.dy === null ? "–" : r.dy.toFixed(2)}</td>
+            <td className={`num res-${residualClass(r.distance)}`}>
+              {r.distance === null ? "new" : r.distance.toFixed(2)}
+            </td>
+            {editable && (
+              <td>
+                <button
+                  className="danger"
+                  data-testid={`delete-grounding-${r.id}`}
+                  onClick={(e) => {
+                    e.stopPropagation();
+                    onDelete(r.id);
+                  }}
+                >
+                  ✕
+                </button>
+              </td>
+            )}
+          </tr>
+        ))}
+      </tbody>
+    </table>
+  );
+}
+
+const SHORTCUTS: [string, string][] = [
+  ["← / p", "previous keyframe"],
+  ["→ / n", "next keyframe"],
+  ["space", "play / pause the drive"],
+  ["click on the plan", "ground the selected keyframe there"],
+  ["u / Ctrl+Z", "undo"],
+  ["r / Ctrl+Y", "redo"],
+  ["? / Esc", "show / hide this help"],
+];
+
+export function ShortcutHelp({ editable, onClose }: { editable: boolean; onClose: () => void }) {
+  return (
+    <div className="help" data-testid="help-overlay" onClick={onClose}>
+      <div className="card">
+        <h2>Keyboard shortcuts</h2>
+        <table>
+          <tbody>
+            {SHORTCUTS.filter(([, what]) => editable || !/ground|undo|redo/.test(what)).map(([keys, what]) => (
+              <tr key={keys}>
+                <td>{keys}</td>
+                <td>{what}</td>
+              </tr>
+            ))}
+          </tbody>
+        </table>
+      </div>
+    </div>
+  );
+}
