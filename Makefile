@@ -5,6 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 DEMO_DIR ?= data/demo
 DEMO_SEED ?= 7
+DEMO_PORT ?= 8000
 
 .PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test chromium
 
@@ -45,7 +46,13 @@ demo: $(VENV)/.installed-run frontend
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap map build demo
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap map show demo
 	DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap localise demo $(DEMO_DIR)/site/drives/loc-01 --out $(DEMO_DIR)/loc-01.csv
-	@echo "demo ready: DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap user add admin --role admin, then DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap serve"
+	@# an admin with a generated password, then the server with the UI and the localisation drives (clean
+	@# copies: loc-NN) replayed as live vehicles through the frame endpoint, looping, until Ctrl-C
+	@password=$$($(BIN)/python -c 'import secrets; print(secrets.token_urlsafe(12))') && \
+	echo "$$password" | DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap user add admin --role admin --password-stdin && \
+	echo "demo: starting the server on http://127.0.0.1:$(DEMO_PORT) (log: $(DEMO_DIR)/serve.log) and replaying $$(cd $(DEMO_DIR)/site/drives && echo loc-??) as live vehicles; Ctrl-C stops everything" && \
+	echo "$$password" | DRIFTMAP_DATA_DIR=$(DEMO_DIR) $(BIN)/driftmap replay demo $(DEMO_DIR)/site/drives/loc-?? \
+		--serve --url http://127.0.0.1:$(DEMO_PORT) --user admin --password-stdin --show-login
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check backend tests bench migrations

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from driftmap.cli import data, localise, maps, server, vpr, worker
+from driftmap.cli import data, localise, maps, replay, server, vpr, worker
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -23,6 +23,7 @@ app.add_typer(vpr.vpr_app, name="vpr")
 app.add_typer(server.user_app, name="user")
 app.command()(server.serve)
 app.command()(worker.worker)
+app.command()(replay.replay)
 app.command()(data.simulate)
 app.command()(maps.odometry)
 app.command()(localise.localise)

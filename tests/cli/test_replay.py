@@ -1,0 +1,194 @@
+"""``driftmap replay`` against a real ``driftmap serve``: the frames reach the frame endpoint and are stored."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive
+
+PASSWORD = "replay-admin-password"
+START_DEADLINE_S = 120.0
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    status = Path(f"/proc/{pid}/status")
+    return not (status.exists() and "\nState:\tZ" in status.read_text())
+
+
+@pytest.fixture
+def env(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path) -> dict[str, str]:
+    """A private copy of the tiny site with its map, and an admin user."""
+    data = copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
+    out = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
+    out["DRIFTMAP_DATA_DIR"] = str(data)
+    added = subprocess.run(
+        [sys.executable, "-m", "driftmap", "user", "add", "admin", "--role", "admin", "--password-stdin"],
+        input=f"{PASSWORD}\n".encode(),
+        env=out,
+        capture_output=True,
+        check=False,
+    )
+    assert added.returncode == 0, added.stderr.decode()
+    return out
+
+
+def _login(base: str) -> dict[str, str]:
+    answer = httpx.post(f"{base}/api/auth/login", json={"username": "admin", "password": PASSWORD})
+    assert answer.status_code == 200, answer.text
+    return {"Authorization": f"Bearer {answer.json()['access_token']}"}
+
+
+def _positions(base: str, auth: dict[str, str], name: str) -> list[dict]:  # type: ignore[type-arg]
+    vehicles = httpx.get(f"{base}/api/vehicles", headers=auth).json()
+    ids = [v["id"] for v in vehicles if v["name"] == name]
+    if not ids:
+        return []
+    rows: list[dict] = httpx.get(f"{base}/api/vehicles/{ids[0]}/positions", headers=auth).json()  # type: ignore[type-arg]
+    return rows
+
+
+def _stored(base: str, name: str) -> bool:
+    """Whether the server answers and holds a position of vehicle ``name``."""
+    try:
+        return bool(_positions(base, _login(base), name))
+    except httpx.TransportError:
+        return False
+
+
+@pytest.fixture
+def server(env: dict[str, str], tmp_path: Path) -> Iterator[str]:
+    """``driftmap serve`` (no job worker) on a free port; yields its base URL."""
+    port = _free_port()
+    log = tmp_path / "serve.log"
+    with log.open("wb") as sink:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), "--no-worker"],
+            env=env,
+            stdout=sink,
+            stderr=sink,
+        )
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + START_DEADLINE_S
+        while True:
+            assert process.poll() is None, log.read_text()
+            try:
+                if httpx.get(f"{base}/api/health", timeout=2.0).status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.2)
+        yield base
+    finally:
+        process.terminate()
+        try:
+            process.wait(30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+def _replay(env: dict[str, str], *args: str) -> list[str]:
+    return [sys.executable, "-m", "driftmap", "replay", *args, "--password-stdin", "--status-every", "1"]
+
+
+class TestReplay:
+    def test_frames_are_localised_and_stored_at_the_recorded_pace(
+        self, server: str, env: dict[str, str], tiny_site_dir: Path
+    ) -> None:
+        drive = localisation_drive(tiny_site_dir)
+        started = time.monotonic()
+        done = subprocess.run(
+            _replay(env, "tiny", str(drive), "--url", server, "--once", "--max-frames", "6"),
+            input=f"{PASSWORD}\n".encode(),
+            env=env,
+            capture_output=True,
+            timeout=180,
+            check=False,
+        )
+        output = done.stdout.decode() + done.stderr.decode()
+        assert done.returncode == 0, output
+        assert f"{drive.name} (vehicle " in output
+        assert "6 sent, 6 localised" in output, output
+        rows = _positions(server, _login(server), drive.name)
+        assert len(rows) == 6
+        times = [r["t"] for r in rows]
+        assert times == sorted(times) and len(set(times)) == 6
+        assert times[0] > 1.6e9  # the wall clock at sending
+        # the tiny drive's frames are 0.1 s apart: six frames take at least half a second of replay
+        assert times[-1] - times[0] >= 0.45
+        assert time.monotonic() - started >= 0.5
+        assert all(isinstance(r["x"], float) and 0.0 <= r["confidence"] <= 1.0 for r in rows)
+
+        again = subprocess.run(  # a second run reuses the vehicle with a fresh token and its clock goes on
+            _replay(env, "tiny", str(drive), "--url", server, "--once", "--max-frames", "2"),
+            input=f"{PASSWORD}\n".encode(),
+            env=env,
+            capture_output=True,
+            timeout=180,
+            check=False,
+        )
+        assert again.returncode == 0, again.stderr.decode()
+        assert len(_positions(server, _login(server), drive.name)) == 8
+
+    def test_serve_mode_runs_the_server_and_ctrl_c_stops_everything(
+        self, env: dict[str, str], tiny_site_dir: Path, tmp_path: Path
+    ) -> None:
+        drive = localisation_drive(tiny_site_dir)
+        base = f"http://127.0.0.1:{_free_port()}"
+        log = tmp_path / "replay.log"
+        with log.open("wb") as sink:
+            process = subprocess.Popen(
+                _replay(env, "tiny", str(drive), "--url", base, "--serve", "--show-login"),
+                stdin=subprocess.PIPE,
+                stdout=sink,
+                stderr=sink,
+                env=env,
+            )
+        assert process.stdin is not None
+        process.stdin.write(f"{PASSWORD}\n".encode())
+        process.stdin.close()
+        try:
+            deadline = time.monotonic() + START_DEADLINE_S
+            while not _stored(base, drive.name):
+                assert process.poll() is None, log.read_text()
+                assert time.monotonic() < deadline, log.read_text()
+                time.sleep(0.5)
+            text = log.read_text()
+            assert f"log in as 'admin' with password '{PASSWORD}'" in text
+            server_pid = int(re.search(r"server process (\d+) starting", text).group(1))  # type: ignore[union-attr]
+            assert _alive(server_pid)
+            process.send_signal(signal.SIGINT)
+            assert process.wait(90) == 0, log.read_text()
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+        text = log.read_text()
+        assert "stopping the replay" in text and f"server process {server_pid} stopped" in text
+        assert not _alive(server_pid)
+        with pytest.raises(httpx.TransportError):
+            httpx.get(f"{base}/api/health", timeout=2.0)
