@@ -145,6 +145,27 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
             process.wait()
 
 
+@pytest.fixture
+def worker(server: Server) -> Iterator[subprocess.Popen[bytes]]:
+    """A ``driftmap worker`` beside the server (same data dir and queue), for tests that run jobs."""
+    with server.log.with_name("worker.log").open("ab") as sink:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "driftmap", "worker", "--heartbeat", "1"],
+            env=server.env,
+            stdout=sink,
+            stderr=sink,
+        )
+    try:
+        yield process
+    finally:
+        process.terminate()
+        try:
+            process.wait(30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Browser]:
     """Headless Debian chromium through Playwright; skips when chromium cannot be found."""

@@ -17,6 +17,7 @@ from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
 
 DEADLINE_S = 60.0
 FRAME_PERIOD_S = 0.1  # the posted frames' spacing in vehicle time, seconds
+BUILD_DEADLINE_MS = 300_000  # a FAST map build of the tiny site on a busy 2-core machine
 
 
 def log_in(page: Page, server: Server, username: str, password: str) -> None:
@@ -234,6 +235,108 @@ class TestGrounding:
         p.get_by_test_id(f"delete-grounding-{restored['id']}").click()
         expect(table_rows).to_have_count(len(before))
         assert not mine()
+        assert page.errors == []
+
+    def test_drag_a_grounding_to_adjust_it_then_undo(self, server: Server, page: PageWithLog) -> None:
+        def stored(grounding_id: int) -> tuple[float, float]:
+            items = server.api("GET", "/api/sites/1/groundings").json()["items"]
+            g = next(g for g in items if g["id"] == grounding_id)
+            return float(g["x_m"]), float(g["y_m"])
+
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        expect(p.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
+        grounding_id = int(server.api("GET", "/api/sites/1/groundings").json()["items"][0]["id"])
+        gx, gy = stored(grounding_id)
+        row = p.get_by_test_id(f"grounding-row-{grounding_id}")
+        row.click()  # flies to the grounding: its square ends up in the middle of the map
+        box = p.get_by_test_id("map").bounding_box()
+        assert box is not None
+        centre = (box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        resolution = float("nan")
+        deadline = time.monotonic() + DEADLINE_S
+        previous: tuple[float, float] | None = None
+        clicked = time.monotonic()
+        while True:  # until the flight has ended on the grounding (the readout under the centre stops moving)
+            assert time.monotonic() < deadline, (
+                f"not on the grounding {(gx, gy)}: {previous}, {resolution} m/px"
+            )
+            if time.monotonic() - clicked > 5.0:  # the map may have been busy loading the plan's detail
+                row.click()
+                clicked = time.monotonic()
+            p.mouse.move(centre[0] + 100, centre[1])
+            far = grid_readout(p)
+            p.mouse.move(*centre)
+            expect(p.get_by_test_id("grid-readout")).not_to_have_text(
+                re.compile(re.escape(f"E {far[0]:.2f}"))
+            )
+            here = grid_readout(p)
+            resolution = (far[0] - here[0]) / 100.0  # metres per pixel
+            if (
+                previous == here
+                and abs(here[0] - gx) < 1.5 * resolution
+                and abs(here[1] - gy) < 1.5 * resolution
+            ):
+                break
+            previous = here
+            p.wait_for_timeout(100)
+
+        shift_px = (40, 30)
+        p.mouse.move(*centre)
+        p.mouse.down()
+        p.mouse.move(centre[0] + shift_px[0], centre[1] + shift_px[1], steps=8)
+        p.mouse.up()
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("moved the grounding")
+        x, y = stored(grounding_id)
+        assert abs(x - (gx + shift_px[0] * resolution)) < 2 * resolution, (x, gx, resolution)
+        # screen y points down, northing up
+        assert abs(y - (gy - shift_px[1] * resolution)) < 2 * resolution, (y, gy, resolution)
+        screenshot(p, "ui_grounding_drag")
+
+        p.get_by_test_id("undo").click()
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("undone")
+        assert stored(grounding_id) == (gx, gy)
+        p.get_by_test_id("redo").click()
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("redone")
+        assert stored(grounding_id) == (x, y)
+        p.keyboard.press("u")
+        expect(p.get_by_test_id("redo")).to_be_enabled()
+        assert stored(grounding_id) == (gx, gy)
+        assert page.errors == []
+
+    def test_build_a_new_version_and_compare_it_with_the_old_as_an_overlay(
+        self, server: Server, page: PageWithLog, worker: object
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        expect(p.get_by_test_id("map-version")).to_have_text("map v1")
+        expect(p.get_by_test_id("compare-panel")).to_have_count(0)  # one version: nothing to compare
+        p.get_by_test_id("build-map").click()
+        expect(p.get_by_test_id("build-job")).to_have_attribute(
+            "data-status", "succeeded", timeout=BUILD_DEADLINE_MS
+        )
+        expect(p.get_by_test_id("map-version")).to_have_text("map v2")
+
+        p.get_by_test_id("toggle-compare").check()
+        expect(p.get_by_test_id("compare-a")).to_have_value("1")
+        expect(p.get_by_test_id("compare-b")).to_have_value("2")
+        summary = p.get_by_test_id("compare-summary")
+        expect(summary).to_have_attribute("data-state", "shown")
+        compared = server.api("GET", "/api/sites/1/maps/compare", params={"a": 1, "b": 2}).json()
+        expect(summary).to_have_attribute("data-a", "1")
+        expect(summary).to_have_attribute("data-b", "2")
+        expect(summary).to_have_attribute("data-frames", str(compared["frames"]))
+        assert compared["frames"] > 0
+        expect(summary).to_contain_text(f"max {compared['max_m']:.2f} m")
+        screenshot(p, "ui_compare")
+
+        p.get_by_test_id("compare-a").select_option("2")  # a version against itself moved nowhere
+        expect(summary).to_have_attribute("data-a", "2")
+        expect(summary).to_contain_text("max 0.00 m")
+        p.get_by_test_id("toggle-compare").uncheck()
+        expect(summary).to_have_count(0)
         assert page.errors == []
 
 

@@ -17,6 +17,7 @@ import { apiGet, ApiError } from "../api/client";
 import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
 import { snapTargetsOf, type SnapTargets } from "../lib/snap";
 import { serverZoomFor } from "../lib/surveyZoom";
+import { mark } from "../lib/perf";
 import { mineGrid, webglAvailable } from "./projection";
 
 export interface MapCtx {
@@ -118,10 +119,12 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
               source.addFeatures(read(collection, o));
             }
             snap.current = snapTargetsOf(detail.layers, isCentreline);
+            map.once("rendercomplete", () => mark("survey-detail"));
           } catch {
             if (mine === generation) loadedZoom = 0; // try again on the next move
           }
         };
+        map.once("rendercomplete", () => mark("survey-coarse"));
         map.on("moveend", () => void refine());
         map.getView().fit(siteExtent, { padding: [40, 40, 40, 40] });
       } catch (e) {

@@ -1,25 +1,21 @@
 // Grounding workstation: the latest map version's trajectories over the plan, a keyframe strip per drive,
-// ground the selected keyframe by clicking its surveyed point, a residual table (sortable, colour-coded),
-// delete and undo, and "Build map" with the job's progress.
+// ground the selected keyframe by clicking its surveyed point, drag a grounding to adjust it, a residual table
+// (sortable, colour-coded), delete, undo/redo, CSV import/export, "Build map" with the job's progress, and two
+// map versions compared as an overlay.
 import { useCallback, useEffect, useMemo, useState } from "react";
-import { ApiError, apiDelete, apiDownload, apiGet, apiPost, apiPutForm, type Schemas } from "../api/client";
+import { ApiError, apiDownload, apiGet, apiPutForm, type Schemas } from "../api/client";
 import { MineMap, type MapCtx } from "../map/MineMap";
-import { TrajectoryLayer, type Closure, type Poses } from "../map/TrajectoryLayer";
+import { TrajectoryLayer, poseIndex, type Closure, type Poses } from "../map/TrajectoryLayer";
+import { GroundingMarkers } from "../map/GroundingMarkers";
 import { joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
-import { driveColour, rgbCss } from "../lib/colours";
 import { snapPoint } from "../lib/snap";
-import { AuthImage } from "./AuthImage";
+import { BuildMap } from "./BuildMap";
+import { CompareVersions } from "./CompareVersions";
 import { GroundingsTable, ShortcutHelp } from "./GroundingsTable";
+import { KeyframeStrip } from "./KeyframeStrip";
+import { useGroundingEdits } from "./useGroundingEdits";
 
 type Drive = Schemas["DriveRead"];
-type Job = Schemas["JobRead"];
-type Action = { kind: "created"; id: number; driveId: number; frame: number; x: number; y: number } | {
-  kind: "deleted";
-  driveId: number;
-  frame: number;
-  x: number;
-  y: number;
-};
 
 const KEYFRAME_STRIDE = 10;
 const STRIP_PAGE = 12;
@@ -28,7 +24,7 @@ const PLAY_STEP_MS = 250; // keyframe strip playback: one keyframe per step
 
 export function GroundingView({ siteId, editable }: { siteId: number; editable: boolean }) {
   const [drives, setDrives] = useState<Drive[]>([]);
-  const [version, setVersion] = useState<number | null>(null);
+  const [versions, setVersions] = useState<number[]>([]);
   const [poses, setPoses] = useState<Poses | null>(null);
   const [closures, setClosures] = useState<Closure[]>([]);
   const [showClosures, setShowClosures] = useState(true);
@@ -38,14 +34,12 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const [frame, setFrame] = useState<number | null>(null);
   const [page, setPage] = useState(0);
   const [sort, setSort] = useState<{ key: SortKey; dir: SortDir }>({ key: "distance", dir: "desc" });
-  const [undo, setUndo] = useState<Action[]>([]);
-  const [redo, setRedo] = useState<Action[]>([]);
   const [message, setMessage] = useState<string | null>(null);
-  const [job, setJob] = useState<Job | null>(null);
   const [ctx, setCtx] = useState<MapCtx | null>(null);
   const [snapOn, setSnapOn] = useState(false);
   const [playing, setPlaying] = useState(false);
   const [help, setHelp] = useState(false);
+  const version = versions.length > 0 ? Math.max(...versions) : null;
 
   const loadGroundings = useCallback(async () => {
     const page = await apiGet("/api/sites/{site_id}/groundings", { site_id: siteId }, { limit: 10000 });
@@ -53,13 +47,14 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   }, [siteId]);
 
   const loadVersion = useCallback(async () => {
-    const versions = await apiGet("/api/sites/{site_id}/maps", { site_id: siteId }, { limit: 500 });
-    const latest = versions.items.reduce<number | null>((m, v) => (m === null || v.version > m ? v.version : m), null);
-    setVersion(latest);
+    const list = await apiGet("/api/sites/{site_id}/maps", { site_id: siteId }, { limit: 500 });
+    const all = list.items.map((v) => v.version);
+    const latest = all.length > 0 ? Math.max(...all) : null;
     if (latest === null) {
       setPoses(null);
       setClosures([]);
       setResiduals([]);
+      setVersions([]);
       return;
     }
     const p = { site_id: siteId, version: latest };
@@ -71,6 +66,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     setPoses(ps);
     setClosures(cs);
     setResiduals(rs);
+    setVersions(all);
   }, [siteId]);
 
   useEffect(() => {
@@ -84,6 +80,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     void loadGroundings();
   }, [siteId, loadVersion, loadGroundings]);
 
+  const edits = useGroundingEdits({ groundings, reload: loadGroundings, say: setMessage });
+
   const drive = drives.find((d) => d.id === driveId) ?? null;
   const keyframes = useMemo(() => {
     if (!drive) return [];
@@ -96,10 +94,9 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const pageCount = Math.max(1, Math.ceil(keyframes.length / STRIP_PAGE));
   const stripFrames = keyframes.slice(page * STRIP_PAGE, (page + 1) * STRIP_PAGE);
 
-  const rows = useMemo(
-    () => sortRows(joinResiduals(groundings, residuals), sort.key, sort.dir),
-    [groundings, residuals, sort],
-  );
+  const joined = useMemo(() => joinResiduals(groundings, residuals), [groundings, residuals]);
+  const rows = useMemo(() => sortRows(joined, sort.key, sort.dir), [joined, sort]);
+  const poseAt = useMemo(() => (poses ? poseIndex(poses) : new Map<string, [number, number]>()), [poses]);
 
   const step = useCallback(
     (delta: number) => {
@@ -131,51 +128,17 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
       const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
       ({ x, y } = snapPoint(ctx.snap.current, clickX, clickY, tolerance));
     }
-    try {
-      const g = await apiPost("/api/drives/{drive_id}/groundings", { drive_id: driveId }, { frame, x, y });
-      setUndo((u) => [...u, { kind: "created", id: g.id, driveId, frame, x, y }]);
-      setRedo([]);
-      setMessage(`grounded ${drive?.name ?? driveId} frame ${frame} at E ${x.toFixed(2)} N ${y.toFixed(2)}`);
-      await loadGroundings();
-    } catch (e) {
-      setMessage(e instanceof ApiError ? e.message : String(e));
-    }
+    await edits.create(driveId, frame, x, y, drive?.name ?? String(driveId));
   };
 
-  const remove = async (id: number) => {
-    const g = groundings.find((r) => r.id === id);
-    if (!g) return;
-    await apiDelete("/api/groundings/{grounding_id}", { grounding_id: id });
-    setUndo((u) => [...u, { kind: "deleted", driveId: g.drive_id, frame: g.frame, x: g.x_m, y: g.y_m }]);
-    setRedo([]);
-    await loadGroundings();
-  };
-
-  // Undo and redo: each step replays the inverse call (a re-created grounding gets a new id).
-  const invert = async (a: Action): Promise<Action> => {
-    if (a.kind === "created") {
-      await apiDelete("/api/groundings/{grounding_id}", { grounding_id: a.id });
-      return { kind: "deleted", driveId: a.driveId, frame: a.frame, x: a.x, y: a.y };
+  const moveGrounding = async (id: number, x: number, y: number) => {
+    let to = { x, y };
+    if (snapOn && ctx?.snap.current) {
+      const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
+      to = snapPoint(ctx.snap.current, x, y, tolerance);
     }
-    const g = await apiPost("/api/drives/{drive_id}/groundings", { drive_id: a.driveId }, { frame: a.frame, x: a.x, y: a.y });
-    return { kind: "created", id: g.id, driveId: a.driveId, frame: a.frame, x: a.x, y: a.y };
+    await edits.move(id, to.x, to.y);
   };
-
-  const replay = async (from: Action[], setFrom: typeof setUndo, setTo: typeof setUndo, verb: string) => {
-    const last = from[from.length - 1];
-    if (!last) return;
-    setFrom(from.slice(0, -1));
-    try {
-      const done = await invert(last);
-      setTo((t) => [...t, done]);
-      setMessage(`${verb}: ${done.kind === "created" ? "grounding restored" : "grounding removed"}`);
-    } catch (e) {
-      setMessage(e instanceof ApiError ? e.message : String(e));
-    }
-    await loadGroundings();
-  };
-  const undoLast = () => replay(undo, setUndo, setRedo, "undone");
-  const redoLast = () => replay(redo, setRedo, setUndo, "redone");
 
   useEffect(() => {
     const onKey = (e: KeyboardEvent) => {
@@ -187,8 +150,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         setPlaying((p) => !p);
       } else if (e.key === "ArrowRight" || e.key === "n") step(1);
       else if (e.key === "ArrowLeft" || e.key === "p") step(-1);
-      else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void undoLast();
-      else if (editable && (e.key === "r" || (e.ctrlKey && e.key === "y"))) void redoLast();
+      else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void edits.undo();
+      else if (editable && (e.key === "r" || (e.ctrlKey && e.key === "y"))) void edits.redo();
     };
     window.addEventListener("keydown", onKey);
     return () => window.removeEventListener("keydown", onKey);
@@ -206,34 +169,17 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     try {
       const result = await apiPutForm("/api/drives/{drive_id}/groundings.csv", { drive_id: drive.id }, form);
       setMessage(`imported ${result.imported} groundings into ${drive.name} (replacing its old ones)`);
-      setUndo([]);
-      setRedo([]);
+      edits.reset();
     } catch (e) {
       setMessage(e instanceof ApiError ? e.message : String(e));
     }
     await loadGroundings();
   };
 
-  const build = async () => {
-    try {
-      setJob(await apiPost("/api/sites/{site_id}/maps", { site_id: siteId }, { preset: "fast" }));
-    } catch (e) {
-      setMessage(e instanceof ApiError ? e.message : String(e));
-    }
-  };
-
-  useEffect(() => {
-    if (!job || ["succeeded", "failed", "cancelled"].includes(job.status)) return;
-    const timer = setTimeout(async () => {
-      const next = await apiGet("/api/jobs/{job_id}", { job_id: job.id });
-      setJob(next);
-      if (next.status === "succeeded") await loadVersion();
-    }, 1000);
-    return () => clearTimeout(timer);
-  }, [job, loadVersion]);
-
   const flyTo = (x: number, y: number) => {
-    if (ctx) ctx.map.getView().animate({ center: ctx.origin.toLocal(x, y), zoom: Math.max(ctx.map.getView().getZoom() ?? 0, 5), duration: 400 });
+    if (!ctx) return;
+    const view = ctx.map.getView();
+    view.animate({ center: ctx.origin.toLocal(x, y), zoom: Math.max(view.getZoom() ?? 0, 5), duration: 400 });
   };
 
   return (
@@ -244,15 +190,26 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         onMapClick={(x, y) => void ground(x, y)}
         tools={
           <>
-          <label>
-            <input type="checkbox" data-testid="toggle-closures" checked={showClosures} onChange={(e) => setShowClosures(e.target.checked)} />{" "}
-            loop closures ({closures.length})
-          </label>
-          {editable && (
-            <label title="Snap groundings to DXF vertices, else to centrelines">
-              <input type="checkbox" data-testid="toggle-snap" checked={snapOn} onChange={(e) => setSnapOn(e.target.checked)} /> snap
+            <label>
+              <input
+                type="checkbox"
+                data-testid="toggle-closures"
+                checked={showClosures}
+                onChange={(e) => setShowClosures(e.target.checked)}
+              />{" "}
+              loop closures ({closures.length})
             </label>
-          )}
+            {editable && (
+              <label title="Snap groundings to DXF vertices, else to centrelines">
+                <input
+                  type="checkbox"
+                  data-testid="toggle-snap"
+                  checked={snapOn}
+                  onChange={(e) => setSnapOn(e.target.checked)}
+                />{" "}
+                snap
+              </label>
+            )}
           </>
         }
         overlay={(c) => (
@@ -263,63 +220,41 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
               poses={poses}
               closures={closures}
               showClosures={showClosures}
-              groundings={joinResiduals(groundings, residuals)}
+              groundings={[]}
               selected={driveId !== null && frame !== null ? { driveId, frame } : null}
               keyframeStride={KEYFRAME_STRIDE}
+            />
+            <GroundingMarkers
+              ctx={c}
+              groundings={joined}
+              poses={poseAt}
+              editable={editable}
+              onMove={(id, x, y) => void moveGrounding(id, x, y)}
             />
           </>
         )}
       />
       <aside className="side" data-testid="grounding-panel">
-        <div className="row">
-          <h2 style={{ margin: 0 }}>Grounding</h2>
-          <span className="spacer" />
-          <span className="muted" data-testid="map-version">{version === null ? "no map yet" : `map v${version}`}</span>
-          {editable && (
-            <button className="primary" data-testid="build-map" onClick={build} disabled={job !== null && !["succeeded", "failed", "cancelled"].includes(job.status)}>
-              Build map
-            </button>
-          )}
-        </div>
-        {job && (
-          <div data-testid="build-job" data-status={job.status}>
-            <div className="progress"><div style={{ width: `${Math.round(job.progress * 100)}%` }} /></div>
-            <span className="muted">job {job.id}: {job.status} {job.stage} {Math.round(job.progress * 100)}%</span>
-            {job.error && <div className="error">{job.error}</div>}
-          </div>
-        )}
-        <div className="row">
-          <select data-testid="drive-select" value={driveId ?? ""} onChange={(e) => { setDriveId(Number(e.target.value)); setFrame(null); setPage(0); }}>
-            {drives.map((d) => (
-              <option key={d.id} value={d.id}>{d.name} ({d.frame_count} frames)</option>
-            ))}
-          </select>
-          {drive && <span className="dot" style={{ background: rgbCss(driveColour(drive.id)) }} />}
-          <span className="spacer" />
-          <button data-testid="play" onClick={() => setPlaying((p) => !p)} title="Play the drive's keyframes (space)">
-            {playing ? "❚❚" : "▶"}
-          </button>
-          <button onClick={() => setPage((p) => Math.max(0, p - 1))} disabled={page === 0}>‹</button>
-          <span className="muted">{page + 1}/{pageCount}</span>
-          <button onClick={() => setPage((p) => Math.min(pageCount - 1, p + 1))} disabled={page >= pageCount - 1}>›</button>
-        </div>
-        <div className="strip" data-testid="keyframe-strip">
-          {driveId !== null && stripFrames.map((f) => (
-            <button key={f} className={`thumb ${f === frame ? "selected" : ""}`} data-testid={`keyframe-${f}`} data-frame={f} onClick={() => setFrame(f)}>
-              <AuthImage src={`/api/drives/${driveId}/frames/${f}/thumbnail?width=96`} alt={`frame ${f}`} />
-              <span>#{f}</span>
-            </button>
-          ))}
-        </div>
-        {frame !== null && driveId !== null && (
-          <div data-testid="selected-frame" data-frame={frame}>
-            <AuthImage className="bigframe" src={`/api/drives/${driveId}/frames/${frame}`} alt={`frame ${frame} large`} />
-            <div className="muted">
-              {drive?.name} frame {frame}
-              {editable ? " · click its surveyed point on the plan to ground it" : ""}
-            </div>
-          </div>
-        )}
+        <BuildMap siteId={siteId} version={version} editable={editable} onBuilt={loadVersion} onError={setMessage} />
+        <CompareVersions siteId={siteId} versions={versions} ctx={ctx} />
+        <KeyframeStrip
+          drives={drives}
+          driveId={driveId}
+          onDrive={(id) => {
+            setDriveId(id);
+            setFrame(null);
+            setPage(0);
+          }}
+          frames={stripFrames}
+          frame={frame}
+          onFrame={setFrame}
+          page={page}
+          pageCount={pageCount}
+          onPage={setPage}
+          playing={playing}
+          onPlay={() => setPlaying((p) => !p)}
+          editable={editable}
+        />
         {message && <p data-testid="grounding-message">{message}</p>}
         <div className="row">
           <h3 style={{ margin: 0 }}>Groundings ({groundings.length})</h3>
@@ -343,12 +278,12 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
             </label>
           )}
           {editable && (
-            <button data-testid="undo" onClick={undoLast} disabled={undo.length === 0} title="Undo (u or Ctrl+Z)">
+            <button data-testid="undo" onClick={() => void edits.undo()} disabled={!edits.canUndo} title="Undo (u or Ctrl+Z)">
               Undo
             </button>
           )}
           {editable && (
-            <button data-testid="redo" onClick={redoLast} disabled={redo.length === 0} title="Redo (r or Ctrl+Y)">
+            <button data-testid="redo" onClick={() => void edits.redo()} disabled={!edits.canRedo} title="Redo (r or Ctrl+Y)">
               Redo
             </button>
           )}
@@ -359,7 +294,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           onSort={setSort}
           editable={editable}
           onFly={flyTo}
-          onDelete={(id) => void remove(id)}
+          onDelete={(id) => void edits.remove(id)}
         />
         <p className="muted">
           Press <button onClick={() => setHelp(true)} data-testid="help">?</button> for keyboard shortcuts

@@ -81,6 +81,7 @@ const SHORTCUTS: [string, string][] = [
   ["→ / n", "next keyframe"],
   ["space", "play / pause the drive"],
   ["click on the plan", "ground the selected keyframe there"],
+  ["drag a white square", "move that grounding's surveyed point"],
   ["u / Ctrl+Z", "undo"],
   ["r / Ctrl+Y", "redo"],
   ["? / Esc", "show / hide this help"],
