@@ -7,7 +7,7 @@ DEMO_DIR ?= data/demo
 DEMO_SEED ?= 7
 DEMO_PORT ?= 8000
 
-.PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test chromium
+.PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test system-packages
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -34,9 +34,12 @@ frontend: frontend/node_modules/.installed
 frontend-test: frontend
 	cd frontend && npm test -- --run
 
-# Debian's chromium for the browser end-to-end tests (tests/e2e).
-chromium:
-	command -v chromium >/dev/null || (apt-get update && apt-get install -y chromium)
+# Debian packages the tests run against: chromium for the browser end-to-end tests (tests/e2e),
+# redis-server for the job queue on Redis (tests/api/test_jobs.py).
+SYSTEM_PACKAGES := chromium redis-server
+system-packages:
+	@missing=""; for p in $(SYSTEM_PACKAGES); do command -v $$p >/dev/null || missing="$$missing $$p"; done; \
+	if [ -n "$$missing" ]; then apt-get update && apt-get install -y $$missing; fi
 
 demo: $(VENV)/.installed-run frontend
 	rm -rf $(DEMO_DIR)
@@ -64,7 +67,7 @@ typecheck: $(VENV)/.installed-dev
 imports: $(VENV)/.installed-dev
 	$(BIN)/lint-imports
 
-pytest: $(VENV)/.installed-dev frontend chromium
+pytest: $(VENV)/.installed-dev frontend system-packages
 	$(BIN)/pytest -q
 
 test: lint typecheck imports frontend-test pytest

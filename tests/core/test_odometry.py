@@ -246,11 +246,11 @@ class TestKitti:
     def test_clip_1_within_target(self) -> None:
         assert self.run("kitti-clip-1") < KITTI_TARGET_FRAC
 
-    @pytest.mark.xfail(
-        reason="~0.47 g ramp turn: the ground truth's lateral-to-yaw ratio puts the turning centre ~0.6 m "
-        "behind the camera (tyre slip) against y_c = 1.0 m in drive.json, so the no-slip lever arm of "
-        "eq. 1 under-reads the turn by ~8 % (measured 12.5 % end-point error)",
-        strict=False,
-    )
-    def test_clip_2_within_target(self) -> None:
-        assert self.run("kitti-clip-2") < KITTI_TARGET_FRAC
+    def test_clip_2_holds_its_measured_error(self) -> None:
+        """Clip 2 misses the 5 % target (README): a regression guard at its measured 12.5 % plus a margin.
+
+        Its ~0.47 g ramp turn is taken with tyre slip: the ground truth's lateral-to-yaw ratio puts the
+        turning centre ~0.6 m behind the camera against y_c = 1.0 m in drive.json, so the no-slip lever
+        arm of eq. 1 under-reads the turn by ~8 %.
+        """
+        assert self.run("kitti-clip-2") < 0.14
