@@ -5,6 +5,7 @@ import OlMap from "ol/Map";
 import View from "ol/View";
 import VectorSource from "ol/source/Vector";
 import VectorLayer from "ol/layer/Vector";
+import VectorImageLayer from "ol/layer/VectorImage";
 import WebGLVectorLayer from "ol/layer/WebGLVector";
 import GeoJSON from "ol/format/GeoJSON";
 import ScaleLine from "ol/control/ScaleLine";
@@ -18,7 +19,8 @@ import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
 import { snapTargetsOf, type SnapTargets } from "../lib/snap";
 import { serverZoomFor } from "../lib/surveyZoom";
 import { mark } from "../lib/perf";
-import { mineGrid, webglAvailable } from "./projection";
+import { chooseSurveyRenderer, webglRenderer } from "../lib/surveyRenderer";
+import { mineGrid } from "./projection";
 
 export interface MapCtx {
   map: OlMap;
@@ -50,6 +52,9 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
   const [visible, setVisible] = useState<Record<string, boolean>>({});
   const [readout, setReadout] = useState("");
   const [error, setError] = useState<string | null>(null);
+  const [renderer] = useState(() =>
+    chooseSurveyRenderer(webglRenderer(), new URLSearchParams(location.search).get("renderer")),
+  );
   const clickRef = useRef(onMapClick);
   clickRef.current = onMapClick;
   const originRef = useRef<LocalOrigin | null>(null);
@@ -63,7 +68,6 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
       controls: defaultControls({ attribution: false, rotate: false }).extend([new ScaleLine({ units: "metric" })]),
       view: new View({ projection: mineGrid, center: [0, 0], zoom: 2 }),
     });
-    const useWebgl = webglAvailable();
     const added: BaseLayer[] = [];
     const snap: { current: SnapTargets | null } = { current: null };
     const isCentreline = (name: string) => /centre|center/i.test(name);
@@ -91,9 +95,13 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
           const source = new VectorSource({ features });
           sources.set(name, source);
           const colour = LAYER_COLOURS[i % LAYER_COLOURS.length]!;
-          const layer = useWebgl
-            ? new WebGLVectorLayer({ source, style: { "stroke-color": colour, "stroke-width": 1.5 } })
-            : new VectorLayer({ source, style: new Style({ stroke: new Stroke({ color: colour, width: 1.5 }) }) });
+          const stroke = new Style({ stroke: new Stroke({ color: colour, width: 1.5 }) });
+          const layer =
+            renderer === "webgl"
+              ? new WebGLVectorLayer({ source, style: { "stroke-color": colour, "stroke-width": 1.5 } })
+              : renderer === "image"
+                ? new VectorImageLayer({ source, style: stroke, imageRatio: 1.5 })
+                : new VectorLayer({ source, style: stroke });
           layer.set("surveyLayer", name);
           map.addLayer(layer);
           added.push(layer);
@@ -153,7 +161,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
       setCtx(null);
       setLayers([]);
     };
-  }, [siteId]);
+  }, [siteId, renderer]);
 
   useEffect(() => {
     for (const l of layers) l.layer.setVisible(visible[l.name] ?? true);
@@ -165,7 +173,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
 
   return (
     <div className="mapwrap">
-      <div className="map" ref={target} data-testid="map" data-ready={ctx ? "yes" : "no"} />
+      <div className="map" ref={target} data-testid="map" data-ready={ctx ? "yes" : "no"} data-renderer={renderer} />
       {layers.length > 0 && (
         <div className="overlay-box layers" data-testid="layer-panel">
           {layers.map((l) => (
