@@ -71,6 +71,12 @@ def position_message(view: PositionView) -> Message:
         "map_version": view.map_version,
         "received_at": view.received_at.isoformat(),
         "stale": False,
+        "obscured": view.obscured,
+        "obscured_reason": view.obscured_reason,
+        "salient": view.salient,
+        "sharpness": view.sharpness,
+        "speckle": view.speckle,
+        "flat_area": view.flat_area,
     }
 
 
@@ -92,6 +98,12 @@ def _view(outcome: FrameOutcome) -> PositionView:
         lost=bool(outcome.lost),
         map_version=outcome.map_version,
         received_at=outcome.received_at,
+        obscured=outcome.obscured,
+        obscured_reason=outcome.obscured_reason,
+        salient=outcome.salient,
+        sharpness=outcome.sharpness,
+        speckle=outcome.speckle,
+        flat_area=outcome.flat_area,
     )
 
 

@@ -69,7 +69,24 @@ class VehicleWithToken(VehicleRead):
     """The vehicle's API token: shown once, stored only as a hash."""
 
 
-class FrameEstimate(BaseModel):
+class CameraCheck(BaseModel):
+    """The obscured-camera judgement after a frame, over the vehicle's recent frames (None: not judged)."""
+
+    obscured: bool | None = None
+    """The camera looks obscured: dust or water on the lens, or a covered lens."""
+    obscured_reason: str | None = None
+    """``dust``, ``water`` or ``covered`` when obscured."""
+    salient: float | None = None
+    """Smoothed SESAME salient fraction of the frames, 0-1 (low: a bland, covered view)."""
+    sharpness: float | None = None
+    """Smoothed variance of the Laplacian, grey levels squared."""
+    speckle: float | None = None
+    """Smoothed fraction of isolated outlier pixels, 0-1 (high: dust)."""
+    flat_area: float | None = None
+    """Fraction of the image that stayed without detail over the last seconds, 0-1 (a water drop)."""
+
+
+class FrameEstimate(CameraCheck):
     """The answer to one posted frame.
 
     ``status`` is ``processed`` (the estimate fields are set), ``skipped`` (a newer frame of the vehicle
@@ -101,7 +118,7 @@ class FrameEstimate(BaseModel):
     """Localiser step time, milliseconds."""
 
 
-class PositionRead(BaseModel):
+class PositionRead(CameraCheck):
     model_config = ConfigDict(from_attributes=True)
 
     seq: int

@@ -6,6 +6,8 @@ vehicle's site, stores the estimate as a :class:`~driftmap.store.access_models.V
 localiser's belief in the vehicle's :class:`~driftmap.store.access_models.VehicleLiveState`, whose version
 counter makes two processes that advance the same vehicle fail instead of double-processing a frame.
 A frame whose ``t`` is not after the last processed one is refused and counted, never processed.
+Each processed frame is also judged for an obscured camera (:mod:`driftmap.core.obscured`); that judgement's
+memory of the recent frames is kept in the same stored state (``obscured_*`` arrays of the ``.npz``).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from __future__ import annotations
 import io
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Literal
 
@@ -24,6 +26,7 @@ from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
 from driftmap.core.localiser import Localiser, LocaliserMap, LocaliserState
+from driftmap.core.obscured import FrameMeasures, ObscuredState, frame_measures, judge_obscured
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
 from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosition
@@ -33,6 +36,7 @@ from driftmap.store.models import MapVersion, Site, utc_now
 
 FrameStatus = Literal["processed", "skipped", "out_of_order"]
 STALE_RETRIES = 3  # attempts when another process changed the vehicle's state between read and write
+OBSCURED_PREFIX = "obscured_"  # arrays of the obscured-camera judgement in the stored state
 
 
 class LiveMaps:
@@ -63,6 +67,7 @@ class LiveSlot:
     map_version_id: int
     localiser: Localiser
     revision: int
+    obscured: ObscuredState = field(default_factory=ObscuredState)
 
 
 @dataclass(frozen=True)
@@ -89,6 +94,18 @@ class FrameOutcome:
     received_at: datetime | None = None
     ms: float | None = None
     """Localiser step time, milliseconds."""
+    obscured: bool | None = None
+    """The camera looks obscured (dust, water or a covered lens), judged over the recent frames."""
+    obscured_reason: str | None = None
+    """``dust``, ``water`` or ``covered`` when obscured."""
+    salient: float | None = None
+    """Smoothed SESAME salient fraction of the frames, 0-1."""
+    sharpness: float | None = None
+    """Smoothed variance of the Laplacian, grey levels squared."""
+    speckle: float | None = None
+    """Smoothed fraction of isolated outlier pixels (dust), 0-1."""
+    flat_area: float | None = None
+    """Fraction of the image persistently without detail (water drop), 0-1."""
 
 
 def as_utc(moment: datetime) -> datetime:
@@ -96,16 +113,26 @@ def as_utc(moment: datetime) -> datetime:
     return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
 
 
-def decode_state(data: bytes) -> LocaliserState:
-    """A stored localiser state."""
+def decode_state(data: bytes) -> tuple[LocaliserState, ObscuredState]:
+    """A stored localiser state and obscured-camera memory (a fresh one when the state has none)."""
     with np.load(io.BytesIO(data)) as arrays:
-        return LocaliserState.from_arrays({k: arrays[k] for k in arrays.files})
+        loaded = {k: arrays[k] for k in arrays.files}
+    obscured = {
+        k.removeprefix(OBSCURED_PREFIX): v for k, v in loaded.items() if k.startswith(OBSCURED_PREFIX)
+    }
+    localiser = {k: v for k, v in loaded.items() if not k.startswith(OBSCURED_PREFIX)}
+    return (
+        LocaliserState.from_arrays(localiser),
+        ObscuredState.from_arrays(obscured) if obscured else ObscuredState(),
+    )
 
 
-def encode_state(state: LocaliserState) -> bytes:
-    """The ``.npz`` bytes of a localiser state."""
+def encode_state(state: LocaliserState, obscured: ObscuredState) -> bytes:
+    """The ``.npz`` bytes of a localiser state and obscured-camera memory."""
+    arrays = dict(state.to_arrays())
+    arrays.update({OBSCURED_PREFIX + k: v for k, v in obscured.to_arrays().items()})
     buffer = io.BytesIO()
-    np.savez(buffer, **state.to_arrays())  # type: ignore[arg-type]
+    np.savez(buffer, **arrays)  # type: ignore[arg-type]
     return buffer.getvalue()
 
 
@@ -170,9 +197,10 @@ def localise_live_frame(
     """
     if not np.isfinite(t_s):
         raise BadInputError(f"t must be a finite number of seconds, got {t_s}", field="t")
+    measures = frame_measures(frame)
     for _attempt in range(STALE_RETRIES):
         try:
-            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, unsaved_counts, slot)
+            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, measures, unsaved_counts, slot)
         except StaleDataError:
             slot = None  # another process advanced the vehicle: start again from the stored state
     raise ConflictError(
@@ -187,6 +215,7 @@ def _localise_once(
     vehicle_id: int,
     t_s: float,
     frame: NDArray[np.uint8],
+    measures: FrameMeasures,
     unsaved_counts: tuple[int, int],
     slot: LiveSlot | None,
 ) -> tuple[FrameOutcome, LiveSlot | None]:
@@ -207,14 +236,18 @@ def _localise_once(
             return _outcome(vehicle, state, t_s, "out_of_order"), slot
         if slot is None or slot.map_version_id != version.id or slot.revision != stored_revision:
             localiser = make_localiser(maps.get(session, blobs, version))
-            if state.map_version_id == version.id and state.state_npz is not None:
-                localiser.restore(decode_state(state.state_npz))
-            slot = LiveSlot(version.id, localiser, -1)
+            obscured_memory = ObscuredState()
+            if state.state_npz is not None:
+                stored, obscured_memory = decode_state(state.state_npz)
+                if state.map_version_id == version.id:
+                    localiser.restore(stored)
+            slot = LiveSlot(version.id, localiser, -1, obscured_memory)
         estimate = slot.localiser.step(frame, t_s)
+        slot.obscured, camera = judge_obscured(slot.obscured, measures, t_s)
         received_at = utc_now()
         state.map_version_id = version.id
         state.last_t_s = t_s
-        state.state_npz = encode_state(slot.localiser.state())
+        state.state_npz = encode_state(slot.localiser.state(), slot.obscured)
         state.processed += 1
         position = VehiclePosition(
             vehicle_id=vehicle_id,
@@ -227,6 +260,12 @@ def _localise_once(
             matched=estimate.matched,
             lost=estimate.lost,
             received_at=received_at,
+            obscured=camera.obscured,
+            obscured_reason=camera.reason,
+            salient=camera.salient,
+            sharpness=camera.sharpness,
+            speckle=camera.speckle,
+            flat_area=camera.flat_area,
         )
         session.add(position)
         session.flush()
@@ -250,6 +289,12 @@ def _localise_once(
             map_version=version.version,
             received_at=received_at,
             ms=estimate.ms,
+            obscured=camera.obscured,
+            obscured_reason=camera.reason,
+            salient=camera.salient,
+            sharpness=camera.sharpness,
+            speckle=camera.speckle,
+            flat_area=camera.flat_area,
         )
     return outcome, slot
 

@@ -35,6 +35,13 @@ class PositionView:
     lost: bool
     map_version: int | None
     received_at: datetime
+    obscured: bool | None = None
+    """The camera looked obscured at this frame (None: not judged)."""
+    obscured_reason: str | None = None
+    salient: float | None = None
+    sharpness: float | None = None
+    speckle: float | None = None
+    flat_area: float | None = None
 
 
 @dataclass(frozen=True)
@@ -73,6 +80,12 @@ def _view(row: Row[VehiclePosition, str, int, int]) -> PositionView:
         lost=p.lost,
         map_version=version,
         received_at=as_utc(p.received_at),
+        obscured=p.obscured,
+        obscured_reason=p.obscured_reason,
+        salient=p.salient,
+        sharpness=p.sharpness,
+        speckle=p.speckle,
+        flat_area=p.flat_area,
     )
 
 

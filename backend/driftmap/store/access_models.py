@@ -73,6 +73,14 @@ class VehiclePosition(Base):
     matched: Mapped[bool] = mapped_column(Boolean)
     lost: Mapped[bool] = mapped_column(Boolean)
     received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    # the obscured-camera judgement after this frame (driftmap.core.obscured); None on older rows
+    obscured: Mapped[bool | None] = mapped_column(Boolean, nullable=True)
+    obscured_reason: Mapped[str | None] = mapped_column(String(16), nullable=True)
+    """``dust``, ``water`` or ``covered`` when obscured."""
+    salient: Mapped[float | None] = mapped_column(Float, nullable=True)
+    sharpness: Mapped[float | None] = mapped_column(Float, nullable=True)
+    speckle: Mapped[float | None] = mapped_column(Float, nullable=True)
+    flat_area: Mapped[float | None] = mapped_column(Float, nullable=True)
 
 
 class VehicleLiveState(Base):

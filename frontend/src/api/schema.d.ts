@@ -1111,6 +1111,18 @@ export interface components {
          *     after the vehicle's last accepted frame). The counts are the vehicle's totals.
          */
         FrameEstimate: {
+            /** Obscured */
+            obscured?: boolean | null;
+            /** Obscured Reason */
+            obscured_reason?: string | null;
+            /** Salient */
+            salient?: number | null;
+            /** Sharpness */
+            sharpness?: number | null;
+            /** Speckle */
+            speckle?: number | null;
+            /** Flat Area */
+            flat_area?: number | null;
             /** Vehicle Id */
             vehicle_id: number;
             /** T */
@@ -1520,6 +1532,18 @@ export interface components {
         };
         /** PositionRead */
         PositionRead: {
+            /** Obscured */
+            obscured?: boolean | null;
+            /** Obscured Reason */
+            obscured_reason?: string | null;
+            /** Salient */
+            salient?: number | null;
+            /** Sharpness */
+            sharpness?: number | null;
+            /** Speckle */
+            speckle?: number | null;
+            /** Flat Area */
+            flat_area?: number | null;
             /** Seq */
             seq: number;
             /** Vehicle Id */
