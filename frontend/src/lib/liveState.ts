@@ -15,6 +15,13 @@ export interface PositionMsg {
   lost: boolean;
   map_version: number | null;
   received_at: string;
+  /** The camera looks obscured (dust or water on the lens, or a covered lens), judged by the server. */
+  obscured?: boolean | null;
+  obscured_reason?: string | null;
+  salient?: number | null;
+  sharpness?: number | null;
+  speckle?: number | null;
+  flat_area?: number | null;
 }
 
 export interface VehicleRow {
@@ -46,7 +53,7 @@ export interface VehicleState {
   trail: TrailPoint[];
 }
 
-export type VehicleStatus = "moving" | "stopped" | "lost" | "stale" | "no fix";
+export type VehicleStatus = "moving" | "stopped" | "lost" | "camera obscured" | "stale" | "no fix";
 
 export const MOVING_SPEED_MPS = 0.2;
 
@@ -64,7 +71,29 @@ export function statusOf(v: VehicleState): VehicleStatus {
   if (v.stale) return "stale";
   if (v.position === null) return "no fix";
   if (v.position.lost) return "lost";
+  if (v.position.obscured) return "camera obscured";
   return speedOf(v) >= MOVING_SPEED_MPS ? "moving" : "stopped";
+}
+
+/** Whether the vehicle's camera looked obscured at its last position (a stale vehicle's too). */
+export function cameraObscured(v: VehicleState): boolean {
+  return v.position?.obscured === true;
+}
+
+/** What the control room is alerted to: lost vehicles, and vehicles whose camera looks obscured. */
+export interface Alerts {
+  lost: string[];
+  obscured: { name: string; reason: string }[];
+}
+
+export function alertsOf(vehicles: readonly VehicleState[]): Alerts {
+  const live = vehicles.filter((v) => !v.stale && v.position !== null);
+  return {
+    lost: live.filter((v) => v.position!.lost).map((v) => v.name),
+    obscured: live
+      .filter(cameraObscured)
+      .map((v) => ({ name: v.name, reason: v.position!.obscured_reason ?? "obscured" })),
+  };
 }
 
 /** Fleet state: apply snapshot/position/stale messages in order; ``lastSeq`` is what a reconnect resumes from. */

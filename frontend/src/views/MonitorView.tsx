@@ -1,10 +1,14 @@
 // Live monitoring: REST snapshot, then the /api/live WebSocket (auto-reconnect with resume); vehicles on the
-// plan and in a list with their status; click one for its latest estimate and history.
-import { useEffect, useMemo, useRef, useState } from "react";
+// plan and in a list with their status; alerts for lost vehicles and obscured cameras; click one for its
+// latest estimate, camera check and history, and replay any time range of it (ReplayPanel, ReplayLayer).
+import { useEffect, useMemo, useRef, useState, type ReactNode } from "react";
 import { apiGet, getToken, type Schemas } from "../api/client";
 import { MineMap } from "../map/MineMap";
 import { VehicleLayer } from "../map/VehicleLayer";
-import { LiveState, speedOf, statusOf, type VehicleState } from "../lib/liveState";
+import { alertsOf, LiveState, speedOf, statusOf, type VehicleState } from "../lib/liveState";
+import { ReplayLayer } from "../map/ReplayLayer";
+import { EPOCH_CLOCK_S, formatClock } from "../lib/replay";
+import { ReplayPanel, type ReplaySession } from "./ReplayPanel";
 import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
 import { confidenceColour, rgbCss, STALE_GREY } from "../lib/colours";
 
@@ -22,6 +26,7 @@ export function MonitorView({ siteId }: { siteId: number }) {
   const [version, setVersion] = useState(0);
   const [connection, setConnection] = useState<ConnectionState>("connecting");
   const [selectedId, setSelectedId] = useState<number | null>(null);
+  const [replay, setReplay] = useState<ReplaySession | null>(null);
 
   useEffect(() => {
     let cancelled = false;
@@ -67,6 +72,7 @@ export function MonitorView({ siteId }: { siteId: number }) {
     [version, siteId],
   );
   const selected = vehicles.find((v) => v.id === selectedId) ?? null;
+  const alerts = alertsOf(vehicles);
 
   return (
     <>
@@ -74,7 +80,10 @@ export function MonitorView({ siteId }: { siteId: number }) {
         key={siteId}
         siteId={siteId}
         overlay={(ctx) => (
-          <VehicleLayer ctx={ctx} vehicles={vehicles} selectedId={selectedId} onSelect={setSelectedId} />
+          <>
+            <VehicleLayer ctx={ctx} vehicles={vehicles} selectedId={selectedId} onSelect={setSelectedId} />
+            {replay && <ReplayLayer ctx={ctx} session={replay} />}
+          </>
         )}
       />
       <aside className="side">
@@ -85,9 +94,14 @@ export function MonitorView({ siteId }: { siteId: number }) {
             {connection === "open" ? "live" : connection}
           </span>
         </div>
-        {vehicles.some((v) => statusOf(v) === "lost") && (
+        {alerts.lost.length > 0 && (
           <div className="alert" data-testid="lost-alert" role="alert">
-            Lost: {vehicles.filter((v) => statusOf(v) === "lost").map((v) => v.name).join(", ")}
+            Lost: {alerts.lost.join(", ")}
+          </div>
+        )}
+        {alerts.obscured.length > 0 && (
+          <div className="alert" data-testid="obscured-alert" role="alert">
+            Camera obscured: {alerts.obscured.map((o) => `${o.name} (${o.reason})`).join(", ")}
           </div>
         )}
         <table className="vehicle-list" data-testid="vehicle-list">
@@ -107,7 +121,11 @@ export function MonitorView({ siteId }: { siteId: number }) {
           </tbody>
         </table>
         {vehicles.length === 0 && <p className="muted">No vehicles on this site.</p>}
-        {selected && <VehicleDetails v={selected} />}
+        {selected && (
+          <VehicleDetails v={selected}>
+            <ReplayPanel key={selected.id} vehicle={selected} session={replay} onSession={setReplay} />
+          </VehicleDetails>
+        )}
       </aside>
     </>
   );
@@ -130,7 +148,12 @@ function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boole
         {v.name}
       </td>
       <td>
-        <span className={`status ${status.replace(" ", "-")}`}>{status}</span>
+        <span
+          className={`status ${status.replace(" ", "-")}`}
+          style={status === "camera obscured" ? { color: "var(--fair)" } : undefined}
+        >
+          {status}
+        </span>
       </td>
       <td className="num">{p ? p.confidence.toFixed(2) : "–"}</td>
       <td className="num">{p ? p.x.toFixed(1) : "–"}</td>
@@ -139,7 +162,7 @@ function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boole
   );
 }
 
-function VehicleDetails({ v }: { v: VehicleState }) {
+function VehicleDetails({ v, children }: { v: VehicleState; children?: ReactNode }) {
   const [history, setHistory] = useState<Schemas["PositionRead"][]>([]);
   const seq = v.position?.seq;
   const since = v.position ? v.position.t - HISTORY_S : null;
@@ -165,22 +188,39 @@ function VehicleDetails({ v }: { v: VehicleState }) {
             <tr><th>Confidence</th><td>{p.confidence.toFixed(2)} {p.matched ? "(matched)" : "(unmatched)"}</td></tr>
             <tr><th>Speed</th><td>{speedOf(v).toFixed(2)} m/s</td></tr>
             <tr><th>Node</th><td>{p.node}</td></tr>
-            <tr><th>Frame time</th><td>{p.t.toFixed(1)} s</td></tr>
+            <tr data-testid="camera-check" data-obscured={p.obscured ? "yes" : "no"}>
+              <th>Camera</th>
+              <td>
+                {p.obscured === null || p.obscured === undefined ? (
+                  "–"
+                ) : (
+                  <>
+                    {p.obscured ? `obscured (${p.obscured_reason ?? "?"})` : "clear"}
+                    <div className="muted" style={{ fontSize: 11 }}>
+                      salient {(p.salient ?? 0).toFixed(2)} · speckle {((p.speckle ?? 0) * 100).toFixed(1)} % ·
+                      flat {((p.flat_area ?? 0) * 100).toFixed(1)} %
+                    </div>
+                  </>
+                )}
+              </td>
+            </tr>
+            <tr><th>Frame time</th><td>{formatClock(p.t)}{p.t < EPOCH_CLOCK_S ? " s" : ""}</td></tr>
             <tr><th>Received</th><td>{new Date(p.received_at).toLocaleTimeString()}</td></tr>
           </tbody>
         </table>
       ) : (
         <p className="muted">No position yet.</p>
       )}
+      {children}
       <h3>History</h3>
       <table data-testid="vehicle-history">
         <thead>
-          <tr><th className="num">t (s)</th><th className="num">E</th><th className="num">N</th><th className="num">Conf.</th></tr>
+          <tr><th className="num">t</th><th className="num">E</th><th className="num">N</th><th className="num">Conf.</th></tr>
         </thead>
         <tbody>
           {history.map((h) => (
             <tr key={h.seq}>
-              <td className="num">{h.t.toFixed(1)}</td>
+              <td className="num">{formatClock(h.t)}</td>
               <td className="num">{h.x.toFixed(1)}</td>
               <td className="num">{h.y.toFixed(1)}</td>
               <td className="num">{h.confidence.toFixed(2)}</td>
