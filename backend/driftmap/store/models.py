@@ -74,8 +74,8 @@ class SurveyMap(Base):
     min_y_m: Mapped[float] = mapped_column(Float)
     max_x_m: Mapped[float] = mapped_column(Float)
     max_y_m: Mapped[float] = mapped_column(Float)
-    layers: Mapped[dict[str, Any]] = mapped_column(JSON)
-    """Layer name -> GeoJSON-like FeatureCollection in plane metres."""
+    layers: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)
+    """Layer name -> GeoJSON-like FeatureCollection in plane metres (loaded on first access: it can be large)."""
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
     site: Mapped[Site] = relationship(back_populates="survey_maps")
