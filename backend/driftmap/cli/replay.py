@@ -101,6 +101,9 @@ def replay(
     password = (
         sys.stdin.readline().rstrip("\r\n") if password_stdin else typer.prompt("Password", hide_input=True)
     )
+    # Ctrl-C and SIGTERM end the replay in order (vehicles, then the server), even when started from a
+    # shell that ignores SIGINT for background commands
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, _interrupt_on_sigterm)
     server: subprocess.Popen[bytes] | None = None
     stop = threading.Event()
