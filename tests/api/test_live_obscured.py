@@ -1,5 +1,6 @@
 """The obscured-camera judgement through the live API: in the frame answer, the stored history, the latest
-positions and ``/api/live``, and carried over to another server process with the vehicle's stored state."""
+positions and ``/api/live``, and carried over to another server process with the vehicle's stored state; and
+the vehicle's latest frame (the picture the control room checks when the camera looks obscured)."""
 
 from __future__ import annotations
 
@@ -84,6 +85,12 @@ class TestObscuredLive:
         latest = actors.client.get("/api/positions/latest", headers=viewer).json()
         mine = next(v for v in latest if v["vehicle_id"] == actors.vehicle_id)
         assert mine["position"]["obscured"] is True
+        latest_frame = actors.client.get(f"/api/vehicles/{actors.vehicle_id}/frames/latest", headers=viewer)
+        assert latest_frame.status_code == 200 and latest_frame.content == frames[-1].data
+        assert latest_frame.headers["content-type"] == "image/png"
+        assert float(latest_frame.headers["x-frame-t"]) == frames[-1].t
+        none_yet = actors.client.get(f"/api/vehicles/{actors.other_vehicle_id}/frames/latest", headers=viewer)
+        assert none_yet.status_code == 404
         with actors.client.websocket_connect(f"/api/live?token={actors.tokens['viewer']}") as ws:
             snapshot = ws.receive_json()
         row = next(v for v in snapshot["vehicles"] if v["vehicle_id"] == actors.vehicle_id)

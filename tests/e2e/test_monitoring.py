@@ -1,5 +1,6 @@
-"""Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow) and
-the camera-obscured status and alert, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+"""Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
+the camera-obscured status and alert and the vehicle's latest frame, against a real ``driftmap serve``
+(fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
@@ -177,5 +178,10 @@ class TestObscuredCamera:
         row.click()
         expect(p.get_by_test_id("camera-check")).to_have_attribute("data-obscured", "yes")
         expect(p.get_by_test_id("camera-check")).to_contain_text("obscured (dust)")
+        # the vehicle's latest frame is shown with it (the dust is visible in the picture)
+        frame = p.get_by_test_id("latest-frame")
+        expect(frame).to_be_visible()
+        assert float(frame.get_attribute("data-t") or "nan") >= 1000.0
+        assert frame.evaluate("img => img.naturalWidth") == 320
         screenshot(p, "ui_obscured")
         assert page.errors == []

@@ -3,6 +3,9 @@
 ``POST /api/vehicles/{id}/frames?t=SECONDS`` takes the JPEG or PNG bytes as the body (``Content-Type:
 image/jpeg`` or ``image/png``) and answers with a :class:`~driftmap.api.schemas_access.FrameEstimate`.
 
+``GET /api/vehicles/{id}/frames/latest`` (any logged-in user) returns the vehicle's last localised frame as it
+was posted, kept in the memory of the server process that localised it (``X-Frame-T`` carries its ``t``).
+
 ``/api/vehicles/{id}/stream`` (WebSocket, the vehicle's token as bearer header or ``?token=``): each binary
 message is one frame: ``t`` as an 8-byte big-endian IEEE float64 (seconds), then the JPEG/PNG bytes. The
 server answers each frame with one JSON text message, a FrameEstimate, or ``{"status": "error", "t",
@@ -23,21 +26,24 @@ import struct
 from datetime import datetime
 from typing import Any
 
-from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, Depends, Query, Request, Response, WebSocket, WebSocketDisconnect
 from starlette.requests import ClientDisconnect
 
 from driftmap.api.deps import (
+    VIEWER,
     WS_CLOSE_FORBIDDEN,
     WS_CLOSE_UNAUTHORIZED,
     Principal,
+    SessionDep,
     VehicleDep,
     websocket_principal,
 )
 from driftmap.api.error_handlers import error_body, status_of
 from driftmap.api.live_service import LiveService, position_message
 from driftmap.api.schemas_access import FrameEstimate
-from driftmap.errors import BadRequestError, DriftmapError, PayloadTooLargeError
+from driftmap.errors import BadRequestError, DriftmapError, NotFoundError, PayloadTooLargeError
 from driftmap.services import positions as position_service
+from driftmap.services import vehicles as vehicle_service
 from driftmap.services.live import as_utc
 from driftmap.store.models import utc_now
 
@@ -88,6 +94,25 @@ async def post_frame(
         raise BadRequestError("the request has no body: send the JPEG or PNG bytes", field="body")
     outcome = await _live(request.app.state).submit(vehicle.id, vehicle.name, vehicle.site_id or 0, t, data)
     return FrameEstimate.model_validate(outcome)
+
+
+@router.get(
+    "/vehicles/{vehicle_id}/frames/latest",
+    dependencies=[Depends(VIEWER)],
+    response_class=Response,
+    responses={
+        200: {"content": dict.fromkeys(IMAGE_TYPES, _IMAGE_BODY), "description": "The frame's bytes."}
+    },
+)
+def latest_frame(vehicle_id: int, request: Request, session: SessionDep) -> Response:
+    """The vehicle's last localised frame (404 before its first, or when another server process took it)."""
+    vehicle_service.get_vehicle(session, vehicle_id)
+    found = _live(request.app.state).latest_frame(vehicle_id)
+    if found is None:
+        raise NotFoundError(f"no frame of vehicle {vehicle_id} localised by this server process yet")
+    t, data = found
+    media_type = "image/png" if data.startswith(b"\x89PNG") else "image/jpeg"
+    return Response(data, media_type=media_type, headers={"X-Frame-T": repr(t), "Cache-Control": "no-store"})
 
 
 async def _authorise(websocket: WebSocket, vehicle_id: int | None) -> Principal | None:

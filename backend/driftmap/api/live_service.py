@@ -133,6 +133,11 @@ class LiveService:
         self.queue_depth = max(1, queue_depth)
         self.workers = LocaliserWorkers(settings, processes)
         self._lanes: dict[int, _Lane] = {}
+        self._latest_frames: dict[int, tuple[float, bytes]] = {}
+
+    def latest_frame(self, vehicle_id: int) -> tuple[float, bytes] | None:
+        """``(t, bytes)`` of the vehicle's last frame localised by this process (as posted), or None."""
+        return self._latest_frames.get(vehicle_id)
 
     def close(self) -> None:
         """Stop the worker processes (after the frames being localised)."""
@@ -228,6 +233,7 @@ class LiveService:
                 if not item.answer.done():
                     item.answer.set_result(outcome)
                 if outcome.status == "processed":
+                    self._latest_frames[lane.vehicle_id] = (item.t, item.data)
                     await self.hub.publish(position_message(_view(outcome)))
         finally:
             lane.running = False

@@ -8,6 +8,7 @@ import { VehicleLayer } from "../map/VehicleLayer";
 import { alertsOf, LiveState, speedOf, statusOf, type VehicleState } from "../lib/liveState";
 import { ReplayLayer } from "../map/ReplayLayer";
 import { EPOCH_CLOCK_S, formatClock } from "../lib/replay";
+import { LatestFrame } from "./LatestFrame";
 import { ReplayPanel, type ReplaySession } from "./ReplayPanel";
 import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
 import { confidenceColour, rgbCss, STALE_GREY } from "../lib/colours";
@@ -211,6 +212,7 @@ function VehicleDetails({ v, children }: { v: VehicleState; children?: ReactNode
       ) : (
         <p className="muted">No position yet.</p>
       )}
+      <LatestFrame key={v.id} vehicleId={v.id} seq={seq} />
       {children}
       <h3>History</h3>
       <table data-testid="vehicle-history">
