@@ -7,18 +7,19 @@ import VectorSource from "ol/source/Vector";
 import VectorLayer from "ol/layer/Vector";
 import VectorImageLayer from "ol/layer/VectorImage";
 import WebGLVectorLayer from "ol/layer/WebGLVector";
-import GeoJSON from "ol/format/GeoJSON";
 import ScaleLine from "ol/control/ScaleLine";
 import { defaults as defaultControls } from "ol/control/defaults";
 import { Stroke, Style } from "ol/style";
 import type BaseLayer from "ol/layer/Base";
 import type { Geometry } from "ol/geom";
-import type Feature from "ol/Feature";
+import Feature from "ol/Feature";
+import MultiLineString from "ol/geom/MultiLineString";
 import { apiGet, ApiError } from "../api/client";
 import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
 import { snapTargetsOf, type SnapTargets } from "../lib/snap";
 import { serverZoomFor } from "../lib/surveyZoom";
 import { mark } from "../lib/perf";
+import { flattenLines } from "../lib/surveyLines";
 import { chooseSurveyRenderer, webglRenderer } from "../lib/surveyRenderer";
 import { mineGrid } from "./projection";
 
@@ -85,9 +86,12 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
         const [minX, minY, maxX, maxY] = survey.extents as [number, number, number, number];
         const sideM = Math.max(maxX - minX, maxY - minY);
         snap.current = snapTargetsOf(survey.layers, isCentreline);
-        const format = new GeoJSON();
-        const read = (collection: unknown, o: LocalOrigin) =>
-          format.readFeatures(shiftCollection(collection, o)) as Feature<Geometry>[];
+        // one multi-line feature per layer (see lib/surveyLines.ts), shifted to the local origin
+        const read = (collection: unknown, o: LocalOrigin): Feature<Geometry>[] => {
+          const lines = flattenLines(collection, o.x0, o.y0);
+          return lines.ends.length > 0 ? [new Feature(new MultiLineString(lines.flat, "XY", lines.ends))] : [];
+        };
+        const countOf = (collection: unknown) => (collection as { features?: unknown[] }).features?.length ?? 0;
         const sources = new Map<string, VectorSource>();
         const made: SurveyLayer[] = [];
         Object.entries(survey.layers).forEach(([name, collection], i) => {
@@ -105,7 +109,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
           layer.set("surveyLayer", name);
           map.addLayer(layer);
           added.push(layer);
-          made.push({ name, layer, features: features.length });
+          made.push({ name, layer, features: countOf(collection) });
         });
         setLayers(made);
         setVisible(Object.fromEntries(made.map((l) => [l.name, true])));
@@ -203,13 +207,3 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
   );
 }
 
-function shiftCollection(collection: unknown, origin: LocalOrigin): unknown {
-  const c = collection as { features?: { geometry?: { coordinates?: unknown } }[] };
-  return {
-    ...c,
-    features: (c.features ?? []).map((f) => ({
-      ...f,
-      geometry: f.geometry ? { ...f.geometry, coordinates: origin.shiftCoordinates(f.geometry.coordinates) } : null,
-    })),
-  };
-}
