@@ -88,9 +88,20 @@ class FrameMeasures:
 
 
 def frame_measures(
-    gray: NDArray[np.uint8], params: ObscuredParams = OBSCURED_DEFAULT, sesame: SesameParams = SESAME_DEFAULT
+    gray: NDArray[np.uint8],
+    params: ObscuredParams = OBSCURED_DEFAULT,
+    sesame: SesameParams = SESAME_DEFAULT,
+    salient: float | None = None,
 ) -> FrameMeasures:
-    """The measures of one ``(H, W)`` uint8 grey frame (at least two cells each way)."""
+    """The measures of one ``(H, W)`` uint8 grey frame (at least two cells each way).
+
+    Args:
+        gray: the frame.
+        params: cell size and speckle jump.
+        sesame: mask parameters of the salient fraction.
+        salient: the frame's salient fraction when already known (the live path takes it from the
+            localiser's SESAME query mask, computed anyway); None computes it with ``sesame``.
+    """
     if gray.dtype != np.uint8 or gray.ndim != 2 or min(gray.shape) < 2 * params.cell_px:
         raise BadInputError(f"need a (H, W) uint8 frame, got {gray.dtype} {gray.shape}", field="frame")
     lap = cv2.Laplacian(gray, cv2.CV_32F)
@@ -99,9 +110,11 @@ def frame_measures(
     )
     c = params.cell_px
     rows, cols = gray.shape[0] // c, gray.shape[1] // c
-    cells = np.abs(lap[: rows * c, : cols * c]).reshape(rows, c, cols, c).mean(axis=(1, 3))
-    salient, _masks = frame_saliency(gray[None], sesame)
-    return FrameMeasures(float(salient[0]), float(lap.var()), speckle, cells.astype(np.float32))
+    # INTER_AREA over a whole number of pixels per cell is the cell mean
+    cells = cv2.resize(np.abs(lap[: rows * c, : cols * c]), (cols, rows), interpolation=cv2.INTER_AREA)
+    if salient is None:
+        salient = float(frame_saliency(gray[None], sesame)[0][0])
+    return FrameMeasures(salient, float(lap.var()), speckle, np.asarray(cells, dtype=np.float32))
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
 from driftmap.core.localiser import Localiser, LocaliserMap, LocaliserState
-from driftmap.core.obscured import FrameMeasures, ObscuredState, frame_measures, judge_obscured
+from driftmap.core.obscured import ObscuredState, frame_measures, judge_obscured
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
 from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosition
@@ -197,10 +197,9 @@ def localise_live_frame(
     """
     if not np.isfinite(t_s):
         raise BadInputError(f"t must be a finite number of seconds, got {t_s}", field="t")
-    measures = frame_measures(frame)
     for _attempt in range(STALE_RETRIES):
         try:
-            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, measures, unsaved_counts, slot)
+            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, unsaved_counts, slot)
         except StaleDataError:
             slot = None  # another process advanced the vehicle: start again from the stored state
     raise ConflictError(
@@ -215,7 +214,6 @@ def _localise_once(
     vehicle_id: int,
     t_s: float,
     frame: NDArray[np.uint8],
-    measures: FrameMeasures,
     unsaved_counts: tuple[int, int],
     slot: LiveSlot | None,
 ) -> tuple[FrameOutcome, LiveSlot | None]:
@@ -242,7 +240,10 @@ def _localise_once(
                 if state.map_version_id == version.id:
                     localiser.restore(stored)
             slot = LiveSlot(version.id, localiser, -1, obscured_memory)
-        estimate = slot.localiser.step(frame, t_s)
+        # the localiser's SESAME query mask also gives the camera check its salient fraction
+        mask = slot.localiser.query_mask(frame)
+        measures = frame_measures(frame, salient=None if mask is None else float(mask.mean()))
+        estimate = slot.localiser.step(frame, t_s, mask=mask)
         slot.obscured, camera = judge_obscured(slot.obscured, measures, t_s)
         received_at = utc_now()
         state.map_version_id = version.id
