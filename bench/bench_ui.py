@@ -44,6 +44,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import ezdxf
 import httpx
@@ -105,6 +106,8 @@ INIT_SCRIPT = """
   requestAnimationFrame(tick);
 })();
 """
+START_RECORDING = "() => { window.__bench.frames = []; window.__bench.recording = true; }"
+STOP_RECORDING = "() => { window.__bench.recording = false; return window.__bench.frames; }"
 
 
 def plan_dxf(segments: int, seed: int = 0) -> tuple[bytes, int]:
@@ -301,55 +304,40 @@ class Injector:
         self.phase = rng.uniform(0.0, 2 * SIDE_M, len(vehicles))
         self.confidence = rng.uniform(0.4, 1.0, len(vehicles))
 
-    def _where(self, i: int, t: float) -> tuple[float, float, float]:
+    def _where(self, i: int, t: float) -> tuple[float, float]:
         s = (self.phase[i] + SPEED_M_S * t) % (2 * SIDE_M)
-        along, heading = (s, 0.0) if s < SIDE_M else (2 * SIDE_M - s, math.pi)
+        along = s if s < SIDE_M else 2 * SIDE_M - s
         direction, at = self.lane[i]
-        x0, y0 = ORIGIN
-        if direction == 0:
-            return x0 + along, y0 + at, heading
-        return x0 + at, y0 + along, heading + math.pi / 2
+        return (ORIGIN[0] + along, ORIGIN[1] + at) if direction == 0 else (ORIGIN[0] + at, ORIGIN[1] + along)
 
     def tick(self, t: float) -> None:
+        """Store one position of every vehicle (one transaction) and publish them on the hub, in seq order."""
         storage: Storage = self.server.app.state.storage
         now = utc_now()
+        same: dict[str, Any] = {"node": 0, "matched": True, "lost": False, "received_at": now}
         with storage.db.session() as session:
             rows = []
             for i, (vehicle_id, _name) in enumerate(self.vehicles):
-                x, y, _yaw = self._where(i, t)
-                row = VehiclePosition(
-                    vehicle_id=vehicle_id,
-                    map_version_id=None,
-                    t_s=t,
-                    node=0,
-                    x_m=x,
-                    y_m=y,
-                    confidence=float(self.confidence[i]),
-                    matched=True,
-                    lost=False,
-                    received_at=now,
-                )
-                session.add(row)
-                rows.append(row)
+                x, y = self._where(i, t)
+                c = float(self.confidence[i])
+                rows.append(VehiclePosition(vehicle_id=vehicle_id, t_s=t, x_m=x, y_m=y, confidence=c, **same))
+            session.add_all(rows)
             session.flush()
             views = [
                 PositionView(
-                    seq=row.id,
-                    vehicle_id=vehicle_id,
+                    **same,
+                    seq=r.id,
+                    vehicle_id=r.vehicle_id,
                     vehicle=name,
                     site_id=self.site_id,
                     t=t,
-                    node=0,
-                    x=row.x_m,
-                    y=row.y_m,
+                    x=r.x_m,
+                    y=r.y_m,
                     yaw=None,
-                    confidence=row.confidence,
-                    matched=True,
-                    lost=False,
+                    confidence=r.confidence,
                     map_version=None,
-                    received_at=now,
                 )
-                for row, (vehicle_id, name) in zip(rows, self.vehicles, strict=True)
+                for r, (_id, name) in zip(rows, self.vehicles, strict=True)
             ]
         hub = self.server.app.state.live.hub
 
@@ -359,8 +347,7 @@ class Injector:
 
         asyncio.run_coroutine_threadsafe(publish(), self.server.loop).result(10.0)
         self.sent += len(views)
-        for view in views:
-            self.last_seq[view.vehicle] = view.seq
+        self.last_seq.update((v.vehicle, v.seq) for v in views)
 
     def run(self, seconds: float) -> float:
         """Tick for ``seconds`` on a fixed schedule; returns the achieved updates per second."""
@@ -378,11 +365,10 @@ class Injector:
 
 
 def frame_stats(page: Page, seconds: float) -> list[float]:
-    page.evaluate("() => { window.__bench.frames = []; window.__bench.recording = true; }")
+    """requestAnimationFrame intervals (ms) of the page over the next ``seconds``."""
+    page.evaluate(START_RECORDING)
     page.wait_for_timeout(seconds * 1000)
-    frames: list[float] = page.evaluate(
-        "() => { window.__bench.recording = false; return window.__bench.frames; }"
-    )
+    frames: list[float] = page.evaluate(STOP_RECORDING)
     return frames
 
 
@@ -405,16 +391,14 @@ def bench_live(
     page.locator("[data-testid^=vehicle-row-]").nth(args.vehicles - 1).wait_for()
     idle = frame_stats(page, min(5.0, args.seconds))
     before = page.evaluate("() => window.__bench.positions")
-    page.evaluate("() => { window.__bench.frames = []; window.__bench.recording = true; }")
+    page.evaluate(START_RECORDING)
     sent_before = injector.sent
     rate = injector.run(args.seconds)
     sent = injector.sent - sent_before
-    deadline = time.monotonic() + 30.0
+    loaded: list[float] = page.evaluate(STOP_RECORDING)
+    deadline = time.monotonic() + 30.0  # then give the last updates time to arrive
     while page.evaluate("() => window.__bench.positions") - before < sent and time.monotonic() < deadline:
         page.wait_for_timeout(100)
-    loaded: list[float] = page.evaluate(
-        "() => { window.__bench.recording = false; return window.__bench.frames; }"
-    )
     received = page.evaluate("() => window.__bench.positions") - before
     rows = page.evaluate(
         "() => Object.fromEntries([...document.querySelectorAll('[data-testid^=vehicle-row-]')]"

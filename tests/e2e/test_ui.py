@@ -235,6 +235,16 @@ class TestGrounding:
         p.get_by_test_id(f"delete-grounding-{restored['id']}").click()
         expect(table_rows).to_have_count(len(before))
         assert not mine()
+
+        # the keyboard: g grounds the selected keyframe under the pointer, x deletes its grounding
+        p.mouse.move(*at)
+        p.keyboard.press("g")
+        expect(table_rows).to_have_count(len(before) + 1)
+        (again,) = mine()
+        assert abs(float(again["x_m"]) - x) < 0.05 and abs(float(again["y_m"]) - y) < 0.05  # type: ignore[arg-type]
+        p.keyboard.press("x")
+        expect(table_rows).to_have_count(len(before))
+        assert not mine()
         assert page.errors == []
 
     def test_drag_a_grounding_to_adjust_it_then_undo(self, server: Server, page: PageWithLog) -> None:

@@ -2,7 +2,8 @@
 // ground the selected keyframe by clicking its surveyed point, drag a grounding to adjust it, a residual table
 // (sortable, colour-coded), delete, undo/redo, CSV import/export, "Build map" with the job's progress, and two
 // map versions compared as an overlay.
-import { useCallback, useEffect, useMemo, useState } from "react";
+import { useCallback, useEffect, useMemo, useRef, useState } from "react";
+import { unByKey } from "ol/Observable";
 import { ApiError, apiDownload, apiGet, apiPutForm, type Schemas } from "../api/client";
 import { MineMap, type MapCtx } from "../map/MineMap";
 import { TrajectoryLayer, poseIndex, type Closure, type Poses } from "../map/TrajectoryLayer";
@@ -120,6 +121,16 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     return () => clearTimeout(timer);
   }, [playing, frame, keyframes, step]);
 
+  // the plan point under the pointer (mine grid), for grounding from the keyboard ("g")
+  const pointer = useRef<[number, number] | null>(null);
+  useEffect(() => {
+    if (!ctx) return;
+    const key = ctx.map.on("pointermove", (ev) => {
+      pointer.current = ctx.origin.toWorld(ev.coordinate[0]!, ev.coordinate[1]!);
+    });
+    return () => unByKey(key);
+  }, [ctx]);
+
   const ground = async (clickX: number, clickY: number) => {
     if (!editable || driveId === null || frame === null) return;
     let x = clickX;
@@ -150,7 +161,11 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         setPlaying((p) => !p);
       } else if (e.key === "ArrowRight" || e.key === "n") step(1);
       else if (e.key === "ArrowLeft" || e.key === "p") step(-1);
-      else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void edits.undo();
+      else if (editable && e.key === "g" && pointer.current) void ground(...pointer.current);
+      else if (editable && (e.key === "x" || e.key === "Delete")) {
+        const g = groundings.find((r) => r.drive_id === driveId && r.frame === frame);
+        if (g) void edits.remove(g.id);
+      } else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void edits.undo();
       else if (editable && (e.key === "r" || (e.ctrlKey && e.key === "y"))) void edits.redo();
     };
     window.addEventListener("keydown", onKey);

@@ -80,7 +80,8 @@ const SHORTCUTS: [string, string][] = [
   ["← / p", "previous keyframe"],
   ["→ / n", "next keyframe"],
   ["space", "play / pause the drive"],
-  ["click on the plan", "ground the selected keyframe there"],
+  ["click on the plan / g", "ground the selected keyframe there (g: under the pointer)"],
+  ["x / Delete", "delete the selected keyframe's grounding"],
   ["drag a white square", "move that grounding's surveyed point"],
   ["u / Ctrl+Z", "undo"],
   ["r / Ctrl+Y", "redo"],
@@ -94,7 +95,7 @@ export function ShortcutHelp({ editable, onClose }: { editable: boolean; onClose
         <h2>Keyboard shortcuts</h2>
         <table>
           <tbody>
-            {SHORTCUTS.filter(([, what]) => editable || !/ground|undo|redo/.test(what)).map(([keys, what]) => (
+            {SHORTCUTS.filter(([, what]) => editable || !/ground|undo|redo|delete/.test(what)).map(([keys, what]) => (
               <tr key={keys}>
                 <td>{keys}</td>
                 <td>{what}</td>
