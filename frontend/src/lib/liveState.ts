@@ -51,11 +51,36 @@ export interface VehicleState {
   position: PositionMsg | null;
   /** Recent positions, oldest first, within the trail window (by frame time ``t``). */
   trail: TrailPoint[];
+  /**
+   * Heading, radians counter-clockwise from east: the estimate's own ``yaw`` or, without one, the direction
+   * of travel over the last metres of the trail (kept while the vehicle stands); null until it has moved.
+   */
+  heading: number | null;
 }
 
 export type VehicleStatus = "moving" | "stopped" | "lost" | "camera obscured" | "stale" | "no fix";
 
 export const MOVING_SPEED_MPS = 0.2;
+/** The direction of travel is taken over at least this much of the trail, metres. */
+export const HEADING_MIN_TRAVEL_M = 2;
+const HEADING_LOOKBACK = 200; // trail points searched back for that distance
+
+/** Direction of travel (radians from east) from the trail point ``minTravelM`` back to the last; null if it moved less. */
+export function travelHeading(trail: readonly TrailPoint[], minTravelM = HEADING_MIN_TRAVEL_M): number | null {
+  const last = trail[trail.length - 1];
+  if (!last) return null;
+  for (let i = trail.length - 2; i >= Math.max(0, trail.length - 1 - HEADING_LOOKBACK); i--) {
+    const p = trail[i]!;
+    if (Math.hypot(last.x - p.x, last.y - p.y) >= minTravelM) return Math.atan2(last.y - p.y, last.x - p.x);
+  }
+  return null;
+}
+
+/** The vehicle with its position's ``yaw`` filled from its heading when the estimate has none (for drawing). */
+export function withHeading(v: VehicleState): VehicleState {
+  if (!v.position || v.position.yaw !== null || v.heading === null) return v;
+  return { ...v, position: { ...v.position, yaw: v.heading } };
+}
 
 /** Speed over the last two trail points, metres per second (0 without two points). */
 export function speedOf(v: VehicleState): number {
@@ -138,7 +163,7 @@ export class LiveState {
   private vehicle(id: number, name: string, siteId: number): VehicleState {
     let v = this.vehicles.get(id);
     if (!v) {
-      v = { id, name, siteId, stale: false, position: null, trail: [] };
+      v = { id, name, siteId, stale: false, position: null, trail: [], heading: null };
       this.vehicles.set(id, v);
     }
     v.name = name;
@@ -154,6 +179,7 @@ export class LiveState {
     const oldest = p.t - this.trailWindowS;
     const first = v.trail.findIndex((q) => q.t >= oldest);
     if (first > 0) v.trail.splice(0, first);
+    v.heading = p.yaw ?? travelHeading(v.trail) ?? v.heading;
   }
 
   sorted(): VehicleState[] {

@@ -5,7 +5,7 @@ import { useEffect, useMemo, useRef, useState, type ReactNode } from "react";
 import { apiGet, getToken, type Schemas } from "../api/client";
 import { MineMap } from "../map/MineMap";
 import { VehicleLayer } from "../map/VehicleLayer";
-import { alertsOf, LiveState, speedOf, statusOf, type VehicleState } from "../lib/liveState";
+import { alertsOf, LiveState, speedOf, statusOf, withHeading, type VehicleState } from "../lib/liveState";
 import { ReplayLayer } from "../map/ReplayLayer";
 import { EPOCH_CLOCK_S, formatClock } from "../lib/replay";
 import { LatestFrame } from "./LatestFrame";
@@ -72,6 +72,7 @@ export function MonitorView({ siteId }: { siteId: number }) {
     // eslint-disable-next-line react-hooks/exhaustive-deps
     [version, siteId],
   );
+  const drawn = useMemo(() => vehicles.map(withHeading), [vehicles]);
   const selected = vehicles.find((v) => v.id === selectedId) ?? null;
   const alerts = alertsOf(vehicles);
 
@@ -82,7 +83,7 @@ export function MonitorView({ siteId }: { siteId: number }) {
         siteId={siteId}
         overlay={(ctx) => (
           <>
-            <VehicleLayer ctx={ctx} vehicles={vehicles} selectedId={selectedId} onSelect={setSelectedId} />
+            <VehicleLayer ctx={ctx} vehicles={drawn} selectedId={selectedId} onSelect={setSelectedId} />
             {replay && <ReplayLayer ctx={ctx} session={replay} />}
           </>
         )}
@@ -185,7 +186,7 @@ function VehicleDetails({ v, children }: { v: VehicleState; children?: ReactNode
           <tbody>
             <tr><th>Status</th><td>{statusOf(v)}</td></tr>
             <tr><th>Position</th><td>E {p.x.toFixed(2)} N {p.y.toFixed(2)}</td></tr>
-            <tr><th>Heading</th><td>{p.yaw === null ? "–" : `${((p.yaw * 180) / Math.PI).toFixed(0)}°`}</td></tr>
+            <tr><th>Heading</th><td>{v.heading === null ? "–" : `${((v.heading * 180) / Math.PI).toFixed(0)}°${p.yaw === null ? " (travel)" : ""}`}</td></tr>
             <tr><th>Confidence</th><td>{p.confidence.toFixed(2)} {p.matched ? "(matched)" : "(unmatched)"}</td></tr>
             <tr><th>Speed</th><td>{speedOf(v).toFixed(2)} m/s</td></tr>
             <tr><th>Node</th><td>{p.node}</td></tr>
