@@ -187,6 +187,10 @@ class TestReplay:
             if process.poll() is None:
                 process.kill()
                 process.wait()
+            # a replay killed before it could stop its server (its own session) leaves it: stop it here
+            started = re.search(r"server process (\d+) starting", log.read_text())
+            if started and _alive(int(started.group(1))):
+                os.kill(int(started.group(1)), signal.SIGTERM)
         text = log.read_text()
         assert "stopping the replay" in text and f"server process {server_pid} stopped" in text
         assert not _alive(server_pid)
