@@ -18,6 +18,7 @@ from types import FrameType
 from typing import Annotated
 
 import typer
+from rich.text import Text
 
 from driftmap.cli.common import console, err_console, user_errors
 from driftmap.config import get_settings
@@ -136,7 +137,7 @@ def replay(
                 )
         if show_login:
             console.print(
-                f"[bold]driftmap UI: {url}  log in as {user!r} with password {password!r}[/bold]",
+                Text(f"driftmap UI: {url}  log in as {user!r} with password {password!r}", style="bold"),
                 soft_wrap=True,
             )
         names = ", ".join(
@@ -156,14 +157,15 @@ def replay(
             if time.monotonic() >= next_report:
                 next_report += status_every
                 for vehicle in stats:
-                    console.print(replay_service.describe(vehicle), soft_wrap=True)
+                    console.print(replay_service.describe(vehicle), soft_wrap=True, markup=False)
     except KeyboardInterrupt:
         err_console.print("driftmap: stopping the replay")
     finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C does not cut the orderly stop short
         stop.set()
         for thread in threads:
             thread.join(10.0)
         for vehicle in stats:
-            console.print(replay_service.describe(vehicle), soft_wrap=True)
+            console.print(replay_service.describe(vehicle), soft_wrap=True, markup=False)
         if server is not None:
             _stop_server(server)
