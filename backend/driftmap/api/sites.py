@@ -136,4 +136,6 @@ def survey_layers_of(
     if zoom is not None:
         tolerance = survey_layers.tolerance_for_zoom(survey, zoom)
     names = [n for n in layers.split(",") if n] if layers else None
-    return SurveyLayersRead(**survey_layers.survey_layers(survey, tolerance_m=tolerance, layers=names))
+    return SurveyLayersRead(
+        **survey_layers.survey_layers(survey, tolerance_m=tolerance, layers=names, session=session)
+    )

@@ -9,6 +9,7 @@ from sqlalchemy.orm import Session
 
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.formats.survey_dxf import read_survey_dxf, survey_map_to_json
+from driftmap.services import survey_layers
 from driftmap.store.blobs import BlobBatch
 from driftmap.store.models import Site, SurveyMap
 
@@ -42,7 +43,11 @@ def create_site(session: Session, name: str, description: str = "") -> Site:
 
 
 def add_survey_map(session: Session, batch: BlobBatch, site: Site, data: bytes, filename: str) -> SurveyMap:
-    """Parse a DXF plan and store it (original bytes as a blob, parsed layers as JSON) on ``site``."""
+    """Parse a DXF plan and store it (original bytes as a blob, parsed layers as JSON) on ``site``.
+
+    The layers simplified for a first view's zooms are added in the same session (see
+    :func:`survey_layers.store_first_levels`): they commit or roll back with the plan.
+    """
     survey = read_survey_dxf(data, filename)
     sha = batch.put(data)
     parsed = survey_map_to_json(survey)
@@ -60,6 +65,7 @@ def add_survey_map(session: Session, batch: BlobBatch, site: Site, data: bytes, 
     )
     session.add(record)
     session.flush()
+    survey_layers.store_first_levels(session, record)
     return record
 
 

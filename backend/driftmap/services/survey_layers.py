@@ -4,7 +4,9 @@ Big plans hold hundreds of thousands of vertices; a map view needs only those a 
 Line and polygon features are simplified with shapely (Douglas-Peucker, topology preserved) to a tolerance
 in metres, chosen directly or from a zoom level: at zoom 0 the plan's larger side spans 256 pixels, each
 further level doubles that, and the tolerance is half a pixel. Results are cached per survey map and
-tolerance (the stored layers never change: a new upload is a new survey map).
+tolerance (the stored layers never change: a new upload is a new survey map): in memory per process, and for
+the zooms a first view asks (:data:`FIRST_VIEW_ZOOMS`) in the database, written by :func:`store_first_levels`
+in the upload's own transaction, so the first view of a freshly uploaded plan is a cache hit.
 """
 
 from __future__ import annotations
@@ -15,13 +17,18 @@ from collections import OrderedDict
 from typing import Any
 
 from shapely.geometry import mapping, shape
+from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from driftmap.errors import BadInputError
-from driftmap.store.models import SurveyMap
+from driftmap.store.models import SurveyLayerLevel, SurveyMap
 
 TILE_PX = 256  # pixels the whole plan spans at zoom 0
 MAX_ZOOM = 30
 CACHE_SIZE = 64  # simplified plans kept in memory (per process)
+# What frontend/src/map/MineMap.tsx asks first: zoom 0 (places the view), then serverZoomFor() of the
+# fitted view, 1..3 for a map 256..2048 px across.
+FIRST_VIEW_ZOOMS = (0, 1, 2, 3)
 
 _cache: OrderedDict[tuple[int, str, float], dict[str, Any]] = OrderedDict()
 _lock = threading.Lock()
@@ -40,7 +47,7 @@ def _simplify_collection(collection: dict[str, Any], tolerance_m: float) -> tupl
     vertices = 0
     for feature in collection.get("features", []):
         geometry = feature.get("geometry")
-        if geometry and tolerance_m > 0 and geometry.get("type") not in ("Point", "MultiPoint"):
+        if geometry and tolerance_m > 0 and not _minimal(geometry):
             simplified = shape(geometry).simplify(tolerance_m, preserve_topology=True)
             if simplified.is_empty:
                 continue
@@ -48,6 +55,72 @@ def _simplify_collection(collection: dict[str, Any], tolerance_m: float) -> tupl
         vertices += _count_vertices(geometry.get("coordinates")) if geometry else 0
         features.append({**feature, "geometry": geometry})
     return {"type": "FeatureCollection", "features": features}, vertices
+
+
+def _minimal(geometry: dict[str, Any]) -> bool:
+    """Whether simplifying cannot change ``geometry``: points, and two-vertex lines (a plan's LINE entities)."""
+    kind = geometry.get("type")
+    return kind in ("Point", "MultiPoint") or (kind == "LineString" and len(geometry["coordinates"]) <= 2)
+
+
+def _key(survey: SurveyMap, tolerance_m: float) -> tuple[int, str, float]:
+    return (survey.id, survey.dxf_sha256, round(tolerance_m, 6))
+
+
+def _remember(key: tuple[int, str, float], whole: dict[str, Any]) -> None:
+    with _lock:
+        _cache[key] = whole
+        _cache.move_to_end(key)
+        while len(_cache) > CACHE_SIZE:
+            _cache.popitem(last=False)
+
+
+def _simplify_all(survey: SurveyMap, tolerance_m: float) -> dict[str, Any]:
+    """``{"layers": {name: FeatureCollection}, "vertices": {name: count}}`` of every layer at ``tolerance_m``."""
+    simplified: dict[str, Any] = {}
+    counts: dict[str, int] = {}
+    for name, collection in survey.layers.items():
+        simplified[name], counts[name] = _simplify_collection(collection, tolerance_m)
+    return {"layers": simplified, "vertices": counts}
+
+
+def store_first_levels(session: Session, survey: SurveyMap) -> list[SurveyLayerLevel]:
+    """Simplify a just-added plan for :data:`FIRST_VIEW_ZOOMS` and add the levels to ``session``.
+
+    Call it in the transaction that adds ``survey`` (flushed, so it has an id): the levels commit or roll
+    back with the plan. They are also put in this process's memory cache (keyed by the plan's content
+    hash, so an entry of a rolled-back upload can only ever answer for the same plan).
+
+    Returns:
+        The added rows, one per zoom, flushed.
+    """
+    rows = []
+    for zoom in FIRST_VIEW_ZOOMS:
+        tolerance = tolerance_for_zoom(survey, zoom)
+        key = _key(survey, tolerance)
+        whole = _simplify_all(survey, tolerance)
+        _remember(key, whole)
+        rows.append(
+            SurveyLayerLevel(
+                survey_map_id=survey.id,
+                zoom=zoom,
+                tolerance_m=key[2],
+                vertices=whole["vertices"],
+                layers=whole["layers"],
+            )
+        )
+    session.add_all(rows)
+    session.flush()
+    return rows
+
+
+def _stored_level(session: Session, key: tuple[int, str, float]) -> dict[str, Any] | None:
+    row = session.scalar(
+        select(SurveyLayerLevel).where(
+            SurveyLayerLevel.survey_map_id == key[0], SurveyLayerLevel.tolerance_m == key[2]
+        )
+    )
+    return None if row is None else {"layers": row.layers, "vertices": row.vertices}
 
 
 def _count_vertices(coordinates: Any) -> int:
@@ -59,14 +132,22 @@ def _count_vertices(coordinates: Any) -> int:
 
 
 def survey_layers(
-    survey: SurveyMap, *, tolerance_m: float = 0.0, layers: list[str] | None = None
+    survey: SurveyMap,
+    *,
+    tolerance_m: float = 0.0,
+    layers: list[str] | None = None,
+    session: Session | None = None,
 ) -> dict[str, Any]:
     """The plan's layers as GeoJSON FeatureCollections (plane metres), simplified to ``tolerance_m``.
+
+    Looked up in the memory cache, then (with ``session``) among the levels stored at upload, and only then
+    computed from the stored plan.
 
     Args:
         survey: the stored survey map.
         tolerance_m: largest distance a simplified line may move from the original, metres (0: as stored).
         layers: only these layer names (all when None).
+        session: the survey's session, to read the levels stored at upload.
 
     Returns:
         ``{"survey_map_id", "tolerance_m", "extents": [min_x, min_y, max_x, max_y], "vertices",
@@ -84,21 +165,16 @@ def survey_layers(
                 f"unknown layer(s) {', '.join(unknown)}; the plan has {', '.join(sorted(survey.layers))}",
                 field="layers",
             )
-    key = (survey.id, survey.dxf_sha256, round(tolerance_m, 6))
+    key = _key(survey, tolerance_m)
     with _lock:
         whole = _cache.get(key)
         if whole is not None:
             _cache.move_to_end(key)
     if whole is None:
-        simplified: dict[str, Any] = {}
-        counts: dict[str, int] = {}
-        for name, collection in survey.layers.items():
-            simplified[name], counts[name] = _simplify_collection(collection, tolerance_m)
-        whole = {"layers": simplified, "vertices": counts}
-        with _lock:
-            _cache[key] = whole
-            while len(_cache) > CACHE_SIZE:
-                _cache.popitem(last=False)
+        whole = _stored_level(session, key) if session is not None else None
+        if whole is None:
+            whole = _simplify_all(survey, tolerance_m)
+        _remember(key, whole)
     names = layers if layers is not None else list(whole["layers"])
     return {
         "survey_map_id": survey.id,

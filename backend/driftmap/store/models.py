@@ -81,6 +81,32 @@ class SurveyMap(Base):
     site: Mapped[Site] = relationship(back_populates="survey_maps")
 
 
+class SurveyLayerLevel(Base):
+    """A survey map's layers simplified to one tolerance, stored at upload for the zooms a first view asks.
+
+    Written in the upload's transaction (see services/survey_layers.py), so a plan never exists without its
+    levels and a failed upload leaves neither. Deleted with its survey map (database cascade).
+    """
+
+    __tablename__ = "survey_layer_levels"
+    __table_args__ = (
+        UniqueConstraint(
+            "survey_map_id", "tolerance_m", name="uq_survey_layer_levels_survey_map_id_tolerance_m"
+        ),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    survey_map_id: Mapped[int] = mapped_column(ForeignKey("survey_maps.id", ondelete="CASCADE"), index=True)
+    zoom: Mapped[int] = mapped_column(Integer)
+    """The map zoom the level was computed for (0: the plan spans 256 px)."""
+    tolerance_m: Mapped[float] = mapped_column(Float)
+    """Simplification tolerance, metres, rounded to 6 decimals (the lookup key)."""
+    vertices: Mapped[dict[str, Any]] = mapped_column(JSON)
+    """Layer name -> vertices left after simplification."""
+    layers: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)
+    """Layer name -> simplified GeoJSON FeatureCollection in plane metres."""
+
+
 class Drive(Base):
     """One recorded drive of one vehicle: its camera calibration and its frames."""
 

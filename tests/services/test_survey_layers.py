@@ -1,0 +1,110 @@
+"""Survey layers simplified at upload: stored with the plan, served from the store, gone with it (real SQLite)."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import numpy as np
+import pytest
+from ezdxf.filemanagement import new as new_dxf
+from sqlalchemy import func, inspect, select
+
+from driftmap.errors import BadInputError
+from driftmap.services import deletion, survey_layers
+from driftmap.services import sites as site_service
+from driftmap.store.models import SurveyLayerLevel, SurveyMap
+from driftmap.store.storage import Storage
+
+
+def noisy_plan() -> bytes:
+    """A 1 km drift: two walls of 2,001 vertices with 5 cm noise (simplify well), a centreline, one LINE."""
+    rng = np.random.default_rng(3)
+    doc = new_dxf("R2000")
+    msp = doc.modelspace()
+    along = np.linspace(0.0, 1000.0, 2001)
+    for offset in (-2.5, 2.5):
+        across = offset + rng.normal(0.0, 0.05, along.size)
+        msp.add_lwpolyline(
+            list(zip(along.tolist(), across.tolist(), strict=True)), dxfattribs={"layer": "WALLS"}
+        )
+    msp.add_lwpolyline([(0.0, 0.0), (1000.0, 0.0)], dxfattribs={"layer": "CENTRELINE"})
+    msp.add_line((0.0, -2.5), (0.0, 2.5), dxfattribs={"layer": "WALLS"})
+    stream = io.StringIO()
+    doc.write(stream)
+    return stream.getvalue().encode()
+
+
+def _upload(storage: Storage, data: bytes) -> int:
+    with storage.blobs.batch() as batch, storage.db.session() as session:
+        site = site_service.get_site(session, "mine")
+        return site_service.add_survey_map(session, batch, site, data, "plan.dxf").id
+
+
+def _level_count(storage: Storage) -> int:
+    with storage.db.session() as session:
+        return session.scalar(select(func.count()).select_from(SurveyLayerLevel)) or 0
+
+
+@pytest.fixture
+def mine(storage: Storage) -> Storage:
+    with storage.db.session() as session:
+        site_service.create_site(session, "mine")
+    return storage
+
+
+class TestFirstLevels:
+    def test_upload_stores_the_first_view_zooms(self, mine: Storage) -> None:
+        survey_id = _upload(mine, noisy_plan())
+        with mine.db.session() as session:
+            survey = session.get_one(SurveyMap, survey_id)
+            rows = session.scalars(
+                select(SurveyLayerLevel)
+                .where(SurveyLayerLevel.survey_map_id == survey_id)
+                .order_by(SurveyLayerLevel.zoom)
+            ).all()
+            assert [r.zoom for r in rows] == list(survey_layers.FIRST_VIEW_ZOOMS)
+            for row in rows:
+                assert row.tolerance_m == round(survey_layers.tolerance_for_zoom(survey, row.zoom), 6)
+            walls = [r.vertices["WALLS"] for r in rows]
+            assert walls[0] < 200 < 4004  # zoom 0 keeps a fraction of the walls' 2 x 2,001 + 2 vertices
+            assert walls == sorted(walls)  # finer zooms keep more
+
+    def test_a_fresh_process_is_served_from_the_store_without_loading_the_plan(self, mine: Storage) -> None:
+        survey_id = _upload(mine, noisy_plan())
+        with mine.db.session() as session:
+            survey = session.get_one(SurveyMap, survey_id)
+            expected = survey_layers.survey_layers(
+                survey, tolerance_m=survey_layers.tolerance_for_zoom(survey, 2)
+            )
+        survey_layers._cache.clear()  # as in another worker or after a restart
+        with mine.db.session() as session:
+            survey = session.get_one(SurveyMap, survey_id)
+            tolerance = survey_layers.tolerance_for_zoom(survey, 2)
+            got = survey_layers.survey_layers(survey, tolerance_m=tolerance, session=session)
+            assert "layers" not in inspect(survey).dict  # the plan's own (deferred) layers never loaded
+            assert got == json.loads(json.dumps(expected))  # stored as JSON: tuples come back as lists
+            # a zoom that was not stored is computed from the plan
+            survey_layers.survey_layers(
+                survey, tolerance_m=survey_layers.tolerance_for_zoom(survey, 9), session=session
+            )
+            assert "layers" in inspect(survey).dict
+
+    def test_bad_input_and_rollback_leave_no_levels(self, mine: Storage) -> None:
+        with pytest.raises(BadInputError):
+            _upload(mine, b"0\nSECTION\n2\nENTITIES\n0\nNOT_A_DXF")
+        assert _level_count(mine) == 0
+        with pytest.raises(RuntimeError), mine.blobs.batch() as batch, mine.db.session() as session:
+            site = site_service.get_site(session, "mine")
+            site_service.add_survey_map(session, batch, site, noisy_plan(), "plan.dxf")
+            raise RuntimeError("the request fails after the upload was added")
+        with mine.db.session() as session:
+            assert session.scalar(select(func.count()).select_from(SurveyMap)) == 0
+        assert _level_count(mine) == 0
+
+    def test_levels_go_with_their_site(self, mine: Storage) -> None:
+        _upload(mine, noisy_plan())
+        assert _level_count(mine) == len(survey_layers.FIRST_VIEW_ZOOMS)
+        with mine.db.session() as session:
+            deletion.delete_site(session, site_service.get_site(session, "mine"))
+        assert _level_count(mine) == 0
