@@ -24,7 +24,8 @@ def upgrade() -> None:
         sa.Column("zoom", sa.Integer(), nullable=False),
         sa.Column("tolerance_m", sa.Float(), nullable=False),
         sa.Column("vertices", sa.JSON(), nullable=False),
-        sa.Column("layers", sa.JSON(), nullable=False),
+        sa.Column("layers", sa.JSON(none_as_null=True), nullable=True),
+        sa.Column("same_as_zoom", sa.Integer(), nullable=True),
         sa.ForeignKeyConstraint(
             ["survey_map_id"],
             ["survey_maps.id"],

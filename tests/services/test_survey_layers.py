@@ -90,6 +90,32 @@ class TestFirstLevels:
             )
             assert "layers" in inspect(survey).dict
 
+    def test_levels_nothing_simplifies_are_stored_once(self, mine: Storage) -> None:
+        doc = new_dxf("R2000")
+        for k in range(20):
+            doc.modelspace().add_line((0.0, 10.0 * k), (500.0, 10.0 * k + 1.0), dxfattribs={"layer": "WALLS"})
+        stream = io.StringIO()
+        doc.write(stream)
+        survey_id = _upload(mine, stream.getvalue().encode())
+        with mine.db.session() as session:
+            survey = session.get_one(SurveyMap, survey_id)
+            rows = session.scalars(
+                select(SurveyLayerLevel)
+                .where(SurveyLayerLevel.survey_map_id == survey_id)
+                .order_by(SurveyLayerLevel.zoom)
+            ).all()
+            assert [(r.layers is None, r.same_as_zoom) for r in rows] == [(False, None)] + [(True, 0)] * 3
+            expected = survey_layers.survey_layers(
+                survey, tolerance_m=survey_layers.tolerance_for_zoom(survey, 3)
+            )
+        survey_layers._cache.clear()
+        with mine.db.session() as session:
+            survey = session.get_one(SurveyMap, survey_id)
+            tolerance = survey_layers.tolerance_for_zoom(survey, 3)
+            got = survey_layers.survey_layers(survey, tolerance_m=tolerance, session=session)
+            assert "layers" not in inspect(survey).dict
+            assert got == json.loads(json.dumps(expected)) and got["vertices"] == 40
+
     def test_bad_input_and_rollback_leave_no_levels(self, mine: Storage) -> None:
         with pytest.raises(BadInputError):
             _upload(mine, b"0\nSECTION\n2\nENTITIES\n0\nNOT_A_DXF")

@@ -91,14 +91,23 @@ def store_first_levels(session: Session, survey: SurveyMap) -> list[SurveyLayerL
     back with the plan. They are also put in this process's memory cache (keyed by the plan's content
     hash, so an entry of a rolled-back upload can only ever answer for the same plan).
 
+    A level whose layers equal the previous stored level's (nothing more survives the finer tolerance)
+    is stored as a reference to it (``same_as_zoom``) rather than a copy.
+
     Returns:
         The added rows, one per zoom, flushed.
     """
-    rows = []
+    rows: list[SurveyLayerLevel] = []
+    stored: tuple[int, dict[str, Any]] | None = None  # the last level stored in full: (zoom, whole)
     for zoom in FIRST_VIEW_ZOOMS:
         tolerance = tolerance_for_zoom(survey, zoom)
         key = _key(survey, tolerance)
         whole = _simplify_all(survey, tolerance)
+        same_as: int | None = None
+        if stored is not None and whole["layers"] == stored[1]["layers"]:
+            same_as, whole = stored  # nothing more survived at this zoom (e.g. a plan of LINE entities)
+        else:
+            stored = (zoom, whole)
         _remember(key, whole)
         rows.append(
             SurveyLayerLevel(
@@ -106,7 +115,8 @@ def store_first_levels(session: Session, survey: SurveyMap) -> list[SurveyLayerL
                 zoom=zoom,
                 tolerance_m=key[2],
                 vertices=whole["vertices"],
-                layers=whole["layers"],
+                layers=None if same_as is not None else whole["layers"],
+                same_as_zoom=same_as,
             )
         )
     session.add_all(rows)
@@ -120,7 +130,16 @@ def _stored_level(session: Session, key: tuple[int, str, float]) -> dict[str, An
             SurveyLayerLevel.survey_map_id == key[0], SurveyLayerLevel.tolerance_m == key[2]
         )
     )
-    return None if row is None else {"layers": row.layers, "vertices": row.vertices}
+    if row is None:
+        return None
+    layers = row.layers
+    if layers is None:
+        layers = session.scalar(
+            select(SurveyLayerLevel.layers).where(
+                SurveyLayerLevel.survey_map_id == key[0], SurveyLayerLevel.zoom == row.same_as_zoom
+            )
+        )
+    return None if layers is None else {"layers": layers, "vertices": row.vertices}
 
 
 def _count_vertices(coordinates: Any) -> int:

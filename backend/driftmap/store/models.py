@@ -103,8 +103,10 @@ class SurveyLayerLevel(Base):
     """Simplification tolerance, metres, rounded to 6 decimals (the lookup key)."""
     vertices: Mapped[dict[str, Any]] = mapped_column(JSON)
     """Layer name -> vertices left after simplification."""
-    layers: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)
-    """Layer name -> simplified GeoJSON FeatureCollection in plane metres."""
+    layers: Mapped[dict[str, Any] | None] = mapped_column(JSON(none_as_null=True), deferred=True)
+    """Layer name -> simplified GeoJSON FeatureCollection in plane metres (None: see ``same_as_zoom``)."""
+    same_as_zoom: Mapped[int | None] = mapped_column(Integer)
+    """When set, this level's layers are those of the same plan's level at that coarser zoom (stored once)."""
 
 
 class Drive(Base):
