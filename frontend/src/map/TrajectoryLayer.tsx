@@ -1,5 +1,5 @@
 // The optimised trajectories of a map version: a line and keyframe points per drive (drive colours), loop
-// closures as links (toggle), groundings as squares with their residual vectors, the selected frame ringed.
+// closures as links (toggle), the selected frame ringed. Groundings are drawn by GroundingMarkers.
 import { useEffect, useRef } from "react";
 import Feature from "ol/Feature";
 import LineString from "ol/geom/LineString";
@@ -7,9 +7,8 @@ import MultiPoint from "ol/geom/MultiPoint";
 import Point from "ol/geom/Point";
 import VectorSource from "ol/source/Vector";
 import VectorLayer from "ol/layer/Vector";
-import { Circle, Fill, RegularShape, Stroke, Style } from "ol/style";
+import { Circle, Fill, Stroke, Style } from "ol/style";
 import { driveColour, rgbCss } from "../lib/colours";
-import type { GroundingRow } from "../lib/residuals";
 import type { MapCtx } from "./MineMap";
 
 export interface Poses {
@@ -32,7 +31,8 @@ interface Props {
   poses: Poses | null;
   closures: Closure[];
   showClosures: boolean;
-  groundings: GroundingRow[];
+  /** Ignored (GroundingMarkers draws groundings); kept only until GroundingView stops passing it. */
+  groundings?: readonly unknown[];
   selected: { driveId: number; frame: number } | null;
   keyframeStride: number;
 }
@@ -43,15 +43,15 @@ export function poseIndex(poses: Poses): Map<string, [number, number]> {
   return index;
 }
 
-export function TrajectoryLayer({ ctx, poses, closures, showClosures, groundings, selected, keyframeStride }: Props) {
-  const sources = useRef({ tracks: new VectorSource(), closures: new VectorSource(), marks: new VectorSource() });
+export function TrajectoryLayer({ ctx, poses, closures, showClosures, selected, keyframeStride }: Props) {
+  const sources = useRef({ tracks: new VectorSource(), closures: new VectorSource(), selected: new VectorSource() });
 
   useEffect(() => {
     const s = sources.current;
     const layers = [
       new VectorLayer({ source: s.tracks, zIndex: 5 }),
       new VectorLayer({ source: s.closures, zIndex: 6 }),
-      new VectorLayer({ source: s.marks, zIndex: 7 }),
+      new VectorLayer({ source: s.selected, zIndex: 7 }),
     ];
     layers.forEach((l) => ctx.map.addLayer(l));
     return () => layers.forEach((l) => ctx.map.removeLayer(l));
@@ -100,42 +100,15 @@ export function TrajectoryLayer({ ctx, poses, closures, showClosures, groundings
   }, [ctx, poses, closures, showClosures]);
 
   useEffect(() => {
-    const s = sources.current.marks;
+    const s = sources.current.selected;
     s.clear();
-    const index = poses ? poseIndex(poses) : new Map<string, [number, number]>();
-    for (const g of groundings) {
-      const at = ctx.origin.toLocal(g.x, g.y);
-      const square = new Feature(new Point(at));
-      square.setStyle(
-        new Style({
-          image: new RegularShape({
-            points: 4,
-            radius: 6,
-            angle: Math.PI / 4,
-            fill: new Fill({ color: "rgba(255,255,255,0.15)" }),
-            stroke: new Stroke({ color: "#fff", width: 1.5 }),
-          }),
-        }),
-      );
-      s.addFeature(square);
-      const pose = index.get(`${g.driveId}#${g.frame}`);
-      if (pose) {
-        const link = new Feature(new LineString([at, ctx.origin.toLocal(...pose)]));
-        link.setStyle(new Style({ stroke: new Stroke({ color: "#fff", width: 1 }) }));
-        s.addFeature(link);
-      }
-    }
-    if (selected) {
-      const pose = index.get(`${selected.driveId}#${selected.frame}`);
-      if (pose) {
-        const ring = new Feature(new Point(ctx.origin.toLocal(...pose)));
-        ring.setStyle(
-          new Style({ image: new Circle({ radius: 9, stroke: new Stroke({ color: "#ffd43b", width: 3 }) }) }),
-        );
-        s.addFeature(ring);
-      }
-    }
-  }, [ctx, poses, groundings, selected]);
+    if (!poses || !selected) return;
+    const pose = poseIndex(poses).get(`${selected.driveId}#${selected.frame}`);
+    if (!pose) return;
+    const ring = new Feature(new Point(ctx.origin.toLocal(...pose)));
+    ring.setStyle(new Style({ image: new Circle({ radius: 9, stroke: new Stroke({ color: "#ffd43b", width: 3 }) }) }));
+    s.addFeature(ring);
+  }, [ctx, poses, selected]);
 
   return null;
 }

@@ -14,13 +14,3 @@ export const mineGrid = new Projection({
   global: false,
 });
 addProjection(mineGrid);
-
-/** Whether this browser can draw WebGL layers (headless browsers without a GPU may not). */
-export function webglAvailable(): boolean {
-  try {
-    const canvas = document.createElement("canvas");
-    return Boolean(canvas.getContext("webgl2") ?? canvas.getContext("webgl"));
-  } catch {
-    return false;
-  }
-}
