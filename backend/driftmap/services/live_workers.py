@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing
+import os
+import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -36,6 +39,18 @@ _slots: dict[int, LiveSlot] = {}
 def _start_worker(settings_json: str) -> None:
     global _storage
     _storage = Storage.open(Settings.model_validate_json(settings_json), upgrade=False)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+
+
+def _exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
+    """End this worker process when the server process that started it is gone (even SIGKILLed).
+
+    A pool worker waits on its call queue forever, so without this a killed server would leave its
+    localiser processes running, holding the map in memory and the database open.
+    """
+    while os.getppid() == parent_pid:
+        time.sleep(poll_s)
+    os._exit(0)
 
 
 def _opened() -> Storage:
