@@ -28,6 +28,7 @@ cache-sized memory; rows that straddle two references are simply dropped.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -224,6 +225,34 @@ def _bbox(mask: NDArray) -> tuple[int, int, int, int]:
     return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
 
 
+@lru_cache(maxsize=256)
+def _box_grid(r0: int, r1: int, c0: int, c1: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Row and column coordinates ``(r1 - r0, c1 - c0)`` float32 of a box (cached, read-only)."""
+    rows, cols = np.mgrid[r0:r1, c0:c1].astype(np.float32)
+    rows.flags.writeable = cols.flags.writeable = False
+    return rows, cols
+
+
+def _gradient(img: NDArray) -> tuple[NDArray, NDArray]:
+    """``np.gradient`` of an ``(H, W)`` float image without its per-call overhead: ``(d/drow, d/dcol)``,
+    each ``(H, W)`` of the input dtype (central differences inside, one-sided on the border: the
+    same operations, so bit-identical)."""
+    if min(img.shape) < 2:
+        np.gradient(img)  # raises as numpy does
+    if img.ndim != 2:
+        raise ValueError(f"_gradient needs an (H, W) image, got shape {img.shape}")
+    g_y, g_x = np.empty_like(img), np.empty_like(img)
+    np.subtract(img[2:], img[:-2], out=g_y[1:-1])
+    g_y[1:-1] /= 2.0
+    np.subtract(img[1], img[0], out=g_y[0])
+    np.subtract(img[-1], img[-2], out=g_y[-1])
+    np.subtract(img[:, 2:], img[:, :-2], out=g_x[:, 1:-1])
+    g_x[:, 1:-1] /= 2.0
+    np.subtract(img[:, 1], img[:, 0], out=g_x[:, 0])
+    np.subtract(img[:, -1], img[:, -2], out=g_x[:, -1])
+    return g_y, g_x
+
+
 class _TwoSided:
     """Cost of one shift on one pyramid level, both ways round (see :func:`register_shift`)."""
 
@@ -275,26 +304,33 @@ class _TwoSided:
 
         Each side's partner image is resampled bilinearly at the current shift and linearised
         (Lucas-Kanade); the shift stays within one pixel of (dx, dy); a singular system (no
-        texture) stops the iteration.
+        texture) stops the iteration. The Jacobian of a side is ``sign`` times the partner's
+        gradient; the sign is applied to the dot products (exact, rounding is sign-symmetric).
         """
         fx, fy = float(dx), float(dy)
         height, width = self.a.shape
         for _ in range(iterations):
             hess, grad = np.zeros((2, 2)), np.zeros(2)
             for (r0, r1, c0, c1), roi, img, other, valid, sign in self.sides:
-                rows, cols = np.mgrid[r0:r1, c0:c1].astype(np.float32)
-                map_x, map_y = cols + np.float32(sign * fx), rows + np.float32(sign * fy)
-                if min(map_x.min(), map_y.min()) < 1 or map_x.max() > width - 2 or map_y.max() > height - 2:
+                off_x, off_y = np.float32(sign * fx), np.float32(sign * fy)
+                # float32 rounding is monotonic: the extremes of the sample maps are the box corners'
+                if (
+                    min(np.float32(c0) + off_x, np.float32(r0) + off_y) < 1
+                    or np.float32(c1 - 1) + off_x > width - 2
+                    or np.float32(r1 - 1) + off_y > height - 2
+                ):
                     continue
+                rows, cols = _box_grid(r0, r1, c0, c1)
+                map_x, map_y = cols + off_x, rows + off_y
                 warped = cv2.remap(other, map_x, map_y, cv2.INTER_LINEAR)
                 w = roi * cv2.remap(valid, map_x, map_y, cv2.INTER_NEAREST)
-                g_y, g_x = np.gradient(warped)
-                jac = (sign * g_x, sign * g_y)  # derivative of the partner sample with respect to the shift
+                g_y, g_x = _gradient(warped)
+                w_g = (w * g_x, w * g_y)
                 resid = img[r0:r1, c0:c1] - warped
                 for i in range(2):
-                    grad[i] += float(np.vdot(w * jac[i], resid))
-                    for j in range(2):
-                        hess[i, j] += float(np.vdot(w * jac[i], jac[j]))
+                    grad[i] += sign * float(np.vdot(w_g[i], resid))
+                    hess[i, 0] += float(np.vdot(w_g[i], g_x))
+                    hess[i, 1] += float(np.vdot(w_g[i], g_y))
             if np.linalg.det(hess) <= 1e-12 * max(1.0, float(np.trace(hess))) ** 2:
                 break
             step = np.linalg.solve(hess, grad)
