@@ -47,20 +47,24 @@ def _simplify_collection(collection: dict[str, Any], tolerance_m: float) -> tupl
     vertices = 0
     for feature in collection.get("features", []):
         geometry = feature.get("geometry")
-        if geometry and tolerance_m > 0 and not _minimal(geometry):
+        if not geometry:
+            features.append(feature)
+            continue
+        if tolerance_m > 0 and not _minimal(geometry):
             simplified = shape(geometry).simplify(tolerance_m, preserve_topology=True)
             if simplified.is_empty:
                 continue
             geometry = mapping(simplified)
-        vertices += _count_vertices(geometry.get("coordinates")) if geometry else 0
-        features.append({**feature, "geometry": geometry})
+            feature = {**feature, "geometry": geometry}
+        vertices += _vertices(geometry)
+        features.append(feature)  # unchanged features are shared with the stored plan (never mutated)
     return {"type": "FeatureCollection", "features": features}, vertices
 
 
 def _minimal(geometry: dict[str, Any]) -> bool:
     """Whether simplifying cannot change ``geometry``: points, and two-vertex lines (a plan's LINE entities)."""
     kind = geometry.get("type")
-    return kind in ("Point", "MultiPoint") or (kind == "LineString" and len(geometry["coordinates"]) <= 2)
+    return kind in ("Point", "MultiPoint") or (kind == "LineString" and len(geometry["coordinates"]) == 2)
 
 
 def _key(survey: SurveyMap, tolerance_m: float) -> tuple[int, str, float]:
@@ -140,6 +144,16 @@ def _stored_level(session: Session, key: tuple[int, str, float]) -> dict[str, An
             )
         )
     return None if layers is None else {"layers": layers, "vertices": row.vertices}
+
+
+def _vertices(geometry: dict[str, Any]) -> int:
+    """Vertices of a GeoJSON geometry (the common types without walking every coordinate)."""
+    kind, coordinates = geometry.get("type"), geometry.get("coordinates")
+    if kind in ("LineString", "MultiPoint") and isinstance(coordinates, list | tuple):
+        return len(coordinates)
+    if kind in ("Polygon", "MultiLineString") and isinstance(coordinates, list | tuple):
+        return sum(len(part) for part in coordinates)
+    return _count_vertices(coordinates)
 
 
 def _count_vertices(coordinates: Any) -> int:
