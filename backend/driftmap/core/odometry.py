@@ -183,16 +183,33 @@ def _region_images(camera: CameraModel, regions: list[Region]) -> list[NDArray[n
 def _masks(
     camera: CameraModel, setup: _Setup, px_from_grid: NDArray, erode: int
 ) -> tuple[list[NDArray[np.float32]], NDArray[np.float32]]:
-    """{0, 1} grids of the cells showing each region, and of the cells inside the frame (eroded)."""
-    cols, rows = np.meshgrid(np.arange(setup.size[0]), np.arange(setup.size[1]))
+    """{0, 1} grids of the cells showing each region, and of the cells inside the frame (eroded).
+
+    The frame and region masks are packed as bits of uint8 images (8 masks per warp); nearest-
+    neighbour warping moves whole pixel values, so each bit warps exactly as its mask alone.
+    """
+    cols, rows = _grid_coords(setup.size)
     ahead = (px_from_grid[2, 0] * cols + px_from_grid[2, 1] * rows + px_from_grid[2, 2]) > 1e-9
     full = np.ones((camera.height_px, camera.width_px), np.uint8)
-    grids = [
-        _warp(m, setup, px_from_grid, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT) * ahead
-        for m in [full, *setup.region_px]
-    ]
+    masks = [full, *setup.region_px]
+    grids = []
+    for g0 in range(0, len(masks), 8):
+        packed = np.zeros_like(full)
+        for bit, m in enumerate(masks[g0 : g0 + 8]):
+            packed |= (m != 0).astype(np.uint8) << bit
+        warped = _warp(packed, setup, px_from_grid, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT).astype(np.uint8)
+        grids += [((warped >> bit) & 1).astype(np.float32) * ahead for bit in range(len(masks[g0 : g0 + 8]))]
     valid = cv2.erode(grids[0], np.ones((3, 3), np.uint8), iterations=erode)
     return [np.asarray(g, dtype=np.float32) for g in grids[1:]], np.asarray(valid, dtype=np.float32)
+
+
+@lru_cache(maxsize=16)
+def _grid_coords(size: tuple[int, int]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``(cols, rows)`` int64 ``(height, width)`` cell coordinates of a ``(width, height)`` grid
+    (cached, read-only)."""
+    cols, rows = np.meshgrid(np.arange(size[0]), np.arange(size[1]))
+    cols.flags.writeable = rows.flags.writeable = False
+    return cols, rows
 
 
 def _linear_grid(camera: CameraModel, params: OdometryParams, margin: int) -> dict[str, Any]:
@@ -347,7 +364,7 @@ def _centroid(floor_from_grid: NDArray, weights: NDArray) -> NDArray[np.float64]
     total = float(weights.sum())
     if total <= 0:
         weights, total = (weights > 0).astype(np.float64) + 1e-12, float((weights > 0).sum()) + 1e-12
-    rows, cols = np.indices(weights.shape)
+    cols, rows = _grid_coords((weights.shape[1], weights.shape[0]))
     centroid = np.array([float((cols * weights).sum()), float((rows * weights).sum())]) / total
     return _apply(floor_from_grid, centroid)
 
@@ -506,7 +523,8 @@ def _horizon_offset(hom: NDArray, pairs: list[Pair], max_px: float) -> float | N
         if np.any(shifted @ hom[2, :2] + hom[2, 2] <= 0):
             return math.nan
         f = _apply(hom, shifted)
-        return float(np.linalg.norm(f[0] - f[1]) - np.linalg.norm(f[2] - f[3]))
+        near, far = f[0] - f[1], f[2] - f[3]
+        return math.sqrt(near.dot(near)) - math.sqrt(far.dot(far))  # np.linalg.norm's own sums
 
     grid = np.linspace(-max_px, max_px, 81)
     vals = np.array([gap(float(g)) for g in grid])

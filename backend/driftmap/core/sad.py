@@ -275,6 +275,15 @@ class _TwoSided:
         if self.den_max <= 0:
             raise ValueError("the ROI mask is empty at some pyramid level; lower the number of levels")
         self.memo: dict[tuple[int, int], tuple[float, float]] = {}
+        # per side: the ROI box of its image, and scratch arrays for the difference and the weights
+        self.scratch = [
+            (
+                img[r0:r1, c0:c1],
+                np.empty(roi.shape, np.result_type(img, other)),
+                np.empty(roi.shape, np.result_type(roi, valid)),
+            )
+            for (r0, r1, c0, c1), roi, img, other, valid, _ in self.sides
+        ]
 
     def __call__(self, dx: int, dy: int) -> tuple[float, float]:
         """(mean absolute difference, weight) at integer shift (dx, dy); inf if too little overlaps."""
@@ -287,13 +296,16 @@ class _TwoSided:
         height, width = self.a.shape
         num = den = 0.0
         # a's ROI against b at p + s, and b's ROI against a at q - s; partners inside the frame only.
-        for (r0, r1, c0, c1), roi, img, other, valid, sign in self.sides:
+        for ((r0, r1, c0, c1), roi, _, other, valid, sign), (box, diff, weight) in zip(
+            self.sides, self.scratch, strict=True
+        ):
             sx, sy = sign * dx, sign * dy
             if min(r0 + sy, c0 + sx) < 0 or r1 + sy > height or c1 + sx > width:
                 continue
             moved = (slice(r0 + sy, r1 + sy), slice(c0 + sx, c1 + sx))
-            weight = roi * valid[moved]
-            num += float(np.vdot(np.abs(img[r0:r1, c0:c1] - other[moved]), weight))
+            np.multiply(roi, valid[moved], out=weight)
+            np.abs(np.subtract(box, other[moved], out=diff), out=diff)
+            num += float(np.vdot(diff, weight))
             den += float(weight.sum())
         if den < 0.25 * self.den_max:
             return np.inf, den
