@@ -31,8 +31,6 @@ interface Props {
   poses: Poses | null;
   closures: Closure[];
   showClosures: boolean;
-  /** Ignored (GroundingMarkers draws groundings); kept only until GroundingView stops passing it. */
-  groundings?: readonly unknown[];
   selected: { driveId: number; frame: number } | null;
   keyframeStride: number;
 }

@@ -235,7 +235,6 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
               poses={poses}
               closures={closures}
               showClosures={showClosures}
-              groundings={[]}
               selected={driveId !== null && frame !== null ? { driveId, frame } : null}
               keyframeStride={KEYFRAME_STRIDE}
             />
