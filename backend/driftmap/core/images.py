@@ -155,15 +155,20 @@ def _patch_normalise_one(image: NDArray, patch_px: int, min_std: float) -> NDArr
     img -= np.float32(img.mean())  # centring keeps E[x^2] - E[x]^2 well conditioned in float32
     ksize = (patch_px, patch_px)
     border = cv2.BORDER_REFLECT_101 if min(img.shape) > patch_px // 2 else cv2.BORDER_REPLICATE
-    mean = cv2.boxFilter(img, cv2.CV_32F, ksize, normalize=True, borderType=border)
-    mean_sq = cv2.boxFilter(img * img, cv2.CV_32F, ksize, normalize=True, borderType=border)
-    var = np.maximum(mean_sq - mean * mean, 0.0, dtype=np.float32)
-    std = np.sqrt(var)
+    mean = np.asarray(cv2.boxFilter(img, cv2.CV_32F, ksize, normalize=True, borderType=border), np.float32)
+    std = np.asarray(
+        cv2.boxFilter(img * img, cv2.CV_32F, ksize, normalize=True, borderType=border), np.float32
+    )
+    # std holds E[x^2]; in place, the operations of (img - mean) / sqrt(max(E[x^2] - mean^2, 0))
+    std -= mean * mean
+    np.maximum(std, np.float32(0.0), out=std)
+    np.sqrt(std, out=std)
     flat = std < np.float32(min_std)
     std[flat] = 1.0
-    out = (img - mean) / std
-    out[flat] = 0.0
-    return np.asarray(out, dtype=np.float32)
+    img -= mean
+    img /= std
+    img[flat] = 0.0
+    return img
 
 
 def preprocess(images: NDArray, params: ImageParams) -> NDArray[np.float32]:

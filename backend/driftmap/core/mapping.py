@@ -28,7 +28,15 @@ from driftmap.core.images import preprocess
 from driftmap.core.odometry import dead_reckon
 from driftmap.core.odometry_calibration import NO_BIAS, solve_with_calibration
 from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
-from driftmap.core.place_database import DATABASE_DEFAULT, DatabaseParams, database_selector, frame_stats
+from driftmap.core.place_database import (
+    DATABASE_DEFAULT,
+    DatabaseParams,
+    FrameStats,
+    FrameStatsPass,
+    database_selector,
+    finish_frame_stats,
+    frame_stats,
+)
 from driftmap.core.topomap import PAPER as TOPO_PAPER
 from driftmap.core.topomap import TopoMap, TopoMapParams, build_topomap
 
@@ -145,16 +153,22 @@ def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
 
 
 class _Tee:
-    """Yields frames to odometry while keeping their place-recognition thumbnails."""
+    """Yields frames to odometry while keeping their place-recognition thumbnails and feeding the
+    database's frame statistics (when given), so each frame is decoded once."""
 
-    def __init__(self, frames: Iterable[NDArray[np.uint8]], params: ImageParams) -> None:
+    def __init__(
+        self, frames: Iterable[NDArray[np.uint8]], params: ImageParams, stats: FrameStatsPass | None = None
+    ) -> None:
         self._frames = frames
         self._params = params
+        self.stats = stats
         self.thumbs: list[NDArray[np.float32]] = []
 
     def __iter__(self) -> Iterator[NDArray[np.uint8]]:
         for frame in self._frames:
             self.thumbs.append(preprocess(frame, self._params))
+            if self.stats is not None:
+                self.stats.add(frame)
             yield frame
 
 
@@ -170,6 +184,8 @@ class PreparedDrives:
         keyframes: per drive, frame positions used for loop closure.
         closures: closures found between keyframes (empty when loop closure is off).
         timings: seconds per stage.
+        frame_stats: the database's frame statistics, computed in the odometry pass (None when the
+            database is off); valid for the ``frame_stats_params`` (database, image) parameters.
     """
 
     chains: tuple[posegraph.OdometryChain, ...]
@@ -179,6 +195,8 @@ class PreparedDrives:
     keyframes: tuple[NDArray[np.int64], ...]
     closures: tuple[loop_search.LoopClosure, ...]
     timings: dict[str, float]
+    frame_stats: FrameStats | None = None
+    frame_stats_params: tuple[DatabaseParams, ImageParams] | None = None
 
 
 def prepare_drives(
@@ -205,8 +223,15 @@ def prepare_drives(
     timings: dict[str, float] = {}
     start = time.perf_counter()
     report("odometry", 0.0)
+    counts = [int(d.t_s.shape[0]) for d in drives]
+    offsets = np.r_[0, np.cumsum(counts)].astype(int)
+    db = params.database
+    passes = [
+        FrameStatsPass(int(offsets[k]), int(offsets[-1]), db, params.images) if db.enabled else None
+        for k in range(len(drives))
+    ]
     with ThreadPoolExecutor(max(1, min(workers, len(drives)))) as pool:
-        futures = [pool.submit(_drive_odometry, drive, params) for drive in drives]
+        futures = [pool.submit(_drive_odometry, d, params, p) for d, p in zip(drives, passes, strict=True)]
         for done, _ in enumerate(as_completed(futures), start=1):
             report("odometry", done / len(drives))
         results = [f.result() for f in futures]
@@ -215,6 +240,12 @@ def prepare_drives(
     confidence = [r[2] for r in results]
     thumbs = [r[3] for r in results]
     timings["odometry_s"] = time.perf_counter() - start
+
+    stats = None
+    if db.enabled:  # the classifier of the database's quality filter, from the frames seen above
+        start = time.perf_counter()
+        stats = finish_frame_stats([p for p in passes if p is not None], counts, db, params.images)
+        timings["frame_stats_s"] = time.perf_counter() - start
 
     start = time.perf_counter()
     keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
@@ -227,18 +258,24 @@ def prepare_drives(
     report("loop closure", 1.0)
     timings["loop_closure_s"] = time.perf_counter() - start
     return PreparedDrives(
-        tuple(chains), tuple(raw_poses), tuple(confidence), tuple(thumbs), keyframes, found, timings
-    )
+        tuple(chains), tuple(raw_poses), tuple(confidence), tuple(thumbs), keyframes, found, timings,
+        stats, (db, params.images),
+    )  # fmt: skip
 
 
 def _drive_odometry(
-    drive: MappingDrive, params: MappingParams
+    drive: MappingDrive, params: MappingParams, stats: FrameStatsPass | None = None
 ) -> tuple[posegraph.OdometryChain, F64, F64, NDArray[np.float32]]:
-    """Dead reckoning of one drive: its odometry chain, (N, 3) poses, (N,) confidence, (N, h, w) thumbnails."""
-    tee = _Tee(drive.frames(), params.images)
+    """Dead reckoning of one drive: its odometry chain, (N, 3) poses, (N,) confidence, (N, h, w) thumbnails.
+
+    ``stats``, when given, takes every frame of the drive and is closed at the end.
+    """
+    tee = _Tee(drive.frames(), params.images, stats)
     reckoning = dead_reckon(tee, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0))
     if len(tee.thumbs) != drive.t_s.shape[0]:
         raise ValueError(f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times")
+    if stats is not None:
+        stats.close()
     steps = reckoning.steps
     iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
     sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
@@ -351,7 +388,9 @@ def _topomap_with_database(
     if not db.enabled:
         return plain, {"reference_frames": int(plain.chosen.size)}, None
     counts = [t.shape[0] for t in prepared.thumbs]
-    stats = frame_stats([d.frames for d in drives], counts, db, params.images)
+    stats = prepared.frame_stats
+    if stats is None or prepared.frame_stats_params != (db, params.images):
+        stats = frame_stats([d.frames for d in drives], counts, db, params.images)
     chain_ptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
     select = database_selector(stats, np.concatenate(prepared.thumbs), chain_ptr, db, params.loops.sad)
     per_node = max(params.topomap.frames_per_node, db.frames_per_node if db.use_sesame else 0)

@@ -48,7 +48,9 @@ __all__ = [
     "DATABASE_PAPER",
     "DatabaseParams",
     "FrameStats",
+    "FrameStatsPass",
     "database_selector",
+    "finish_frame_stats",
     "frame_stats",
 ]
 
@@ -113,15 +115,61 @@ class FrameStats:
         return float(1.0 - self.good.mean()) if self.good.size else 0.0
 
 
-def _chunks(frames: Iterable[NDArray[np.uint8]]) -> Iterable[U8]:
-    batch: list[NDArray[np.uint8]] = []
-    for frame in frames:
-        batch.append(frame)
-        if len(batch) == _CHUNK:
-            yield np.stack(batch)
-            batch = []
-    if batch:
-        yield np.stack(batch)
+class FrameStatsPass:
+    """The per-frame half of :func:`frame_stats` over one drive, fed frame by frame.
+
+    Lets the map build compute the statistics in the odometry's pass over a drive (frames decoded
+    once, drives in parallel); :func:`finish_frame_stats` then trains the classifier. Frames are
+    processed in chunks of ``_CHUNK`` per drive, as :func:`frame_stats` does, so results are the same.
+
+    Args:
+        offset: flat index of the drive's first frame over all mapping drives.
+        total: frames of all mapping drives, F (sets the classifier's sampling stride).
+        params: database parameters (SESAME masks, classifier).
+        image_params: crop and thumbnail size of the compared images.
+    """
+
+    def __init__(
+        self, offset: int, total: int, params: DatabaseParams, image_params: ImageParams = IMAGES_DEFAULT
+    ) -> None:
+        self.params, self.image_params = params, image_params
+        self.stride = max(1, total // (_SOURCE_CANDIDATES * params.quality_sources))
+        self.seen = offset  # flat index of the next frame
+        self.frames = 0  # frames of this drive so far
+        self.sal: list[F64] = []
+        self.masks: list[NDArray[np.bool_]] = []
+        self.feats: list[F64] = []
+        self.sample: list[NDArray] = []
+        self.sample_sal: list[F64] = []
+        self._batch: list[NDArray[np.uint8]] = []
+
+    def add(self, frame: NDArray[np.uint8]) -> None:
+        """Take the drive's next ``(H, W)`` uint8 grey frame."""
+        self._batch.append(frame)
+        if len(self._batch) == _CHUNK:
+            self._flush()
+
+    def close(self) -> FrameStatsPass:
+        """Process the last partial chunk; returns ``self``."""
+        if self._batch:
+            self._flush()
+        return self
+
+    def _flush(self) -> None:
+        chunk = np.stack(self._batch)
+        self._batch = []
+        s, m = saliency.frame_saliency(chunk, self.params.sesame, self.image_params)
+        self.sal.append(s)
+        self.masks.append(m)
+        if self.params.use_quality:
+            self.feats.append(quality_features(chunk, self.params.quality))
+            pick = np.flatnonzero((self.seen + np.arange(chunk.shape[0])) % self.stride == 0)
+            self.sample.append(
+                downsample(np.ascontiguousarray(chunk[pick]), self.params.quality.feature_size_px)
+            )
+            self.sample_sal.append(s[pick])
+        self.seen += chunk.shape[0]
+        self.frames += chunk.shape[0]
 
 
 def frame_stats(
@@ -144,37 +192,56 @@ def frame_stats(
     if len(drives) != len(counts):
         raise BadInputError("one frame count per drive is required", field="counts")
     total = int(sum(counts))
-    stride = max(1, total // (_SOURCE_CANDIDATES * params.quality_sources))
-    sal, masks, feats, sample, sample_sal = [], [], [], [], []
-    seen = 0
+    passes = []
+    offset = 0
     for source, count in zip(drives, counts, strict=True):
-        n_drive = 0
-        for chunk in _chunks(source()):
-            s, m = saliency.frame_saliency(chunk, params.sesame, image_params)
-            sal.append(s)
-            masks.append(m)
-            if params.use_quality:
-                feats.append(quality_features(chunk, params.quality))
-                pick = np.flatnonzero((seen + np.arange(chunk.shape[0])) % stride == 0)
-                sample.append(downsample(np.ascontiguousarray(chunk[pick]), params.quality.feature_size_px))
-                sample_sal.append(s[pick])
-            seen += chunk.shape[0]
-            n_drive += chunk.shape[0]
-        if n_drive != count:
-            raise BadInputError(f"a drive gave {n_drive} frames, expected {count}", field="counts")
+        stats = FrameStatsPass(offset, total, params, image_params)
+        for frame in source():
+            stats.add(frame)
+        passes.append(stats.close())
+        offset += count
+    return finish_frame_stats(passes, counts, params, image_params)
+
+
+def finish_frame_stats(
+    passes: Sequence[FrameStatsPass],
+    counts: Sequence[int],
+    params: DatabaseParams = DATABASE_DEFAULT,
+    image_params: ImageParams = IMAGES_DEFAULT,
+) -> FrameStats:
+    """:class:`FrameStats` of the drives' closed passes (in drive order): trains the quality classifier.
+
+    Args:
+        passes: per drive, its :class:`FrameStatsPass` after ``close()``.
+        counts: per drive, its number of frames N_d (checked against the frames the pass saw).
+        params: database parameters (as given to the passes).
+        image_params: crop and thumbnail size (as given to the passes).
+
+    Raises:
+        BadInputError: a drive gave another number of frames than its count.
+    """
+    for stats, count in zip(passes, counts, strict=True):
+        if stats.frames != count:
+            raise BadInputError(f"a drive gave {stats.frames} frames, expected {count}", field="counts")
+    total = int(sum(counts))
+    sal = [s for p in passes for s in p.sal]
+    masks = [m for p in passes for m in p.masks]
     h, w = (image_params.size_px or params.sesame.mask_size_px)[::-1]
     sal_all = np.concatenate(sal) if sal else np.zeros(0)
     mask_all = np.concatenate(masks) if masks else np.zeros((0, h, w), dtype=bool)
     good = np.ones(total, dtype=bool)
     classifier = None
     if params.use_quality and total:
-        candidates, cand_sal = np.concatenate(sample), np.concatenate(sample_sal)
+        candidates = np.concatenate([c for p in passes for c in p.sample])
+        cand_sal = np.concatenate([c for p in passes for c in p.sample_sal])
         salient = np.flatnonzero(cand_sal >= np.median(cand_sal))
         take = salient[
             np.linspace(0, salient.size - 1, min(params.quality_sources, salient.size)).astype(int)
         ]
         classifier = train_quality_classifier(candidates[take], params.seed, params.quality)
-        z = (np.concatenate(feats) - classifier.feature_mean) / classifier.feature_scale
+        z = (
+            np.concatenate([f for p in passes for f in p.feats]) - classifier.feature_mean
+        ) / classifier.feature_scale
         good = np.asarray(z @ classifier.coef + classifier.intercept > 0)
     return FrameStats(sal_all, mask_all, good, classifier)
 

@@ -1,0 +1,92 @@
+"""The map build's speed-ups change no result: the lean gradient, packed mask warps, and the database's
+frame statistics computed in the odometry pass equal their plain counterparts exactly."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from driftmap.core.camera import CameraModel
+from driftmap.core.mapping import FAST, MappingDrive, prepare_drives
+from driftmap.core.odometry import _masks, _setup, _warp
+from driftmap.core.params import ODOMETRY_DEFAULT
+from driftmap.core.place_database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
+from driftmap.core.sad import _gradient
+from driftmap.errors import BadInputError
+
+CAM = CameraModel(160, 120, (30, 40, 100, 60), 0.01, 0.01, 1.0, 4.0, 1)
+
+
+def _frames(seed: int, n: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.stack([cv2.GaussianBlur(f, (0, 0), 1.5) for f in rng.integers(0, 256, (n, 120, 160), np.uint8)])
+
+
+def _source(frames: np.ndarray) -> Callable[[], Iterator[np.ndarray]]:
+    return lambda: iter(frames)
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (3, 9), (57, 41)])
+def test_gradient_is_numpys_bit_for_bit(shape: tuple[int, int]) -> None:
+    img = (np.random.default_rng(1).normal(size=shape) * 50).astype(np.float32)
+    g_y, g_x = _gradient(img)
+    ref_y, ref_x = np.gradient(img)
+    assert g_y.dtype == np.float32 and np.array_equal(g_y, ref_y) and np.array_equal(g_x, ref_x)
+    with pytest.raises(ValueError):
+        _gradient(img[:1])
+
+
+def test_packed_mask_warp_equals_one_warp_per_mask() -> None:
+    params = replace(ODOMETRY_DEFAULT, model="linear", linear_patches=(4, 3))  # 12 regions: two packed warps
+    setup = _setup(CAM, params)
+    m_rot = setup.px_from_grid @ np.array([[0.99, -0.14, 3.0], [0.14, 0.99, -2.0], [0.0, 0.0, 1.0]])
+    regions, valid = _masks(CAM, setup, m_rot, 2)
+    assert len(regions) == 12
+    full = np.ones((CAM.height_px, CAM.width_px), np.uint8)
+    for got, mask in zip(regions, setup.region_px, strict=True):
+        assert np.array_equal(got, _warp(mask, setup, m_rot, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT))
+    ref_valid = cv2.erode(
+        _warp(full, setup, m_rot, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT), np.ones((3, 3)), iterations=2
+    )
+    assert np.array_equal(valid, ref_valid)
+    assert 0 < valid.sum() < valid.size
+
+
+def test_stats_passes_fed_frame_by_frame_equal_frame_stats_and_check_counts() -> None:
+    drives = [_frames(2, 150), _frames(3, 40)]  # 150 frames: a full chunk and a partial one
+    params = DatabaseParams(quality_sources=4)
+    ref = frame_stats([_source(d) for d in drives], [150, 40], params)
+    passes = [FrameStatsPass(0, 190, params), FrameStatsPass(150, 190, params)]
+    for p, frames in zip(passes, drives, strict=True):
+        for f in frames:
+            p.add(f)
+        p.close()
+    got = finish_frame_stats(passes, [150, 40], params)
+    assert np.array_equal(got.saliency, ref.saliency) and np.array_equal(got.masks, ref.masks)
+    assert np.array_equal(got.good, ref.good)
+    assert got.classifier is not None and ref.classifier is not None
+    assert np.array_equal(got.classifier.coef, ref.classifier.coef)
+    with pytest.raises(BadInputError, match="expected 41"):
+        finish_frame_stats(passes, [150, 41], params)
+
+
+def test_prepare_drives_computes_the_database_stats_in_the_odometry_pass() -> None:
+    stacks = [_frames(4, 12), _frames(5, 9)]
+    drives = [
+        MappingDrive(f"d{k}", CAM, np.arange(len(s), dtype=np.float64), _source(s))
+        for k, s in enumerate(stacks)
+    ]
+    params = replace(FAST, database=DatabaseParams(quality_sources=4), use_loop_closures=False)
+    prepared = prepare_drives(drives, params, workers=2)
+    ref = frame_stats([d.frames for d in drives], [12, 9], params.database, params.images)
+    assert prepared.frame_stats is not None and prepared.frame_stats_params == (
+        params.database,
+        params.images,
+    )
+    assert np.array_equal(prepared.frame_stats.saliency, ref.saliency)
+    assert np.array_equal(prepared.frame_stats.masks, ref.masks)
+    assert np.array_equal(prepared.frame_stats.good, ref.good)
