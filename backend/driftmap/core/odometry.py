@@ -448,14 +448,25 @@ def _match_birdseye(
         half = 0.5 * motion(shift_px)
         return centre - half, rot_w(centre + half, theta_w)
 
+    turned: dict[float, tuple[int, list[NDArray], list[list[NDArray]], list[NDArray]]] = {}
+
     def rotated(theta_w: float, levels: int) -> tuple[list[NDArray], list[list[NDArray]], list[NDArray]]:
-        """Pyramids of the current frame's grid turned by theta_w about C, of its regions and valid cells."""
+        """Pyramids of the current frame's grid turned by theta_w about C, of its regions and valid cells
+        (kept per theta_w: a pyramid's finer levels do not depend on how many coarser ones are built)."""
         if theta_w == 0.0:
             return curr.pyr[: levels + 1], [r[: levels + 1] for r in setup.regions], setup.valid[: levels + 1]
-        m_rot = _rotated_grid(setup, hom, centre, theta_w)
-        regions, valid = _masks(camera, setup, m_rot, max(1, params.patch_px // 2))
-        pyr = _normalised_pyramid(_warp(curr.raw, setup, m_rot), levels, params)
-        return pyr, [mask_pyramid(r, levels) for r in regions], mask_pyramid(valid, levels)
+        if theta_w not in turned or turned[theta_w][0] < levels:
+            m_rot = _rotated_grid(setup, hom, centre, theta_w)
+            regions, valid = _masks(camera, setup, m_rot, max(1, params.patch_px // 2))
+            pyr = _normalised_pyramid(_warp(curr.raw, setup, m_rot), levels, params)
+            turned[theta_w] = (
+                levels,
+                pyr,
+                [mask_pyramid(r, levels) for r in regions],
+                mask_pyramid(valid, levels),
+            )
+        _, pyr, regions_pyr, valid_pyr = turned[theta_w]
+        return pyr[: levels + 1], [r[: levels + 1] for r in regions_pyr], valid_pyr[: levels + 1]
 
     def turn(shift_px: tuple[float, float], theta_w: float) -> float:
         return _solve_arc(*pair(shift_px, theta_w), camera.y_c_m)[1] if params.rerotate else 0.0
