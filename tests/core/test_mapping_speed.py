@@ -3,16 +3,18 @@ frame statistics computed in the odometry pass equal their plain counterparts ex
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 import cv2
 import numpy as np
 import pytest
+from tests.core.test_odometry import pinhole_camera
 
 from driftmap.core.camera import CameraModel
 from driftmap.core.mapping import FAST, MappingDrive, prepare_drives
-from driftmap.core.odometry import _masks, _setup, _warp
+from driftmap.core.odometry import _apply, _horizon_offset, _masks, _setup, _warp
 from driftmap.core.params import ODOMETRY_DEFAULT
 from driftmap.core.place_database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
 from driftmap.core.sad import _gradient
@@ -90,3 +92,46 @@ def test_prepare_drives_computes_the_database_stats_in_the_odometry_pass() -> No
     assert np.array_equal(prepared.frame_stats.saliency, ref.saliency)
     assert np.array_equal(prepared.frame_stats.masks, ref.masks)
     assert np.array_equal(prepared.frame_stats.good, ref.good)
+
+
+def _horizon_offset_all_81(hom: np.ndarray, pairs: list, max_px: float) -> float | None:
+    """The horizon search as first written: every grid value, then the root interval nearest 0."""
+    if min(abs(p[1][1] - p[0][1]) for p in pairs[1:]) < 2.0:
+        return None
+    (n1, n2), (f1, f2) = pairs[1], pairs[2]
+    pts = np.stack([n1, f1, n2, f2])
+
+    def gap(delta: float) -> float:
+        shifted = pts + np.array([0.0, delta])
+        if np.any(shifted @ hom[2, :2] + hom[2, 2] <= 0):
+            return math.nan
+        f = _apply(hom, shifted)
+        return float(np.linalg.norm(f[0] - f[1]) - np.linalg.norm(f[2] - f[3]))
+
+    grid = np.linspace(-max_px, max_px, 81)
+    vals = np.array([gap(float(g)) for g in grid])
+    roots = [i for i in range(80) if np.isfinite(vals[i] + vals[i + 1]) and vals[i] * vals[i + 1] <= 0]
+    if not roots:
+        return None
+    i = min(roots, key=lambda j: abs(grid[j]))
+    lo, hi, g_lo = float(grid[i]), float(grid[i + 1]), float(vals[i])
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        g_mid = gap(mid)
+        lo, hi, g_lo = (mid, hi, g_lo) if g_lo * g_mid > 0 else (lo, mid, g_lo)
+    return 0.5 * (lo + hi)
+
+
+def test_horizon_search_equals_the_full_grid_search() -> None:
+    hom = np.asarray(pinhole_camera().homography())
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(300):
+        near, far = rng.uniform([80, 190], [240, 215]), rng.uniform([80, 135], [240, 160])
+        move = rng.normal([0.0, 8.0], [1.0, 3.0])
+        scale = rng.uniform(0.3, 0.9)  # far content moves less in the image; a pitch error changes how much
+        pairs = [(near, near), (near, near + move), (far, far + move * scale)]
+        ref = _horizon_offset_all_81(hom, pairs, 40.0)
+        assert _horizon_offset(hom, pairs, 40.0) == ref
+        found += ref is not None
+    assert 30 < found < 270  # both outcomes are exercised

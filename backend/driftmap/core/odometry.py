@@ -537,13 +537,22 @@ def _horizon_offset(hom: NDArray, pairs: list[Pair], max_px: float) -> float | N
         near, far = f[0] - f[1], f[2] - f[3]
         return math.sqrt(near.dot(near)) - math.sqrt(far.dot(far))  # np.linalg.norm's own sums
 
+    # The bracketing grid interval nearest 0 (the first on ties); intervals are tried nearest first,
+    # so only the gap values near 0 are computed, not all 81.
     grid = np.linspace(-max_px, max_px, 81)
-    vals = np.array([gap(float(g)) for g in grid])
-    roots = [i for i in range(80) if np.isfinite(vals[i] + vals[i + 1]) and vals[i] * vals[i + 1] <= 0]
-    if not roots:
+    vals: dict[int, float] = {}
+
+    def val(j: int) -> float:
+        if j not in vals:
+            vals[j] = gap(float(grid[j]))
+        return vals[j]
+
+    for i in sorted(range(80), key=lambda j: (abs(grid[j]), j)):
+        if math.isfinite(val(i) + val(i + 1)) and val(i) * val(i + 1) <= 0:
+            break
+    else:
         return None
-    i = min(roots, key=lambda j: abs(grid[j]))
-    lo, hi, g_lo = float(grid[i]), float(grid[i + 1]), float(vals[i])
+    lo, hi, g_lo = float(grid[i]), float(grid[i + 1]), val(i)
     for _ in range(40):
         mid = 0.5 * (lo + hi)
         g_mid = gap(mid)
