@@ -94,7 +94,9 @@ def test_prepare_drives_computes_the_database_stats_in_the_odometry_pass() -> No
     assert np.array_equal(prepared.frame_stats.good, ref.good)
 
 
-def _horizon_offset_all_81(hom: np.ndarray, pairs: list, max_px: float) -> float | None:
+def _horizon_offset_all_81(
+    hom: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]], max_px: float
+) -> float | None:
     """The horizon search as first written: every grid value, then the root interval nearest 0."""
     if min(abs(p[1][1] - p[0][1]) for p in pairs[1:]) < 2.0:
         return None
