@@ -7,7 +7,6 @@ import json
 import os
 import re
 import signal
-import socket
 import struct
 import subprocess
 import sys
@@ -23,26 +22,10 @@ from driftmap.config import Settings
 from driftmap.services import users as user_service
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
+from tests.processes import alive, free_port, wait_healthy
 
 START_DEADLINE_S = 90.0
 STOP_DEADLINE_S = 60.0
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # a zombie (exited, not yet reaped by its parent) counts as stopped
-    status = Path(f"/proc/{pid}/status")
-    return not (status.exists() and "\nState:\tZ" in status.read_text())
 
 
 @pytest.fixture
@@ -56,7 +39,7 @@ def _serve(
     env: dict[str, str], log: Path, *extra: str
 ) -> Iterator[tuple[subprocess.Popen[bytes], str, Path]]:
     """Start ``driftmap serve`` and wait for its health answer; the second ``next`` kills what is left."""
-    port = _free_port()
+    port = free_port()
     with log.open("wb") as sink:
         process = subprocess.Popen(
             [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *extra],
@@ -65,18 +48,7 @@ def _serve(
             stderr=sink,
         )
     base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + START_DEADLINE_S
-    while True:
-        assert process.poll() is None, log.read_text()
-        try:
-            if httpx.get(f"{base}/api/health", timeout=2.0).status_code == 200:
-                break
-        except httpx.TransportError:
-            pass
-        assert time.monotonic() < deadline, (
-            f"no health answer within {START_DEADLINE_S} s:\n{log.read_text()}"
-        )
-        time.sleep(0.2)
+    wait_healthy(process, base, log, START_DEADLINE_S)
     yield process, base, log
     if process.poll() is None:
         process.kill()
@@ -96,7 +68,7 @@ class TestServe:
         assert httpx.get(f"{base}/api/health").json()["status"] == "ok"
         assert httpx.get(f"{base}/docs").status_code == 200
         worker_pid = int(re.search(r"worker process (\d+) started", log.read_text()).group(1))  # type: ignore[union-attr]
-        assert _alive(worker_pid)
+        assert alive(worker_pid)
 
         added = subprocess.run(
             [sys.executable, "-m", "driftmap", "user", "add", "ops", "--role", "viewer", "--password-stdin"],
@@ -120,7 +92,7 @@ class TestServe:
         process.send_signal(signal.SIGTERM)
         assert process.wait(STOP_DEADLINE_S) == 0 or process.returncode == 128 + signal.SIGTERM
         deadline = time.monotonic() + STOP_DEADLINE_S
-        while _alive(worker_pid):
+        while alive(worker_pid):
             assert time.monotonic() < deadline, "the worker process outlived the server"
             time.sleep(0.2)
         assert "worker process" in log.read_text() and "stopped" in log.read_text()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -16,25 +15,10 @@ import httpx
 import pytest
 
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive
+from tests.processes import alive, free_port, stop, wait_healthy
 
 PASSWORD = "replay-admin-password"
 START_DEADLINE_S = 120.0
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    status = Path(f"/proc/{pid}/status")
-    return not (status.exists() and "\nState:\tZ" in status.read_text())
 
 
 @pytest.fixture
@@ -80,7 +64,7 @@ def _stored(base: str, name: str) -> bool:
 @pytest.fixture
 def server(env: dict[str, str], tmp_path: Path) -> Iterator[str]:
     """``driftmap serve`` (no job worker) on a free port; yields its base URL."""
-    port = _free_port()
+    port = free_port()
     log = tmp_path / "serve.log"
     with log.open("wb") as sink:
         process = subprocess.Popen(
@@ -91,24 +75,10 @@ def server(env: dict[str, str], tmp_path: Path) -> Iterator[str]:
         )
     base = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + START_DEADLINE_S
-        while True:
-            assert process.poll() is None, log.read_text()
-            try:
-                if httpx.get(f"{base}/api/health", timeout=2.0).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert time.monotonic() < deadline, log.read_text()
-            time.sleep(0.2)
+        wait_healthy(process, base, log, START_DEADLINE_S)
         yield base
     finally:
-        process.terminate()
-        try:
-            process.wait(30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
 
 
 def _replay(env: dict[str, str], *args: str) -> list[str]:
@@ -158,7 +128,7 @@ class TestReplay:
         self, env: dict[str, str], tiny_site_dir: Path, tmp_path: Path
     ) -> None:
         drive = localisation_drive(tiny_site_dir)
-        base = f"http://127.0.0.1:{_free_port()}"
+        base = f"http://127.0.0.1:{free_port()}"
         log = tmp_path / "replay.log"
         with log.open("wb") as sink:
             process = subprocess.Popen(
@@ -180,7 +150,7 @@ class TestReplay:
             text = log.read_text()
             assert f"log in as 'admin' with password '{PASSWORD}'" in text
             server_pid = int(re.search(r"server process (\d+) starting", text).group(1))  # type: ignore[union-attr]
-            assert _alive(server_pid)
+            assert alive(server_pid)
             process.send_signal(signal.SIGINT)
             assert process.wait(90) == 0, log.read_text()
         finally:
@@ -189,10 +159,10 @@ class TestReplay:
                 process.wait()
             # a replay killed before it could stop its server (its own session) leaves it: stop it here
             started = re.search(r"server process (\d+) starting", log.read_text())
-            if started and _alive(int(started.group(1))):
+            if started and alive(int(started.group(1))):
                 os.kill(int(started.group(1)), signal.SIGTERM)
         text = log.read_text()
         assert "stopping the replay" in text and f"server process {server_pid} stopped" in text
-        assert not _alive(server_pid)
+        assert not alive(server_pid)
         with pytest.raises(httpx.TransportError):
             httpx.get(f"{base}/api/health", timeout=2.0)

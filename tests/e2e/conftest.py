@@ -8,10 +8,8 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +19,7 @@ import pytest
 from playwright.sync_api import Browser, ConsoleMessage, Error, Page, sync_playwright
 
 from tests.api.access_helpers import built_tiny_data, copy_data
+from tests.processes import free_port, stop, wait_healthy
 
 REPO = Path(__file__).resolve().parents[2]
 FRONTEND = REPO / "frontend"
@@ -45,13 +44,6 @@ def chromium_path() -> str | None:
     if found:
         return found
     return "/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
 
 
 def _ensure_frontend_built() -> None:
@@ -110,7 +102,7 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
         check=False,
     )
     assert added.returncode == 0, added.stderr.decode()
-    port = _free_port()
+    port = free_port()
     log = work / "serve.log"
     with log.open("wb") as sink:
         process = subprocess.Popen(
@@ -121,28 +113,12 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
         )
     base = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + START_DEADLINE_S
-        while True:
-            assert process.poll() is None, log.read_text()
-            try:
-                if httpx.get(f"{base}/api/health", timeout=2.0).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert time.monotonic() < deadline, (
-                f"no health answer in {START_DEADLINE_S} s:\n{log.read_text()}"
-            )
-            time.sleep(0.2)
+        wait_healthy(process, base, log, START_DEADLINE_S)
         login = httpx.post(f"{base}/api/auth/login", json={"username": "admin", "password": ADMIN_PASSWORD})
         assert login.status_code == 200, login.text
         yield Server(base, env, {"Authorization": f"Bearer {login.json()['access_token']}"}, log)
     finally:
-        process.terminate()
-        try:
-            process.wait(30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
 
 
 @pytest.fixture
@@ -158,12 +134,7 @@ def worker(server: Server) -> Iterator[subprocess.Popen[bytes]]:
     try:
         yield process
     finally:
-        process.terminate()
-        try:
-            process.wait(30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
 
 
 @pytest.fixture(scope="module")

@@ -2,24 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
 import time
 
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # A zombie (exited, not reaped yet by init) counts as gone.
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            return stat.read().split(") ", 1)[1][0] != "Z"
-    except FileNotFoundError:  # reaped in between
-        return False
+from tests.processes import alive
 
 
 def test_a_worker_exits_when_its_parent_is_killed() -> None:
@@ -37,10 +25,10 @@ def test_a_worker_exits_when_its_parent_is_killed() -> None:
     worker = int(parent.stdout.readline())
     assert parent.stdout.readline().strip() == "ready"
     time.sleep(0.5)  # ten polls
-    assert _alive(worker), "the worker must run while its parent does"
+    assert alive(worker), "the worker must run while its parent does"
     parent.send_signal(signal.SIGKILL)
     parent.wait(timeout=10)
     deadline = time.monotonic() + 10
-    while _alive(worker) and time.monotonic() < deadline:
+    while alive(worker) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not _alive(worker)
+    assert not alive(worker)
