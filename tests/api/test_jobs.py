@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -20,7 +19,6 @@ from typing import get_args
 
 import httpx
 import pytest
-import redis
 from sqlalchemy import func, select
 
 from driftmap.api.jobs import JobKind, JobStatus
@@ -38,6 +36,7 @@ from tests.api.data_helpers import (
     upload_zip,
 )
 from tests.jobs.mini_site import drive_folders, mini_site_dir, zip_folder
+from tests.redis_server import running_redis
 from tests.sim_site import import_site
 
 
@@ -220,32 +219,9 @@ class TestWorkerStopped:
 
 @pytest.fixture
 def redis_url(tmp_path: Path) -> Iterator[str]:
-    """A private redis-server on a free loopback port (the test is skipped without redis-server)."""
-    binary = shutil.which("redis-server")
-    if binary is None:
-        pytest.skip("redis-server is not installed")
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    server = subprocess.Popen(
-        [binary, "--port", str(port), "--bind", "127.0.0.1", "--save", "", "--dir", str(tmp_path)],
-        stdout=subprocess.DEVNULL,
-    )
-    url = f"redis://127.0.0.1:{port}/0"
-    try:
-        client = redis.Redis.from_url(url)
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                client.ping()
-                break
-            except redis.ConnectionError:
-                assert time.monotonic() < deadline, "redis-server did not start"
-                time.sleep(0.1)
+    """A private redis-server for this test (skipped without redis-server)."""
+    with running_redis(tmp_path) as url:
         yield url
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
 
 
 class TestSharedQueue:

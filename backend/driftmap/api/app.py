@@ -16,6 +16,8 @@ from fastapi.staticfiles import StaticFiles
 from driftmap import __version__
 from driftmap.api.deps import PrincipalCache
 from driftmap.api.error_handlers import driftmap_error_handler
+from driftmap.api.hub import InMemoryHub, LiveHub, RedisHub
+from driftmap.api.latest_frames import LatestFrames, MemoryFrames, RedisFrames
 from driftmap.api.live_service import LiveService
 from driftmap.api.routes import ROUTERS
 from driftmap.config import Settings, get_settings
@@ -30,13 +32,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """The application for ``settings`` (the environment's when None); opens and upgrades the database."""
     settings = settings or get_settings()
     storage = Storage.open(settings)
-    live = LiveService(settings, storage, processes=settings.live_processes)
+    hub: LiveHub = InMemoryHub()
+    frames: LatestFrames = MemoryFrames()
+    if settings.redis_url:  # several API processes: watchers and latest frames shared through Redis
+        hub, frames = RedisHub(settings.redis_url), RedisFrames(settings.redis_url)
+    live = LiveService(settings, storage, hub, frames, processes=settings.live_processes)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        await live.workers.start()
+        await live.start()
         yield
-        live.close()
+        await live.stop()
         storage.close()
 
     app = FastAPI(

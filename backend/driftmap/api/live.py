@@ -4,7 +4,8 @@
 image/jpeg`` or ``image/png``) and answers with a :class:`~driftmap.api.schemas_access.FrameEstimate`.
 
 ``GET /api/vehicles/{id}/frames/latest`` (any logged-in user) returns the vehicle's last localised frame as it
-was posted, kept in the memory of the server process that localised it (``X-Frame-T`` carries its ``t``).
+was posted (``X-Frame-T`` carries its ``t``), kept in the server process's memory, or in Redis when
+``DRIFTMAP_REDIS_URL`` is set so that every API process serves it.
 
 ``/api/vehicles/{id}/stream`` (WebSocket, the vehicle's token as bearer header or ``?token=``): each binary
 message is one frame: ``t`` as an 8-byte big-endian IEEE float64 (seconds), then the JPEG/PNG bytes. The
@@ -15,7 +16,9 @@ server answers each frame with one JSON text message, a FrameEstimate, or ``{"st
 ``{"type": "snapshot", "seq", "stale_after_s", "vehicles": [...]}``, every vehicle with its last position;
 with ``?since=SEQ`` then every ``{"type": "position", ...}`` after SEQ up to the snapshot (to resume after a
 reconnect); then live ``position`` messages, and ``{"type": "stale", "vehicle_id", "received_at"}`` when a
-vehicle stops reporting for ``stale_after_s``.
+vehicle stops reporting for ``stale_after_s``. A watcher gets each position once and each vehicle's positions
+in order; positions of different vehicles may arrive out of ``seq`` order (they are localised by different
+processes), so a client resuming with ``?since=`` should pass the smallest of its vehicles' last ``seq``.
 """
 
 from __future__ import annotations
@@ -34,7 +37,6 @@ from driftmap.api.deps import (
     WS_CLOSE_FORBIDDEN,
     WS_CLOSE_UNAUTHORIZED,
     Principal,
-    SessionDep,
     VehicleDep,
     websocket_principal,
 )
@@ -104,15 +106,21 @@ async def post_frame(
         200: {"content": dict.fromkeys(IMAGE_TYPES, _IMAGE_BODY), "description": "The frame's bytes."}
     },
 )
-def latest_frame(vehicle_id: int, request: Request, session: SessionDep) -> Response:
-    """The vehicle's last localised frame (404 before its first, or when another server process took it)."""
-    vehicle_service.get_vehicle(session, vehicle_id)
-    found = _live(request.app.state).latest_frame(vehicle_id)
+async def latest_frame(vehicle_id: int, request: Request) -> Response:
+    """The vehicle's last localised frame (404 before its first; without Redis, 404 too when another server
+    process localised it)."""
+    await asyncio.to_thread(_check_vehicle, request, vehicle_id)
+    found = await _live(request.app.state).latest_frame(vehicle_id)
     if found is None:
-        raise NotFoundError(f"no frame of vehicle {vehicle_id} localised by this server process yet")
+        raise NotFoundError(f"no frame of vehicle {vehicle_id} localised yet (or it expired)")
     t, data = found
     media_type = "image/png" if data.startswith(b"\x89PNG") else "image/jpeg"
     return Response(data, media_type=media_type, headers={"X-Frame-T": repr(t), "Cache-Control": "no-store"})
+
+
+def _check_vehicle(request: Request, vehicle_id: int) -> None:
+    with request.app.state.storage.db.session() as session:
+        vehicle_service.get_vehicle(session, vehicle_id)
 
 
 async def _authorise(websocket: WebSocket, vehicle_id: int | None) -> Principal | None:
@@ -221,7 +229,7 @@ async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
     subscription = live.hub.subscribe()
     receiver = asyncio.create_task(_until_disconnect(websocket))
     try:
-        snapshot, last_sent = await asyncio.to_thread(_snapshot, websocket)
+        snapshot, floor = await asyncio.to_thread(_snapshot, websocket)
         await websocket.send_json(snapshot)
         heard: dict[int, datetime] = {}
         for row in snapshot["vehicles"]:
@@ -229,21 +237,24 @@ async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
                 heard[row["vehicle_id"]] = datetime.fromisoformat(row["position"]["received_at"])
         stale = {row["vehicle_id"] for row in snapshot["vehicles"] if row["stale"]}
         if since is not None:
-            for message in await asyncio.to_thread(_since, websocket, since, last_sent):
+            for message in await asyncio.to_thread(_since, websocket, since, floor):
                 await websocket.send_json(message)
+        sent: dict[int, int] = {}  # seq of the last position sent, by vehicle (the floor before the first)
         backlog: list[dict[str, Any]] = []
         while not receiver.done():
             if subscription.overflowed:
                 subscription.drain()
-                backlog = await asyncio.to_thread(_since, websocket, last_sent)
+                active = [seq for vehicle_id, seq in sent.items() if vehicle_id not in stale]
+                resync_from = min(active) if active else max(sent.values(), default=floor)
+                backlog = await asyncio.to_thread(_since, websocket, resync_from)
             if not backlog:
                 with contextlib.suppress(TimeoutError):
                     backlog.append(await asyncio.wait_for(subscription.queue.get(), 1.0))
             for message in backlog:
-                if message["type"] != "position" or message["seq"] <= last_sent:
+                if message["type"] != "position" or message["seq"] <= sent.get(message["vehicle_id"], floor):
                     continue
                 await websocket.send_json(message)
-                last_sent = message["seq"]
+                sent[message["vehicle_id"]] = message["seq"]
                 heard[message["vehicle_id"]] = datetime.fromisoformat(message["received_at"])
                 stale.discard(message["vehicle_id"])
             backlog = []

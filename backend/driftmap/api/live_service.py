@@ -7,6 +7,12 @@ behind it, ordered by ``t``. A frame whose
 ``out_of_order``. When the waiting room overflows, its oldest frame is skipped on purpose: its caller gets
 ``status="skipped"``. Both counts are stored with the vehicle's next processed frame. Frames are never
 reordered and never processed twice; every posted frame gets exactly one answer.
+
+Several API processes may share one database (and one Redis): a vehicle's localiser state is the stored
+:class:`~driftmap.store.access_models.VehicleLiveState` (see :mod:`driftmap.services.live`), so frames of
+one vehicle posted to different processes are still localised once each and in order. A processed frame is
+published to the hub and kept as the vehicle's latest frame *before* its caller gets the answer, so a
+vehicle that posts its next frame after the answer (to any process) cannot overtake it on the hub.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 
 from driftmap.api.hub import InMemoryHub, LiveHub, Message
+from driftmap.api.latest_frames import LatestFrames, MemoryFrames
 from driftmap.config import Settings
 from driftmap.formats.frame_images import check_complete
 from driftmap.services.live import FrameOutcome, FrameStatus
@@ -114,6 +121,7 @@ class LiveService:
         settings: server settings.
         storage: the database and blob store.
         hub: where estimates are published (an in-process hub when None).
+        frames: where the latest frame of each vehicle is kept (this process's memory when None).
         queue_depth: frames of one vehicle that may wait behind the one being localised.
         processes: localiser worker processes (about one per core).
     """
@@ -123,6 +131,7 @@ class LiveService:
         settings: Settings,
         storage: Storage,
         hub: LiveHub | None = None,
+        frames: LatestFrames | None = None,
         *,
         queue_depth: int = 1,
         processes: int = 2,
@@ -132,12 +141,24 @@ class LiveService:
         self.hub: LiveHub = hub if hub is not None else InMemoryHub()
         self.queue_depth = max(1, queue_depth)
         self.workers = LocaliserWorkers(settings, processes)
+        self.frames: LatestFrames = frames if frames is not None else MemoryFrames()
         self._lanes: dict[int, _Lane] = {}
-        self._latest_frames: dict[int, tuple[float, bytes]] = {}
 
-    def latest_frame(self, vehicle_id: int) -> tuple[float, bytes] | None:
-        """``(t, bytes)`` of the vehicle's last frame localised by this process (as posted), or None."""
-        return self._latest_frames.get(vehicle_id)
+    async def latest_frame(self, vehicle_id: int) -> tuple[float, bytes] | None:
+        """``(t, bytes)`` of the vehicle's newest localised frame (as posted), or None."""
+        return await self.frames.get(vehicle_id)
+
+    async def start(self) -> None:
+        """Start the localiser worker processes and connect the hub and the frame store."""
+        await self.workers.start()
+        await self.hub.start()
+        await self.frames.start()
+
+    async def stop(self) -> None:
+        """Disconnect the hub and the frame store, then stop the worker processes."""
+        await self.hub.close()
+        await self.frames.close()
+        self.close()
 
     def close(self) -> None:
         """Stop the worker processes (after the frames being localised)."""
@@ -210,6 +231,18 @@ class LiveService:
             done = lane.stored_before_last
             lane.stored_before_last = (done[0] + counts[0], done[1] + counts[1])
 
+    async def _share(self, vehicle_id: int, item: _Waiting, outcome: FrameOutcome) -> None:
+        """Keep the frame as the vehicle's latest and publish its position (failures are logged: the estimate
+        is stored and watchers resync from the history)."""
+        try:
+            await self.frames.put(vehicle_id, item.t, item.data)
+        except Exception:
+            log.warning("could not keep the latest frame of vehicle %s", vehicle_id, exc_info=True)
+        try:
+            await self.hub.publish(position_message(_view(outcome)))
+        except Exception:
+            log.warning("could not publish position %s of vehicle %s", outcome.seq, vehicle_id, exc_info=True)
+
     async def _drain(self, lane: _Lane) -> None:
         try:
             while lane.waiting or lane.unsaved_skips or lane.unsaved_out_of_order:
@@ -230,10 +263,9 @@ class LiveService:
                         item.answer.set_exception(exc)
                     continue
                 lane.last, lane.in_flight = outcome, (0, 0)
+                if outcome.status == "processed":
+                    await self._share(lane.vehicle_id, item, outcome)
                 if not item.answer.done():
                     item.answer.set_result(outcome)
-                if outcome.status == "processed":
-                    self._latest_frames[lane.vehicle_id] = (item.t, item.data)
-                    await self.hub.publish(position_message(_view(outcome)))
         finally:
             lane.running = False

@@ -1,4 +1,9 @@
-"""``driftmap serve`` (the API and, on the embedded default, one job worker beside it) and ``driftmap user``."""
+"""``driftmap serve`` (the API and, on the embedded default, one job worker beside it) and ``driftmap user``.
+
+``driftmap serve --workers N`` runs N API processes on one port (uvicorn's workers, each building the app
+with :func:`driftmap.api.app.create_app`); they share live state through Redis, so N > 1 needs
+``DRIFTMAP_REDIS_URL`` (and then no job worker is started beside them: run ``driftmap worker``).
+"""
 
 from __future__ import annotations
 
@@ -85,6 +90,12 @@ def serve(
         bool,
         typer.Option("--worker/--no-worker", help="Start one job worker beside the API (embedded queue)."),
     ] = True,
+    workers: Annotated[
+        int,
+        typer.Option(
+            "--workers", min=1, help="API processes on the port; more than one needs DRIFTMAP_REDIS_URL."
+        ),
+    ] = 1,
 ) -> None:
     """Run the web server; without DRIFTMAP_REDIS_URL also one job worker process beside it."""
     import uvicorn
@@ -92,6 +103,24 @@ def serve(
     from driftmap.api.app import create_app
 
     settings = get_settings()
+    if workers > 1:
+        if settings.redis_url is None:
+            raise typer.BadParameter(
+                "several API processes share watchers and latest frames through Redis: set DRIFTMAP_REDIS_URL",
+                param_hint="--workers",
+            )
+        with user_errors():
+            open_storage().close()  # upgrade the schema once, before the processes start
+        uvicorn.run(
+            "driftmap.api.app:create_app",
+            factory=True,
+            workers=workers,
+            host=host,
+            port=port,
+            log_level="info",
+            ws_max_size=2 * settings.max_frame_bytes,
+        )
+        return
     with user_errors():
         app = create_app(settings)  # opens and upgrades the database before the worker starts
     process = _start_worker() if worker and settings.redis_url is None else None
