@@ -11,6 +11,19 @@ from pathlib import Path
 import httpx
 
 
+def driftmap_env(data_dir: Path, database_url: str | None = None, **settings: str) -> dict[str, str]:
+    """The environment of a ``driftmap`` subprocess: this one without its ``DRIFTMAP_*`` settings, then
+    ``DRIFTMAP_DATA_DIR``, the run's database (``database_url``, else this process's
+    ``DRIFTMAP_DATABASE_URL`` on a PostgreSQL run) and ``settings`` as ``DRIFTMAP_<NAME>`` variables."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
+    env["DRIFTMAP_DATA_DIR"] = str(data_dir)
+    url = database_url or os.environ.get("DRIFTMAP_DATABASE_URL")
+    if url:
+        env["DRIFTMAP_DATABASE_URL"] = url
+    env.update({f"DRIFTMAP_{name.upper()}": value for name, value in settings.items()})
+    return env
+
+
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that was free a moment ago."""
     with socket.socket() as sock:

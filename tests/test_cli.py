@@ -47,7 +47,7 @@ class TestSiteAndDrives:
         )
         assert result.exit_code == 0, result.output
         assert "CENTRELINE" in result.output and "WALLS" in result.output
-        assert (data_dir / "driftmap.sqlite3").is_file()
+        assert (data_dir / "driftmap.sqlite3").is_file() == (get_settings().database_url is None)
 
         listing = runner.invoke(app, ["drive", "list", "demo"])
         assert listing.exit_code == 0, listing.output

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
 import re
 import signal
 import struct
@@ -22,7 +21,7 @@ from driftmap.config import Settings
 from driftmap.services import users as user_service
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
-from tests.processes import alive, free_port, wait_healthy
+from tests.processes import alive, driftmap_env, free_port, wait_healthy
 
 START_DEADLINE_S = 90.0
 STOP_DEADLINE_S = 60.0
@@ -30,9 +29,7 @@ STOP_DEADLINE_S = 60.0
 
 @pytest.fixture
 def env(tmp_path: Path) -> dict[str, str]:
-    out = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
-    out["DRIFTMAP_DATA_DIR"] = str(tmp_path / "data")
-    return out
+    return driftmap_env(tmp_path / "data")
 
 
 def _serve(

@@ -1,7 +1,8 @@
 """What the access and live API tests share: users of every role, a vehicle, a built tiny site.
 
-The tiny site's map is built once per test session into a data directory that each test copies, so tests
-that post frames start from the same stored map and never see each other's vehicles.
+The tiny site's map is built once per test session into a data directory (and, on a PostgreSQL run, a
+database) that each test copies, so tests that post frames start from the same stored map and never see each
+other's vehicles.
 """
 
 from __future__ import annotations
@@ -22,18 +23,25 @@ from driftmap.services import sites as site_service
 from driftmap.services import users as user_service
 from driftmap.services import vehicles as vehicle_service
 from driftmap.store.storage import Storage
+from tests.postgres_server import active_server
 from tests.sim_site import import_site
 
 PASSWORD = "correct horse battery"
 ROLES = ("admin", "surveyor", "viewer")
 _built: dict[Path, Path] = {}
+_snapshots: dict[Path, str] = {}
+"""PostgreSQL database holding the rows of a built data directory (PostgreSQL runs only)."""
 
 
 def built_tiny_data(base: Path, site_dir: Path) -> Path:
     """A data directory holding the tiny site and one FAST map version (built once per session)."""
     if site_dir not in _built:
         data = base / "built-tiny-data"
-        storage = Storage.open(Settings(data_dir=data))
+        server = active_server()
+        url = None  # the embedded SQLite file, whatever the test's database is
+        if server is not None:
+            _snapshots[data], url = server.snapshot()
+        storage = Storage.open(Settings(data_dir=data, database_url=url))
         import_site(storage, site_dir)
         with storage.blobs.batch() as batch, storage.db.session() as session:
             map_service.build_site_map(
@@ -45,9 +53,23 @@ def built_tiny_data(base: Path, site_dir: Path) -> Path:
 
 
 def copy_data(source: Path, target: Path) -> Path:
-    """A private copy of a data directory (SQLite file, WAL and blobs)."""
+    """A private copy of a data directory (SQLite file, WAL and blobs; on PostgreSQL, its rows too)."""
     shutil.copytree(source, target)
+    server = active_server()
+    if server is not None and source in _snapshots:
+        server.restore_current(_snapshots[source])
     return target
+
+
+def copy_data_to_new_database(source: Path, target: Path) -> tuple[Path, str | None]:
+    """A private copy of a data directory for a fixture that outlives one test (e.g. module-scoped):
+    on PostgreSQL its rows go to a new database of their own, whose URL is returned (None on SQLite)."""
+    shutil.copytree(source, target)
+    server = active_server()
+    if server is None or source not in _snapshots:
+        return target, None
+    _name, url = server.snapshot(template=_snapshots[source])
+    return target, url
 
 
 @dataclass

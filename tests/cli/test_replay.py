@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive
-from tests.processes import alive, free_port, stop, wait_healthy
+from tests.processes import alive, driftmap_env, free_port, stop, wait_healthy
 
 PASSWORD = "replay-admin-password"
 START_DEADLINE_S = 120.0
@@ -25,8 +25,7 @@ START_DEADLINE_S = 120.0
 def env(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path) -> dict[str, str]:
     """A private copy of the tiny site with its map, and an admin user."""
     data = copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
-    out = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
-    out["DRIFTMAP_DATA_DIR"] = str(data)
+    out = driftmap_env(data)
     added = subprocess.run(
         [sys.executable, "-m", "driftmap", "user", "add", "admin", "--role", "admin", "--password-stdin"],
         input=f"{PASSWORD}\n".encode(),

@@ -6,7 +6,6 @@ Skipped (with the reason) only when no chromium binary can be found; ``make test
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -18,8 +17,8 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, ConsoleMessage, Error, Page, sync_playwright
 
-from tests.api.access_helpers import built_tiny_data, copy_data
-from tests.processes import free_port, stop, wait_healthy
+from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
+from tests.processes import driftmap_env, free_port, stop, wait_healthy
 
 REPO = Path(__file__).resolve().parents[2]
 FRONTEND = REPO / "frontend"
@@ -90,10 +89,10 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
         pytest.skip("chromium is not installed (make test installs it with apt-get)")
     _ensure_frontend_built()
     work = tmp_path_factory.mktemp("e2e")
-    data = copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), work / "data")
-    env = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
-    env["DRIFTMAP_DATA_DIR"] = str(data)
-    env["DRIFTMAP_STALE_AFTER_S"] = str(STALE_AFTER_S)
+    data, database_url = copy_data_to_new_database(
+        built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), work / "data"
+    )
+    env = driftmap_env(data, database_url, stale_after_s=str(STALE_AFTER_S))
     added = subprocess.run(
         [sys.executable, "-m", "driftmap", "user", "add", "admin", "--role", "admin", "--password-stdin"],
         input=f"{ADMIN_PASSWORD}\n".encode(),

@@ -1,4 +1,4 @@
-"""Schema from migrations only, on real SQLite files."""
+"""Schema from migrations only, on the database of the run (SQLite files, or PostgreSQL)."""
 
 from __future__ import annotations
 
@@ -26,12 +26,15 @@ class TestMigrations:
         again.close()
         assert {"sites", "survey_maps", "drives", "frames", "groundings", "alembic_version"} <= tables
 
-    def test_sqlite_file_lives_under_data_dir_with_foreign_keys(
-        self, storage: Storage, settings: Settings
-    ) -> None:
-        assert (settings.data_dir / "driftmap.sqlite3").is_file()
-        with storage.db.engine.connect() as connection:
-            assert connection.execute(text("PRAGMA foreign_keys")).scalar() == 1
+    def test_sqlite_file_lives_under_data_dir_with_foreign_keys(self, tmp_path: Path) -> None:
+        settings = Settings(data_dir=tmp_path / "data", database_url=None)  # the embedded default, always
+        storage = Storage.open(settings)
+        try:
+            assert (settings.data_dir / "driftmap.sqlite3").is_file()
+            with storage.db.engine.connect() as connection:
+                assert connection.execute(text("PRAGMA foreign_keys")).scalar() == 1
+        finally:
+            storage.close()
 
     def test_database_url_overrides_the_embedded_default(self, tmp_path: Path) -> None:
         url = f"sqlite:///{tmp_path / 'elsewhere.db'}"
