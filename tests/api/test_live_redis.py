@@ -18,6 +18,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
 import httpx
@@ -40,6 +41,7 @@ from tests.api.access_helpers import (
     built_tiny_data,
     copy_data,
     localisation_drive,
+    make_actors,
     recorded_frames,
 )
 from tests.processes import free_port, stop, wait_healthy
@@ -231,6 +233,32 @@ class TestRedisHub:
         median, p99 = delays[len(delays) // 2], delays[int(0.99 * len(delays))]
         print(f"redis hub publish -> other hub's watcher: median {median:.2f} ms, p99 {p99:.2f} ms")
         assert median < 100.0
+
+
+class TestWatcherAcrossProcesses:
+    def test_positions_of_two_vehicles_out_of_seq_order_both_reach_a_watcher(
+        self, tmp_path: Path, redis_url: str
+    ) -> None:
+        """Another process publishes vehicle B's seq 11 before vehicle A's seq 10: a watcher gets both."""
+        actors = make_actors(Settings(data_dir=tmp_path / "data", redis_url=redis_url, live_processes=1))
+        a, b = actors.vehicle_id, actors.other_vehicle_id
+        received_at = datetime.now(UTC).isoformat()  # recent: no stale message in between
+
+        def position(vehicle_id: int, seq: int) -> dict[str, object]:
+            return {"type": "position", "vehicle_id": vehicle_id, "seq": seq, "received_at": received_at}
+
+        async def publish(*messages: dict[str, object]) -> None:
+            other = RedisHub(redis_url)  # the hub of another API process
+            await other.start()
+            for message in messages:
+                await other.publish(message)
+            await other.close()
+
+        with actors.client, actors.client.websocket_connect("/api/live", headers=actors.auth("viewer")) as ws:
+            assert ws.receive_json()["type"] == "snapshot"
+            asyncio.run(publish(position(b, 11), position(a, 10), position(a, 12)))
+            got = [ws.receive_json() for _ in range(3)]
+        assert [(m["vehicle_id"], m["seq"]) for m in got] == [(b, 11), (a, 10), (a, 12)]
 
 
 class TestRedisFrames:
