@@ -3,8 +3,11 @@
 Maps the mapping drives of a simulated site end to end -- visual odometry of every frame, keyframes,
 loop-closure search, pose graph with groundings, topological map -- exactly as ``driftmap map build``
 does, but reading the drive folders directly (no database). Prints the seconds and frames per second of
-each stage and the total against the issue's 3-minute target for the medium site. In the same process it
-runs the odometry stage again on one thread, the baseline for the threaded odometry, and prints the ratio.
+each stage and the total against the issue's 3-minute target for the medium site. The drives' odometry
+(stage 1, the bulk of the time) runs in ``--workers`` spawned processes, each given a drive folder path
+(``--threads`` runs it in threads of this process instead: Python-bound, about one core); the pieces are
+joined exactly as the map.build job joins its map.drive subtasks. Then it runs the odometry stage again on
+one thread, the baseline, and prints the ratio.
 
 Then it shows how the loop-closure search grows with the site: on the keyframes (one per metre of true
 travel) of each size's mapping drives it times ``detect_loops`` and prints the full shifted-SAD
@@ -14,22 +17,38 @@ Sites are simulated into ``bench/out/site-SIZE-SEED`` the first time (medium tak
 about twenty, so large is measured only when asked for with ``--growth small medium large``).
 
 Usage: ``.venv/bin/python bench/bench_mapping.py [--size medium] [--seed 7] [--preset paper|fast]
-[--workers 2] [--growth small medium] [--no-baseline]``
+[--workers 2] [--threads] [--growth small medium] [--no-baseline]``
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import statistics
 import time
 from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from bench_loops import load_site
+from driftmap.core.drive_prep import PreparedDrive
 from driftmap.core.loops import LOOPS_DEFAULT, detect_loops
-from driftmap.core.mapping import FAST, PAPER, MappingDrive, build_map, prepare_drives, variant
+from driftmap.core.mapping import (
+    FAST,
+    PAPER,
+    MapBuild,
+    MappingDrive,
+    MappingParams,
+    build_map,
+    flat_offsets,
+    join_drives,
+    prepare_drive,
+    prepare_drives,
+    solve_map,
+    variant,
+)
 from driftmap.formats.drive_folder import DriveFolder, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
 from driftmap.sim import simulate_site
@@ -56,35 +75,64 @@ def _frames(folder: DriveFolder) -> Iterator[np.ndarray]:
         yield decode_gray(path.read_bytes())
 
 
+def mapping_folders(site: Path) -> list[Path]:
+    """The site's mapping drive folders, in build order."""
+    return [p for p in sorted((site / "drives").iterdir()) if read_drive_folder(p).meta.kind == "mapping"]
+
+
+def folder_drive(path: Path) -> MappingDrive:
+    """One drive folder as the pipeline takes it (frames decoded lazily from disk)."""
+    folder = read_drive_folder(path)
+    index = {row.frame: k for k, row in enumerate(folder.frames)}
+    return MappingDrive(
+        name=folder.meta.name,
+        camera=folder.meta.camera,
+        t_s=np.array([row.t_s for row in folder.frames], dtype=np.float64),
+        frames=lambda f=folder: _frames(f),  # type: ignore[misc]
+        groundings=[(index[g.frame], g.x_m, g.y_m) for g in folder.groundings],
+    )
+
+
 def mapping_drives(site: Path) -> list[MappingDrive]:
     """The site's mapping drives as the pipeline takes them (frames decoded lazily from disk)."""
-    drives = []
-    for path in sorted((site / "drives").iterdir()):
-        folder = read_drive_folder(path)
-        if folder.meta.kind != "mapping":
-            continue
-        index = {row.frame: k for k, row in enumerate(folder.frames)}
-        drives.append(
-            MappingDrive(
-                name=folder.meta.name,
-                camera=folder.meta.camera,
-                t_s=np.array([row.t_s for row in folder.frames], dtype=np.float64),
-                frames=lambda f=folder: _frames(f),
-                groundings=[(index[g.frame], g.x_m, g.y_m) for g in folder.groundings],
-            )
-        )
-    return drives
+    return [folder_drive(p) for p in mapping_folders(site)]
 
 
-def bench_build(site: Path, preset: str, workers: int, baseline: bool) -> None:
+def _prepare_folder(path: Path, params: MappingParams, flat: tuple[int, int]) -> dict[str, np.ndarray]:
+    """Stage 1 of one drive folder, in a worker process; its piece as arrays."""
+    return prepare_drive(folder_drive(path), params, flat).to_arrays()
+
+
+def build_in_processes(site: Path, params: MappingParams, workers: int) -> MapBuild:
+    """The build with every drive's stage 1 in one of ``workers`` spawned processes, then joined here."""
+    paths = mapping_folders(site)
+    drives = [folder_drive(p) for p in paths]
+    flats = flat_offsets(drives)
+    start = time.perf_counter()
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(min(workers, len(paths)), mp_context=context) as pool:
+        futures = [pool.submit(_prepare_folder, p, params, f) for p, f in zip(paths, flats, strict=True)]
+        pieces = [
+            PreparedDrive.from_arrays(fut.result(), params.database, params.images, *flat)
+            for fut, flat in zip(futures, flats, strict=True)
+        ]
+    prepared = join_drives(pieces, drives, params, None, time.perf_counter() - start)
+    return solve_map(prepared, drives, params)
+
+
+def bench_build(site: Path, preset: str, workers: int, threads: bool, baseline: bool) -> None:
     drives = mapping_drives(site)
     params = PRESETS[preset]
     n = sum(len(d.t_s) for d in drives)
+    how = "threads" if threads else "processes"
     print(
-        f"\n{site.name}: {len(drives)} mapping drives, {n:,} frames, preset {preset}, {workers} worker threads"
+        f"\n{site.name}: {len(drives)} mapping drives, {n:,} frames, preset {preset}, {workers} worker {how}"
     )
     start = time.perf_counter()
-    build = build_map(drives, params, workers=workers)
+    if threads:
+        build = build_map(drives, params, workers=workers)
+    else:
+        build = build_in_processes(site, params, workers)
     total = time.perf_counter() - start
     st = build.stats
     print(f"{'stage':<18}{'s':>9}{'frames/s':>11}")
@@ -101,9 +149,9 @@ def bench_build(site: Path, preset: str, workers: int, baseline: bool) -> None:
         t0 = time.perf_counter()
         prepare_drives(drives, variant(params, loops=False, groundings=True), workers=1)
         single = time.perf_counter() - t0
-        threaded = float(st["odometry_s"])
+        parallel = float(st["odometry_s"])
         print(
-            f"baseline odometry on 1 thread: {single:.1f} s -> {single / threaded:.2f}x with {workers} threads"
+            f"baseline odometry on 1 thread: {single:.1f} s -> {single / parallel:.2f}x with {workers} {how}"
         )
 
 
@@ -134,12 +182,13 @@ def main() -> None:
     parser.add_argument("--site", type=Path, help="a simulated site folder instead of --size/--seed")
     parser.add_argument("--preset", default="paper", choices=sorted(PRESETS))
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--threads", action="store_true", help="odometry in threads, not processes")
     parser.add_argument("--growth", nargs="*", default=["small", "medium"])
     parser.add_argument("--runs", type=int, default=3, help="runs of each loop search (median)")
     parser.add_argument("--no-baseline", action="store_true", help="skip the one-thread odometry baseline")
     args = parser.parse_args()
     site = args.site or site_dir(args.size, args.seed)
-    bench_build(site, args.preset, args.workers, not args.no_baseline)
+    bench_build(site, args.preset, args.workers, args.threads, not args.no_baseline)
     if args.growth:
         bench_growth(args.growth, args.seed, args.runs)
 

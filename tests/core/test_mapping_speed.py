@@ -13,7 +13,8 @@ import pytest
 from tests.core.test_odometry import pinhole_camera
 
 from driftmap.core.camera import CameraModel
-from driftmap.core.mapping import FAST, MappingDrive, prepare_drives
+from driftmap.core.drive_prep import PreparedDrive
+from driftmap.core.mapping import FAST, MappingDrive, flat_offsets, join_drives, prepare_drive, prepare_drives
 from driftmap.core.odometry import _apply, _horizon_offset, _masks, _setup, _warp
 from driftmap.core.params import ODOMETRY_DEFAULT
 from driftmap.core.place_database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
@@ -92,6 +93,37 @@ def test_prepare_drives_computes_the_database_stats_in_the_odometry_pass() -> No
     assert np.array_equal(prepared.frame_stats.saliency, ref.saliency)
     assert np.array_equal(prepared.frame_stats.masks, ref.masks)
     assert np.array_equal(prepared.frame_stats.good, ref.good)
+
+
+def test_pieces_prepared_apart_and_carried_as_arrays_join_to_the_same_result() -> None:
+    stacks = [_frames(6, 14), _frames(7, 11), _frames(8, 9)]
+    drives = [
+        MappingDrive(f"d{k}", CAM, np.arange(len(s), dtype=np.float64) * 0.1, _source(s))
+        for k, s in enumerate(stacks)
+    ]
+    params = replace(FAST, database=DatabaseParams(quality_sources=4))
+    whole = prepare_drives(drives, params, workers=1)
+    flats = flat_offsets(drives)
+    assert flats == [(0, 34), (14, 34), (25, 34)]
+    pieces = [
+        prepare_drive(d, params, flat) for d, flat in zip(reversed(drives), reversed(flats), strict=True)
+    ]
+    carried = [
+        PreparedDrive.from_arrays(p.to_arrays(), params.database, params.images, *flat)
+        for p, flat in zip(reversed(pieces), flats, strict=True)
+    ]
+    joined = join_drives(carried, drives, params)
+    for a, b in zip(whole.chains, joined.chains, strict=True):
+        assert np.array_equal(a.iTj, b.iTj) and np.array_equal(a.sigmas, b.sigmas)
+    for name in ("raw_poses", "confidence", "thumbs", "keyframes"):
+        for a, b in zip(getattr(whole, name), getattr(joined, name), strict=True):
+            assert a.dtype == b.dtype and np.array_equal(a, b), name
+    assert whole.closures == joined.closures
+    assert whole.frame_stats is not None and joined.frame_stats is not None
+    for name in ("saliency", "masks", "good"):
+        assert np.array_equal(getattr(whole.frame_stats, name), getattr(joined.frame_stats, name)), name
+    with pytest.raises(ValueError, match="one prepared piece per drive"):
+        join_drives(carried[:2], drives, params)
 
 
 def _horizon_offset_all_81(

@@ -15,6 +15,7 @@ from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.models import Drive, Frame, Grounding, MapNode, MapNodeFrame, MapPose, MapVersion
 from driftmap.store.storage import Storage
+from tests.jobs.mini_site import mini_site_dir
 from tests.sim_site import import_site
 
 MAP_ERROR_TOLERANCE_M = 3.0  # mean distance to truth of the tiny site's optimised map, metres
@@ -96,6 +97,34 @@ class TestBuild:
             with pytest.raises(NotFoundError, match="version 7"):
                 map_service.get_map_version(session, site, 7)
         assert before == after
+
+
+class TestWorkerProcesses:
+    def test_drives_prepared_in_worker_processes_give_the_same_version(
+        self, storage: Storage, tmp_path_factory: pytest.TempPathFactory
+    ) -> None:
+        import_site(storage, mini_site_dir(tmp_path_factory))
+        versions = []
+        for workers in (1, 2):  # 2: two spawned processes open the same SQLite file and blob store
+            with storage.blobs.batch() as batch, storage.db.session() as session:
+                site = site_service.get_site(session, "tiny")
+                version, build = map_service.build_site_map(
+                    session, storage.blobs, batch, site, FAST, workers=workers
+                )
+                versions.append((version.id, build))
+        with storage.db.session() as session:
+            poses = [
+                session.execute(
+                    select(MapPose.frame_id, MapPose.x_m, MapPose.y_m, MapPose.yaw_rad)
+                    .where(MapPose.map_version_id == vid)
+                    .order_by(MapPose.frame_id)
+                ).all()
+                for vid, _build in versions
+            ]
+        assert len(poses[0]) == 200 and poses[0] == poses[1]
+        (_a, one), (_b, two) = versions
+        assert [c.d_score for c in one.closures] == [c.d_score for c in two.closures]
+        assert np.array_equal(one.topomap.centres_m, two.topomap.centres_m)
 
 
 class TestRefusals:

@@ -14,77 +14,49 @@ grounding factors; (5) the topological map.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core import loops as loop_search
 from driftmap.core import posegraph
-from driftmap.core.camera import CameraModel
-from driftmap.core.images import preprocess
-from driftmap.core.odometry import dead_reckon
-from driftmap.core.odometry_calibration import NO_BIAS, solve_with_calibration
-from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
-from driftmap.core.place_database import (
-    DATABASE_DEFAULT,
-    DatabaseParams,
-    FrameStats,
-    FrameStatsPass,
-    database_selector,
-    finish_frame_stats,
-    frame_stats,
+from driftmap.core.map_prepare import (
+    FAST,
+    PAPER,
+    MappingDrive,
+    MappingParams,
+    PreparedDrives,
+    flat_offsets,
+    join_drives,
+    prepare_drive,
+    prepare_drives,
+    variant,
 )
-from driftmap.core.topomap import PAPER as TOPO_PAPER
-from driftmap.core.topomap import TopoMap, TopoMapParams, build_topomap
+from driftmap.core.odometry_calibration import NO_BIAS, solve_with_calibration
+from driftmap.core.place_database import database_selector, frame_stats
+from driftmap.core.topomap import TopoMap, build_topomap
+
+__all__ = [
+    "FAST",
+    "PAPER",
+    "ClosureRecord",
+    "GroundingResidual",
+    "MapBuild",
+    "MappingDrive",
+    "MappingParams",
+    "PreparedDrives",
+    "build_map",
+    "flat_offsets",
+    "join_drives",
+    "prepare_drive",
+    "prepare_drives",
+    "solve_map",
+    "variant",
+]
 
 ProgressFn = Callable[[str, float], None]
 F64 = NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class MappingDrive:
-    """One mapping drive as the pipeline needs it.
-
-    Attributes:
-        name: the drive's name (for reports).
-        camera: its calibrated camera.
-        t_s: (N,) float64 frame times, seconds.
-        frames: returns a fresh iterator over the N gray (H, W) uint8 frames in time order.
-        groundings: (frame position 0..N-1, surveyed x_m, surveyed y_m) of each grounded frame.
-        start_wT: optional known pose of the first frame; used only by variants without groundings.
-    """
-
-    name: str
-    camera: CameraModel
-    t_s: F64
-    frames: Callable[[], Iterable[NDArray[np.uint8]]]
-    groundings: Sequence[tuple[int, float, float]] = ()
-    start_wT: tuple[float, float, float] | None = None
-
-
-@dataclass(frozen=True)
-class MappingParams:
-    """Every knob of a map build; presets below."""
-
-    odometry: OdometryParams = ODOMETRY_DEFAULT  # ground-plane VO (eq. 1, 2)
-    images: ImageParams = IMAGES_DEFAULT  # place-recognition pre-processing (IV-C)
-    loops: loop_search.LoopParams = loop_search.LOOPS_DEFAULT  # loop-closure search (eq. 3)
-    graph: posegraph.PoseGraphParams = posegraph.ROBUST  # pose-graph back end
-    topomap: TopoMapParams = TOPO_PAPER  # map compression (III-A-4)
-    database: DatabaseParams = DATABASE_DEFAULT  # each node's reference frames: SESAME + quality filter
-    keyframe_spacing_m: float = 1.0  # odometry travel between keyframes used for loop closure, metres
-    grounding_sigma_m: float = 0.5  # surveyor click accuracy, metres
-    use_loop_closures: bool = True  # Table I variants switch these two off
-    use_groundings: bool = True
-    calibration_rounds: int = 5  # most odometry self-calibration passes (scale, heading rate)
-    calibration_window_m: float = 15.0  # travel per window when fitting the calibration, metres
-
-
-PAPER = MappingParams()
-FAST = MappingParams(odometry=ODOMETRY_FAST, loops=loop_search.LOOPS_FAST, keyframe_spacing_m=2.0)
 
 
 @dataclass(frozen=True)
@@ -142,145 +114,6 @@ class MapBuild:
     reference_thumbs: NDArray[np.float32] | None = None
     holistic_ptr: NDArray[np.int64] | None = None
     holistic_thumbs: NDArray[np.float32] | None = None
-
-
-def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
-    """Frame positions at every ``spacing_m`` of travelled path (frame 0 always)."""
-    steps = np.linalg.norm(np.diff(wTi[:, :2], axis=0), axis=1)
-    travelled = np.concatenate([[0.0], np.cumsum(steps)])
-    slot = np.floor(travelled / spacing_m).astype(np.int64)
-    return np.flatnonzero(np.concatenate([[True], slot[1:] != slot[:-1]])).astype(np.int64)
-
-
-class _Tee:
-    """Yields frames to odometry while keeping their place-recognition thumbnails and feeding the
-    database's frame statistics (when given), so each frame is decoded once."""
-
-    def __init__(
-        self, frames: Iterable[NDArray[np.uint8]], params: ImageParams, stats: FrameStatsPass | None = None
-    ) -> None:
-        self._frames = frames
-        self._params = params
-        self.stats = stats
-        self.thumbs: list[NDArray[np.float32]] = []
-
-    def __iter__(self) -> Iterator[NDArray[np.uint8]]:
-        for frame in self._frames:
-            self.thumbs.append(preprocess(frame, self._params))
-            if self.stats is not None:
-                self.stats.add(frame)
-            yield frame
-
-
-@dataclass(frozen=True, eq=False)
-class PreparedDrives:
-    """What every Table I variant shares: odometry, thumbnails, keyframes and closure candidates.
-
-    Attributes:
-        chains: per drive, the odometry chain (steps and sigmas) for the pose graph.
-        raw_poses: per drive, (N_d, 3) dead-reckoned poses from ``start_wT`` or the origin.
-        confidence: per drive, (N_d,) odometry confidence of the step into each frame (1 for frame 0).
-        thumbs: per drive, (N_d, h, w) float32 patch-normalised thumbnails.
-        keyframes: per drive, frame positions used for loop closure.
-        closures: closures found between keyframes (empty when loop closure is off).
-        timings: seconds per stage.
-        frame_stats: the database's frame statistics, computed in the odometry pass (None when the
-            database is off); valid for the ``frame_stats_params`` (database, image) parameters.
-    """
-
-    chains: tuple[posegraph.OdometryChain, ...]
-    raw_poses: tuple[F64, ...]
-    confidence: tuple[F64, ...]
-    thumbs: tuple[NDArray[np.float32], ...]
-    keyframes: tuple[NDArray[np.int64], ...]
-    closures: tuple[loop_search.LoopClosure, ...]
-    timings: dict[str, float]
-    frame_stats: FrameStats | None = None
-    frame_stats_params: tuple[DatabaseParams, ImageParams] | None = None
-
-
-def prepare_drives(
-    drives: Sequence[MappingDrive],
-    params: MappingParams = PAPER,
-    progress: ProgressFn | None = None,
-    workers: int = 1,
-) -> PreparedDrives:
-    """Stages 1-3: visual odometry and thumbnails of every frame, keyframes, loop-closure search.
-
-    Args:
-        drives: every mapping drive of the site.
-        params: pipeline parameters (``use_loop_closures`` off skips the search).
-        progress: called with (stage name, fraction 0..1 of that stage), from the calling thread.
-        workers: drives dead-reckoned at once in threads (OpenCV and NumPy release the GIL in their
-            inner loops, so two threads use two cores).
-
-    Raises:
-        ValueError: no drive, or a drive whose frame count disagrees with its times.
-    """
-    if not drives:
-        raise ValueError("a map build needs at least one mapping drive")
-    report = progress or (lambda _stage, _fraction: None)
-    timings: dict[str, float] = {}
-    start = time.perf_counter()
-    report("odometry", 0.0)
-    counts = [int(d.t_s.shape[0]) for d in drives]
-    offsets = np.r_[0, np.cumsum(counts)].astype(int)
-    db = params.database
-    passes = [
-        FrameStatsPass(int(offsets[k]), int(offsets[-1]), db, params.images) if db.enabled else None
-        for k in range(len(drives))
-    ]
-    with ThreadPoolExecutor(max(1, min(workers, len(drives)))) as pool:
-        futures = [pool.submit(_drive_odometry, d, params, p) for d, p in zip(drives, passes, strict=True)]
-        for done, _ in enumerate(as_completed(futures), start=1):
-            report("odometry", done / len(drives))
-        results = [f.result() for f in futures]
-    chains = [r[0] for r in results]
-    raw_poses = [r[1] for r in results]
-    confidence = [r[2] for r in results]
-    thumbs = [r[3] for r in results]
-    timings["odometry_s"] = time.perf_counter() - start
-
-    stats = None
-    if db.enabled:  # the classifier of the database's quality filter, from the frames seen above
-        start = time.perf_counter()
-        stats = finish_frame_stats([p for p in passes if p is not None], counts, db, params.images)
-        timings["frame_stats_s"] = time.perf_counter() - start
-
-    start = time.perf_counter()
-    keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
-    found: tuple[loop_search.LoopClosure, ...] = ()
-    if params.use_loop_closures:
-        report("loop closure", 0.0)
-        key_thumbs = [t[k] for t, k in zip(thumbs, keyframes, strict=True)]
-        key_times = [d.t_s[k] for d, k in zip(drives, keyframes, strict=True)]
-        found = tuple(loop_search.detect_loops(key_thumbs, params.loops, key_times).closures)
-    report("loop closure", 1.0)
-    timings["loop_closure_s"] = time.perf_counter() - start
-    return PreparedDrives(
-        tuple(chains), tuple(raw_poses), tuple(confidence), tuple(thumbs), keyframes, found, timings,
-        stats, (db, params.images),
-    )  # fmt: skip
-
-
-def _drive_odometry(
-    drive: MappingDrive, params: MappingParams, stats: FrameStatsPass | None = None
-) -> tuple[posegraph.OdometryChain, F64, F64, NDArray[np.float32]]:
-    """Dead reckoning of one drive: its odometry chain, (N, 3) poses, (N,) confidence, (N, h, w) thumbnails.
-
-    ``stats``, when given, takes every frame of the drive and is closed at the end.
-    """
-    tee = _Tee(drive.frames(), params.images, stats)
-    reckoning = dead_reckon(tee, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0))
-    if len(tee.thumbs) != drive.t_s.shape[0]:
-        raise ValueError(f"drive {drive.name!r}: {len(tee.thumbs)} frames, but {drive.t_s.shape[0]} times")
-    if stats is not None:
-        stats.close()
-    steps = reckoning.steps
-    iTj = np.array([s.prev_T_curr for s in steps], dtype=np.float64).reshape(-1, 3)
-    sigmas = np.array([[s.sigma_xy_m, s.sigma_xy_m, s.sigma_theta_rad] for s in steps]).reshape(-1, 3)
-    confidence = np.concatenate([[1.0], [s.confidence for s in steps]])
-    return posegraph.OdometryChain(iTj, sigmas), reckoning.wTi, confidence, np.stack(tee.thumbs)
 
 
 def solve_map(
@@ -446,8 +279,3 @@ def _aligned_dead_reckoning(
         yaw = opt[0, 2] + (poses[:, 2] - poses[0, 2])
         out.append(np.column_stack([xy, np.arctan2(np.sin(yaw), np.cos(yaw))]))
     return tuple(out)
-
-
-def variant(params: MappingParams, *, loops: bool, groundings: bool) -> MappingParams:
-    """``params`` with loop closures and groundings switched as the Table I variants need."""
-    return replace(params, use_loop_closures=loops, use_groundings=groundings)

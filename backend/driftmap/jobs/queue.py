@@ -1,7 +1,7 @@
 """The huey queue: :class:`huey.SqliteHuey` under the data dir by default, :class:`huey.RedisHuey` with Redis.
 
-Each job kind (``map.build``, ``drive.localise``, ``drive.import``, ``site.simulate``) is one huey task named
-after it that takes only the job id; the ``jobs`` row holds the arguments and the state. The API process only
+Each job kind (``map.build`` and its ``map.drive`` subtasks, ``drive.localise``, ``drive.import``,
+``site.simulate``) is one huey task named after it that takes only the job id; the ``jobs`` row holds the arguments and the state. The API process only
 enqueues; a worker process (:mod:`driftmap.jobs.worker`) runs the tasks. In ``immediate`` mode (unit tests)
 huey runs a task in the calling thread as soon as it is enqueued.
 """
@@ -17,7 +17,7 @@ from huey import Huey, RedisHuey, SqliteHuey
 from driftmap.config import Settings
 from driftmap.jobs.runtime import JobRuntime, run_job
 from driftmap.jobs.tasks import TASKS
-from driftmap.services.jobs import JOB_KINDS, MAX_ATTEMPTS
+from driftmap.services.jobs import MAX_ATTEMPTS, QUEUE_KINDS
 from driftmap.store.storage import Storage
 
 log = logging.getLogger(__name__)
@@ -55,7 +55,7 @@ class JobQueue:
         self.settings = settings
         self.huey = make_huey(settings, immediate=immediate)
         self._runtime = runtime
-        self._tasks: dict[str, Callable[..., Any]] = {kind: self._register(kind) for kind in JOB_KINDS}
+        self._tasks: dict[str, Callable[..., Any]] = {kind: self._register(kind) for kind in QUEUE_KINDS}
 
     def runtime(self) -> JobRuntime:
         """The storage and timings tasks run with (opened lazily: the API process never runs tasks)."""
@@ -80,7 +80,7 @@ class JobQueue:
     def pending_job_ids(self) -> set[int]:
         """Ids of jobs waiting on the queue or scheduled for a retry (not those being run)."""
         waiting = [*self.huey.pending(), *self.huey.scheduled()]
-        return {int(task.args[0]) for task in waiting if task.name in JOB_KINDS and task.args}
+        return {int(task.args[0]) for task in waiting if task.name in QUEUE_KINDS and task.args}
 
     def close(self) -> None:
         """Close the storage a task runtime opened."""

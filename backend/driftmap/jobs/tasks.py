@@ -1,4 +1,5 @@
-"""The job kinds: ``map.build``, ``drive.import``, ``drive.localise``, ``site.simulate``.
+"""The job kinds: ``map.build`` (with its ``map.drive`` subtasks, :mod:`driftmap.jobs.map_tasks`),
+``drive.import``, ``drive.localise``, ``site.simulate``.
 
 Each task reads its arguments from the job row, does its work through the services, and writes all of its
 output together with ``succeeded`` in ONE transaction at the end (:meth:`JobContext.succeed`), with new blobs
@@ -19,10 +20,10 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.mapping import FAST, PAPER, MappingParams
-from driftmap.errors import BadInputError, ConflictError, DriftmapError, NotFoundError
+from driftmap.errors import ConflictError, DriftmapError, NotFoundError
 from driftmap.formats.csv_exports import localisation_text
 from driftmap.formats.frame_images import decode_gray
+from driftmap.jobs.map_tasks import MAP_PRESETS, map_build, map_drive
 from driftmap.jobs.runtime import JobContext
 from driftmap.services import drives as drive_service
 from driftmap.services import localisation as loc_service
@@ -33,11 +34,9 @@ from driftmap.services.jobs import JobCancelled
 from driftmap.services.uploads import relabelled
 from driftmap.sim import simulate_site
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, MapVersion, Site
+from driftmap.store.models import Drive, Site
 
 log = logging.getLogger(__name__)
-
-MAP_PRESETS: dict[str, MappingParams] = {"paper": PAPER, "fast": FAST}
 
 
 def _site(ctx: JobContext, session: Session) -> Site:
@@ -51,32 +50,6 @@ def _scratch(ctx: JobContext) -> tempfile.TemporaryDirectory[str]:
     root = ctx.runtime.settings.data_dir / "tmp"
     root.mkdir(parents=True, exist_ok=True)
     return tempfile.TemporaryDirectory(prefix=f"job-{ctx.job.id}-", dir=root)
-
-
-def map_build(ctx: JobContext) -> None:
-    """Build the next map version of the job's site. Args: ``preset`` (``paper`` or ``fast``)."""
-    preset = str(ctx.args.get("preset", "paper"))
-    if preset not in MAP_PRESETS:
-        raise BadInputError(f"unknown preset {preset!r}; one of {', '.join(MAP_PRESETS)}", field="preset")
-    label = f"{ctx.job.created_by or 'api'} via job {ctx.job.id}"
-    storage = ctx.runtime.storage
-    ctx.report("loading drives", 0.0)
-    with storage.blobs.batch() as batch, storage.db.session() as session:
-        site = _site(ctx, session)
-        version = session.scalar(
-            select(MapVersion).where(MapVersion.site_id == site.id, MapVersion.created_by == label)
-        )
-        if version is None:  # the normal case; a version of this job exists only if it already succeeded
-            map_service.ensure_buildable(session, site)
-            version, _build = map_service.build_site_map(
-                session, storage.blobs, batch, site, MAP_PRESETS[preset], ctx.report, created_by=label
-            )
-        result = {
-            "map_version_id": version.id,
-            "version": version.version,
-            "stats": map_service.json_safe(version.stats),
-        }
-        ctx.succeed(session, result)  # no progress report in here: this transaction holds the write lock
 
 
 def _copy_blob(ctx: JobContext, sha: str, dest: Path) -> None:
@@ -235,10 +208,21 @@ def site_simulate(ctx: JobContext) -> None:
             ctx.succeed(session, {"site_id": site.id, "name": site.name, "drives": len(folders)})
 
 
+__all__ = [
+    "MAP_PRESETS",
+    "TASKS",
+    "drive_import",
+    "drive_localise",
+    "map_build",
+    "map_drive",
+    "site_simulate",
+]
+
 TASKS: dict[str, Callable[[JobContext], None]] = {
     "map.build": map_build,
+    "map.drive": map_drive,
     "drive.import": drive_import,
     "drive.localise": drive_localise,
     "site.simulate": site_simulate,
 }
-"""Job kind -> task function; every kind of :data:`driftmap.services.jobs.JOB_KINDS`."""
+"""Job kind -> task function; every kind of :data:`driftmap.services.jobs.QUEUE_KINDS`."""

@@ -34,6 +34,12 @@ from driftmap.store.models import utc_now
 log = logging.getLogger(__name__)
 
 JOB_KINDS = ("map.build", "drive.localise", "drive.import", "site.simulate")
+"""The kinds a user submits (the API's)."""
+SUBTASK_KINDS = ("map.drive",)
+"""Kinds a job submits as its own subtasks: ``map.drive``, one drive of a ``map.build``
+(:mod:`driftmap.jobs.map_tasks`)."""
+QUEUE_KINDS = JOB_KINDS + SUBTASK_KINDS
+"""Every kind the queue runs."""
 FINAL_STATUSES = frozenset({"succeeded", "failed", "cancelled"})
 MAX_ATTEMPTS = 3
 """A job whose worker died (or that hit an unexpected error) this many times is marked failed."""
@@ -58,15 +64,21 @@ def submit(
     *,
     site_id: int | None = None,
     created_by: str = "",
+    parent_id: int | None = None,
 ) -> Job:
     """Add a queued job row; it is put on the queue (by id) once ``session`` commits.
+
+    ``parent_id`` makes it a subtask of that job: cancelled with it, deleted with it.
 
     Enqueueing after the commit means a worker never sees an id whose row it cannot read yet, and a
     rolled-back request enqueues nothing.
     """
-    if kind not in JOB_KINDS:
-        raise BadInputError(f"unknown job kind {kind!r}; one of {', '.join(JOB_KINDS)}", field="kind")
-    job = Job(kind=kind, site_id=site_id, args=args, status="queued", created_by=created_by)
+    kinds = JOB_KINDS if parent_id is None else SUBTASK_KINDS
+    if kind not in kinds:
+        raise BadInputError(f"unknown job kind {kind!r}; one of {', '.join(kinds)}", field="kind")
+    job = Job(
+        kind=kind, site_id=site_id, args=args, status="queued", created_by=created_by, parent_id=parent_id
+    )
     session.add(job)
     session.flush()
     job_id = job.id
@@ -114,27 +126,44 @@ def list_jobs(
 def cancel(session: Session, job_id: int) -> Job:
     """Cancel a job: a queued one never starts; a running one stops at its next progress report.
 
+    Its unfinished subtasks (``parent_id`` = ``job_id``) are cancelled the same way.
+
     Raises:
         NotFoundError: no such job.
         ConflictError: the job has already finished.
     """
-    now = utc_now()
-    done = session.execute(
-        update(Job)
-        .where(Job.id == job_id, Job.status == "queued")
-        .values(status="cancelled", finished_at=now, stage="cancelled before it started")
-    )
-    if done.rowcount != 1:  # type: ignore[attr-defined]
-        session.execute(
-            update(Job)
-            .where(Job.id == job_id, Job.status == "running", Job.cancel_requested_at.is_(None))
-            .values(cancel_requested_at=now)
-        )
+    _cancel_rows(session, Job.id == job_id)
+    cancel_children(session, job_id)
     job = get_job(session, job_id)
     session.refresh(job)
     if job.status in ("succeeded", "failed"):
         raise ConflictError(f"job {job_id} has already {job.status}")
     return job
+
+
+def _cancel_rows(session: Session, which: Any) -> None:
+    """Cancel the queued jobs matching ``which`` and ask the running ones to stop."""
+    now = utc_now()
+    session.execute(
+        update(Job)
+        .where(which, Job.status == "queued")
+        .values(status="cancelled", finished_at=now, stage="cancelled before it started")
+    )
+    session.execute(
+        update(Job)
+        .where(which, Job.status == "running", Job.cancel_requested_at.is_(None))
+        .values(cancel_requested_at=now)
+    )
+
+
+def cancel_children(session: Session, parent_id: int) -> None:
+    """Cancel the unfinished subtasks of job ``parent_id`` (queued: at once; running: at their next report)."""
+    _cancel_rows(session, Job.parent_id == parent_id)
+
+
+def children(session: Session, parent_id: int) -> list[Job]:
+    """The subtasks of job ``parent_id``, oldest first."""
+    return list(session.scalars(select(Job).where(Job.parent_id == parent_id).order_by(Job.id)))
 
 
 # ---------------------------------------------------------------------------------------------------

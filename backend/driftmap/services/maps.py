@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import io
-from collections.abc import Callable, Iterator
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,12 +14,20 @@ from numpy.typing import NDArray
 from sqlalchemy import func, insert, select
 from sqlalchemy.orm import Session
 
-from driftmap.core.mapping import PAPER, MapBuild, MappingDrive, MappingParams, build_map
+from driftmap.core.mapping import (
+    PAPER,
+    MapBuild,
+    MappingDrive,
+    MappingParams,
+    build_map,
+    flat_offsets,
+    join_drives,
+    solve_map,
+)
 from driftmap.core.topomap import TopoMap
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
-from driftmap.formats.frame_images import decode_gray
-from driftmap.services.drives import drive_meta, frame_rows
+from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_in_processes
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import (
     Drive,
@@ -54,51 +63,16 @@ class SiteDrives:
     """Per drive, (N, 3) ground truth [x_m, y_m, yaw_rad] when every frame has it, else None."""
 
 
-def _frame_source(blobs: BlobStore, shas: list[str]) -> Callable[[], Iterator[NDArray[np.uint8]]]:
-    def frames() -> Iterator[NDArray[np.uint8]]:
-        for sha in shas:
-            yield decode_gray(blobs.get(sha), f"blob {sha}")
-
-    return frames
-
-
 def load_site_drives(session: Session, blobs: BlobStore, site: Site) -> SiteDrives:
     """The mapping drives of ``site`` with their groundings, frames streamed from the blob store."""
-    drives = list(
-        session.scalars(
-            select(Drive).where(Drive.site_id == site.id, Drive.kind == "mapping").order_by(Drive.id)
-        )
-    )
-    if not drives:
-        raise NotFoundError(f"site {site.name!r} has no mapping drive to build a map from")
     out = SiteDrives([], [], [], [], [])
-    for drive in drives:
-        frames = frame_rows(session, drive)
-        position = {f.id: k for k, f in enumerate(frames)}
-        marks = list(
-            session.scalars(select(Grounding).where(Grounding.drive_id == drive.id).order_by(Grounding.id))
-        )
-        has_truth = all(
-            f.true_x_m is not None and f.true_y_m is not None and f.true_yaw_rad is not None for f in frames
-        )
-        truth = (
-            np.array([[f.true_x_m, f.true_y_m, f.true_yaw_rad] for f in frames], dtype=np.float64)
-            if has_truth
-            else None
-        )
+    for drive in mapping_drives(session, site):
+        one = load_mapping_drive(session, blobs, drive)
         out.drives.append(drive)
-        out.inputs.append(
-            MappingDrive(
-                name=drive.name,
-                camera=drive_meta(drive).camera,
-                t_s=np.array([f.t_s for f in frames], dtype=np.float64),
-                frames=_frame_source(blobs, [f.blob_sha256 for f in frames]),
-                groundings=[(position[g.frame_id], g.x_m, g.y_m) for g in marks],
-            )
-        )
-        out.frame_ids.append(np.array([f.id for f in frames], dtype=np.int64))
-        out.grounding_ids.append([g.id for g in marks])
-        out.truth.append(truth)
+        out.inputs.append(one.input)
+        out.frame_ids.append(one.frame_ids)
+        out.grounding_ids.append(one.grounding_ids)
+        out.truth.append(one.truth)
     return out
 
 
@@ -229,10 +203,25 @@ def build_site_map(
 ) -> tuple[MapVersion, MapBuild]:
     """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
 
-    ``workers`` drives are dead-reckoned at once (threads of this process).
+    With ``workers`` > 1 (and more than one drive), that many drives are dead-reckoned at once in worker
+    processes that open the same database and blob store (the results are bit-identical to one process).
     """
     loaded = load_site_drives(session, blobs, site)
-    build = build_map(loaded.inputs, params, progress, workers)
+    if workers > 1 and len(loaded.drives) > 1:
+        start = time.perf_counter()
+        url = session.get_bind().engine.url.render_as_string(hide_password=False)
+        pieces = prepare_in_processes(
+            (url, blobs.root),
+            [d.id for d in loaded.drives],
+            params,
+            flat_offsets(loaded.inputs),
+            workers,
+            progress,
+        )
+        prepared = join_drives(pieces, loaded.inputs, params, progress, time.perf_counter() - start)
+        build = solve_map(prepared, loaded.inputs, params, progress)
+    else:
+        build = build_map(loaded.inputs, params, progress, workers)
     return store_map_version(session, batch, site, loaded, build, params, created_by), build
 
 

@@ -21,6 +21,9 @@ JOB_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
 class Job(Base):
     """A background job (``map.build``, ``drive.localise``, ``drive.import``, ``site.simulate``).
 
+    A subtask of another job (``map.drive``: one drive's odometry of a ``map.build``) names it in ``parent_id``;
+    any worker may run it, and it is deleted with its parent.
+
     ``progress`` runs from 0 to 1 within the named ``stage``; ``attempts`` counts how many times a worker
     started it; ``heartbeat_at`` is refreshed by the running worker so that a stale one can be re-queued.
     A cancel request on a running job sets ``cancel_requested_at``; the worker stops at its next progress
@@ -48,3 +51,6 @@ class Job(Base):
     heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     cancel_requested_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     worker_id: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    parent_id: Mapped[int | None] = mapped_column(
+        ForeignKey("jobs.id", ondelete="CASCADE"), index=True, nullable=True
+    )

@@ -1,0 +1,241 @@
+"""Stages 1-3 of a map build (paper 000, III-A): per-drive odometry, keyframes, loop-closure search.
+
+The inputs of a build (:class:`MappingDrive`, :class:`MappingParams` and its presets) live here too.
+Stage 1 is independent per drive (:func:`prepare_drive`); :func:`prepare_drives` runs it in threads of this
+process, and :func:`join_drives` takes pieces computed anywhere (worker processes, job workers) and runs
+stages 2-3 on them, with results bit-identical to the one-process build.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core import drive_prep, posegraph
+from driftmap.core import loops as loop_search
+from driftmap.core.camera import CameraModel
+from driftmap.core.drive_prep import PreparedDrive
+from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
+from driftmap.core.place_database import (
+    DATABASE_DEFAULT,
+    DatabaseParams,
+    FrameStats,
+    FrameStatsPass,
+    finish_frame_stats,
+)
+from driftmap.core.topomap import PAPER as TOPO_PAPER
+from driftmap.core.topomap import TopoMapParams
+
+ProgressFn = Callable[[str, float], None]
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class MappingDrive:
+    """One mapping drive as the pipeline needs it.
+
+    Attributes:
+        name: the drive's name (for reports).
+        camera: its calibrated camera.
+        t_s: (N,) float64 frame times, seconds.
+        frames: returns a fresh iterator over the N gray (H, W) uint8 frames in time order.
+        groundings: (frame position 0..N-1, surveyed x_m, surveyed y_m) of each grounded frame.
+        start_wT: optional known pose of the first frame; used only by variants without groundings.
+    """
+
+    name: str
+    camera: CameraModel
+    t_s: F64
+    frames: Callable[[], Iterable[NDArray[np.uint8]]]
+    groundings: Sequence[tuple[int, float, float]] = ()
+    start_wT: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class MappingParams:
+    """Every knob of a map build; presets below."""
+
+    odometry: OdometryParams = ODOMETRY_DEFAULT  # ground-plane VO (eq. 1, 2)
+    images: ImageParams = IMAGES_DEFAULT  # place-recognition pre-processing (IV-C)
+    loops: loop_search.LoopParams = loop_search.LOOPS_DEFAULT  # loop-closure search (eq. 3)
+    graph: posegraph.PoseGraphParams = posegraph.ROBUST  # pose-graph back end
+    topomap: TopoMapParams = TOPO_PAPER  # map compression (III-A-4)
+    database: DatabaseParams = DATABASE_DEFAULT  # each node's reference frames: SESAME + quality filter
+    keyframe_spacing_m: float = 1.0  # odometry travel between keyframes used for loop closure, metres
+    grounding_sigma_m: float = 0.5  # surveyor click accuracy, metres
+    use_loop_closures: bool = True  # Table I variants switch these two off
+    use_groundings: bool = True
+    calibration_rounds: int = 5  # most odometry self-calibration passes (scale, heading rate)
+    calibration_window_m: float = 15.0  # travel per window when fitting the calibration, metres
+
+
+PAPER = MappingParams()
+FAST = MappingParams(odometry=ODOMETRY_FAST, loops=loop_search.LOOPS_FAST, keyframe_spacing_m=2.0)
+
+
+def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
+    """Frame positions at every ``spacing_m`` of travelled path (frame 0 always)."""
+    steps = np.linalg.norm(np.diff(wTi[:, :2], axis=0), axis=1)
+    travelled = np.concatenate([[0.0], np.cumsum(steps)])
+    slot = np.floor(travelled / spacing_m).astype(np.int64)
+    return np.flatnonzero(np.concatenate([[True], slot[1:] != slot[:-1]])).astype(np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedDrives:
+    """What every Table I variant shares: odometry, thumbnails, keyframes and closure candidates.
+
+    Attributes:
+        chains: per drive, the odometry chain (steps and sigmas) for the pose graph.
+        raw_poses: per drive, (N_d, 3) dead-reckoned poses from ``start_wT`` or the origin.
+        confidence: per drive, (N_d,) odometry confidence of the step into each frame (1 for frame 0).
+        thumbs: per drive, (N_d, h, w) float32 patch-normalised thumbnails.
+        keyframes: per drive, frame positions used for loop closure.
+        closures: closures found between keyframes (empty when loop closure is off).
+        timings: seconds per stage.
+        frame_stats: the database's frame statistics, computed in the odometry pass (None when the
+            database is off); valid for the ``frame_stats_params`` (database, image) parameters.
+    """
+
+    chains: tuple[posegraph.OdometryChain, ...]
+    raw_poses: tuple[F64, ...]
+    confidence: tuple[F64, ...]
+    thumbs: tuple[NDArray[np.float32], ...]
+    keyframes: tuple[NDArray[np.int64], ...]
+    closures: tuple[loop_search.LoopClosure, ...]
+    timings: dict[str, float]
+    frame_stats: FrameStats | None = None
+    frame_stats_params: tuple[DatabaseParams, ImageParams] | None = None
+
+
+def prepare_drive(
+    drive: MappingDrive,
+    params: MappingParams,
+    flat: tuple[int, int],
+    report: Callable[[float], None] | None = None,
+) -> PreparedDrive:
+    """Stage 1 of one drive (:func:`driftmap.core.drive_prep.prepare_drive`), as a build of ``params`` needs it.
+
+    Args:
+        drive: the mapping drive.
+        params: pipeline parameters (odometry, images, database).
+        flat: (flat index of the drive's first frame, frames of all drives of the build) for the
+            database's frame statistics.
+        report: called with the fraction of the drive's frames processed.
+    """
+    db = params.database
+    stats = FrameStatsPass(flat[0], flat[1], db, params.images) if db.enabled else None
+    return drive_prep.prepare_drive(
+        drive.name,
+        drive.frames(),
+        int(drive.t_s.shape[0]),
+        drive.camera,
+        params.odometry,
+        params.images,
+        start_wT=drive.start_wT or (0.0, 0.0, 0.0),
+        stats=stats,
+        report=report,
+    )
+
+
+def flat_offsets(drives: Sequence[MappingDrive]) -> list[tuple[int, int]]:
+    """Per drive, (flat index of its first frame, frames of all drives): the ``flat`` of :func:`prepare_drive`."""
+    counts = [int(d.t_s.shape[0]) for d in drives]
+    offsets = np.r_[0, np.cumsum(counts)].astype(int)
+    return [(int(offsets[k]), int(offsets[-1])) for k in range(len(drives))]
+
+
+def prepare_drives(
+    drives: Sequence[MappingDrive],
+    params: MappingParams = PAPER,
+    progress: ProgressFn | None = None,
+    workers: int = 1,
+) -> PreparedDrives:
+    """Stages 1-3: visual odometry and thumbnails of every frame, keyframes, loop-closure search.
+
+    Args:
+        drives: every mapping drive of the site.
+        params: pipeline parameters (``use_loop_closures`` off skips the search).
+        progress: called with (stage name, fraction 0..1 of that stage), from the calling thread.
+        workers: drives dead-reckoned at once in threads of this process (the odometry is mostly
+            Python-bound: for more cores, run :func:`prepare_drive` in processes and :func:`join_drives`).
+
+    Raises:
+        ValueError: no drive, or a drive whose frame count disagrees with its times.
+    """
+    if not drives:
+        raise ValueError("a map build needs at least one mapping drive")
+    report = progress or (lambda _stage, _fraction: None)
+    start = time.perf_counter()
+    report("odometry", 0.0)
+    with ThreadPoolExecutor(max(1, min(workers, len(drives)))) as pool:
+        futures = [
+            pool.submit(prepare_drive, d, params, flat)
+            for d, flat in zip(drives, flat_offsets(drives), strict=True)
+        ]
+        for done, _ in enumerate(as_completed(futures), start=1):
+            report("odometry", done / len(drives))
+        pieces = [f.result() for f in futures]
+    return join_drives(pieces, drives, params, progress, time.perf_counter() - start)
+
+
+def join_drives(
+    pieces: Sequence[PreparedDrive],
+    drives: Sequence[MappingDrive],
+    params: MappingParams = PAPER,
+    progress: ProgressFn | None = None,
+    odometry_s: float = float("nan"),
+) -> PreparedDrives:
+    """Stages 2-3 on the drives' stage-1 pieces (computed anywhere): frame statistics, keyframes, loops.
+
+    Args:
+        pieces: per drive, in drive order, :func:`prepare_drive` of it with the same ``params``.
+        drives: the mapping drives.
+        params: pipeline parameters.
+        progress: called with (stage name, fraction 0..1 of that stage).
+        odometry_s: wall time stage 1 took, seconds (reported in the build's figures).
+
+    Raises:
+        ValueError: no drive, or not one piece per drive.
+    """
+    if not drives or len(pieces) != len(drives):
+        raise ValueError(f"a map build needs one prepared piece per drive: {len(pieces)} for {len(drives)}")
+    report = progress or (lambda _stage, _fraction: None)
+    timings: dict[str, float] = {"odometry_s": odometry_s}
+    counts = [p.n_frames for p in pieces]
+    db = params.database
+    stats = None
+    if db.enabled:  # the classifier of the database's quality filter, from the frames seen above
+        start = time.perf_counter()
+        passes = [p.stats for p in pieces]
+        if any(s is None for s in passes):
+            raise ValueError("the database is on, but a prepared drive has no frame statistics")
+        stats = finish_frame_stats([s for s in passes if s is not None], counts, db, params.images)
+        timings["frame_stats_s"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    raw_poses = [p.raw_poses for p in pieces]
+    thumbs = [p.thumbs for p in pieces]
+    keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
+    found: tuple[loop_search.LoopClosure, ...] = ()
+    if params.use_loop_closures:
+        report("loop closure", 0.0)
+        key_thumbs = [t[k] for t, k in zip(thumbs, keyframes, strict=True)]
+        key_times = [d.t_s[k] for d, k in zip(drives, keyframes, strict=True)]
+        found = tuple(loop_search.detect_loops(key_thumbs, params.loops, key_times).closures)
+    report("loop closure", 1.0)
+    timings["loop_closure_s"] = time.perf_counter() - start
+    return PreparedDrives(
+        tuple(p.chain for p in pieces), tuple(raw_poses), tuple(p.confidence for p in pieces), tuple(thumbs),
+        keyframes, found, timings, stats, (db, params.images),
+    )  # fmt: skip
+
+
+def variant(params: MappingParams, *, loops: bool, groundings: bool) -> MappingParams:
+    """``params`` with loop closures and groundings switched as the Table I variants need."""
+    return replace(params, use_loop_closures=loops, use_groundings=groundings)
