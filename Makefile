@@ -35,11 +35,12 @@ frontend-test: frontend
 	cd frontend && npm test -- --run
 
 # Debian packages the tests run against: chromium for the browser end-to-end tests (tests/e2e),
-# redis-server for the job queue on Redis (tests/api/test_jobs.py).
-SYSTEM_PACKAGES := chromium redis-server
+# redis-server for the job queue and live hub on Redis, postgresql for the PostgreSQL run of the suite and the
+# scale-out topology test (tests/topology). The tests start private servers of their own; nothing system-wide.
+SYSTEM_PACKAGES := chromium redis-server postgresql
 system-packages:
-	@missing=""; for p in $(SYSTEM_PACKAGES); do command -v $$p >/dev/null || missing="$$missing $$p"; done; \
-	if [ -n "$$missing" ]; then apt-get update && apt-get install -y $$missing; fi
+	@missing=""; for p in $(SYSTEM_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -n "$$missing" ]; then apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y $$missing; fi
 
 demo: $(VENV)/.installed-run frontend
 	rm -rf $(DEMO_DIR)
@@ -67,8 +68,11 @@ typecheck: $(VENV)/.installed-dev
 imports: $(VENV)/.installed-dev
 	$(BIN)/lint-imports
 
+# The whole suite twice: on the embedded SQLite default, then on PostgreSQL (a private server per run); the
+# topology test (tests/topology) always runs on PostgreSQL + Redis, so once is enough.
 pytest: $(VENV)/.installed-dev frontend system-packages
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q --database sqlite
+	$(BIN)/pytest -q --database postgresql -m "not topology"
 
 test: lint typecheck imports frontend-test pytest
 
