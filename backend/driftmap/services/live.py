@@ -22,6 +22,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
@@ -156,6 +157,21 @@ def _live_state(session: Session, vehicle_id: int) -> VehicleLiveState:
     return state
 
 
+def _ensure_live_state(db: Database, vehicle_id: int) -> None:
+    """Create the vehicle's state row when it has none, in its own transaction.
+
+    Two server processes may take a vehicle's first frames at the same time: both would insert the row in the
+    frame's transaction and the second would fail on the unique key. Created apart, the loser of that race
+    just finds the row (its frame then meets the revision check like any other).
+    """
+    try:
+        with db.session() as session:
+            if session.get(VehicleLiveState, vehicle_id) is None:
+                session.add(VehicleLiveState(vehicle_id=vehicle_id, processed=0, skipped=0, out_of_order=0))
+    except IntegrityError:
+        pass  # created by another process meanwhile (or no such vehicle: the frame's transaction says so)
+
+
 def _outcome(vehicle: Vehicle, state: VehicleLiveState, t_s: float, status: FrameStatus) -> FrameOutcome:
     return FrameOutcome(
         vehicle.id,
@@ -197,6 +213,8 @@ def localise_live_frame(
     """
     if not np.isfinite(t_s):
         raise BadInputError(f"t must be a finite number of seconds, got {t_s}", field="t")
+    if slot is None:  # (with a slot, this process stored the vehicle's state before)
+        _ensure_live_state(db, vehicle_id)
     for _attempt in range(STALE_RETRIES):
         try:
             return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, unsaved_counts, slot)
@@ -302,6 +320,7 @@ def _localise_once(
 
 def add_counts(db: Database, vehicle_id: int, skipped: int, out_of_order: int) -> tuple[int | None, int]:
     """Add frames skipped and refused to a vehicle's stored counts; returns its revision before and after."""
+    _ensure_live_state(db, vehicle_id)
     with db.session() as session:
         state = _live_state(session, vehicle_id)
         before = state.revision
