@@ -7,13 +7,15 @@ with :func:`driftmap.api.app.create_app`); they share live state through Redis, 
 
 from __future__ import annotations
 
+import inspect
 import logging
 import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from types import FrameType
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -24,6 +26,10 @@ from driftmap.services import users as user_service
 log = logging.getLogger(__name__)
 user_app = typer.Typer(help="Users of the server and their roles.", no_args_is_help=True)
 WORKER_STOP_TIMEOUT_S = 20.0
+API_PROCESS_HEALTHCHECK_S = 60
+"""How long uvicorn waits for an API process to answer its health ping before it kills and restarts it, seconds.
+Its default (5 s) is shorter than a fresh process takes to import driftmap on a busy machine, so the processes
+were killed over and over before serving."""
 
 
 @user_app.command("add")
@@ -79,6 +85,13 @@ def _stop_worker(process: subprocess.Popen[bytes]) -> None:
     err_console.print(f"driftmap: worker process {process.pid} stopped")
 
 
+def _healthcheck_option(run: Callable[..., None]) -> dict[str, Any]:
+    """``timeout_worker_healthcheck`` for uvicorn versions whose supervisor pings its processes (0.30 on)."""
+    if "timeout_worker_healthcheck" in inspect.signature(run).parameters:
+        return {"timeout_worker_healthcheck": API_PROCESS_HEALTHCHECK_S}
+    return {}
+
+
 def _exit_on_sigterm(signum: int, _frame: FrameType | None) -> None:
     raise SystemExit(128 + signum)
 
@@ -119,6 +132,7 @@ def serve(
             port=port,
             log_level="info",
             ws_max_size=2 * settings.max_frame_bytes,
+            **_healthcheck_option(uvicorn.run),
         )
         return
     with user_errors():
