@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
 import re
 import subprocess
 import sys
@@ -44,7 +43,7 @@ from tests.api.access_helpers import (
     make_actors,
     recorded_frames,
 )
-from tests.processes import free_port, stop, wait_healthy
+from tests.processes import driftmap_env, free_port, stop, wait_healthy
 from tests.redis_server import running_redis
 
 FRAMES = 24
@@ -343,11 +342,8 @@ class Fleet:
 
 
 def _env(data: Path, redis: str | None) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("DRIFTMAP_")}
-    env.update(DRIFTMAP_DATA_DIR=str(data), DRIFTMAP_LIVE_PROCESSES="1")
-    if redis is not None:
-        env["DRIFTMAP_REDIS_URL"] = redis
-    return env
+    """A ``driftmap`` subprocess's environment: ``data``, the run's database, one localiser, ``redis``."""
+    return driftmap_env(data, live_processes="1", **({"redis_url": redis} if redis is not None else {}))
 
 
 @contextmanager
