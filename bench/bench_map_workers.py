@@ -7,7 +7,8 @@ stopped after each build. The build's drives run as ``map.drive`` subtasks that 
 (driftmap.jobs.map_tasks), so the second worker should cut the odometry stage, the bulk of a build, about
 in half on two cores; the join (loop closure, pose graph, topological map) runs once, on the parent's
 worker. Prints each build's wall time, its stage seconds, which worker processes ran the drives, the medians
-and the speed-up of 2 workers over 1, and checks that every build stored the same poses.
+and the speed-up of 2 workers over 1, and checks that every build stored the same poses. The 1-minute load
+average before and after each build is printed too: other jobs on the machine take cores from the workers.
 
 Embedded SQLite + SqliteHuey by default; ``--database-url postgresql+psycopg://...`` and ``--redis-url
 redis://...`` run it on PostgreSQL + Redis (the database must be empty or hold this bench's site).
@@ -169,12 +170,13 @@ def main() -> None:
     )
     print(f"\n{site.name}: map.build (preset {args.preset}) on {backend}, {os.cpu_count()} cores")
     header = f"{'workers':>7}{'run':>5}{'wall s':>9}" + "".join(f"{s[:-2]:>14}" for s in STAGES)
-    print(header + "   drives per worker process   poses")
+    print(header + "   drives per worker process   poses   load before/after")
     walls: dict[int, list[float]] = {}
     digests = set()
     for n in args.workers:
         for run in range(args.runs):
             procs = start_workers(n, env, logs)
+            load_before = os.getloadavg()[0]
             try:
                 seconds, job, subtasks = one_build(storage, queue, args.preset)
             finally:
@@ -191,7 +193,8 @@ def main() -> None:
             walls.setdefault(n, []).append(seconds)
             cells = "".join(f"{float(stats.get(s, float('nan'))):>14.1f}" for s in STAGES)
             spread = "/".join(str(v) for v in sorted(per_process.values(), reverse=True))
-            print(f"{n:>7}{run + 1:>5}{seconds:>9.1f}{cells}   {spread:<27} {digest}", flush=True)
+            load = f"{load_before:.1f}/{os.getloadavg()[0]:.1f}"
+            print(f"{n:>7}{run + 1:>5}{seconds:>9.1f}{cells}   {spread:<27} {digest}   {load}", flush=True)
     print()
     for n, values in walls.items():
         print(f"{n} worker process(es): median {statistics.median(values):.1f} s over {len(values)} build(s)")
