@@ -1,7 +1,8 @@
 """The tiny simulated site with its localisation drive imported and one FAST map built, once per session.
 
 Tests of localisation only read this store (they write their outputs elsewhere), so one build serves the
-service, report and CLI tests.
+service, report and CLI tests. On a PostgreSQL run its rows live in a database of their own that outlives
+each test (the per-test databases are dropped), named by the returned settings.
 """
 
 from __future__ import annotations
@@ -15,17 +16,22 @@ from driftmap.core.mapping import FAST
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
+from tests.postgres_server import active_server
 from tests.sim_site import import_site
 
 SITE = "tiny"
-_BUILT: dict[Path, Path] = {}
+_BUILT: dict[Path, Settings] = {}
 
 
-def tiny_map_data_dir(tmp_path_factory: pytest.TempPathFactory, site_dir: Path) -> Path:
-    """A data dir holding the tiny site (mapping + localisation drives) and map version 1 (FAST preset)."""
+def tiny_map_settings(tmp_path_factory: pytest.TempPathFactory, site_dir: Path) -> Settings:
+    """Settings of a store holding the tiny site (mapping + localisation drives) and map version 1 (FAST)."""
     if site_dir not in _BUILT:
-        data_dir = tmp_path_factory.mktemp("tiny-map") / "data"
-        storage = Storage.open(Settings(data_dir=data_dir))
+        server = active_server()
+        settings = Settings(
+            data_dir=tmp_path_factory.mktemp("tiny-map") / "data",
+            database_url=None if server is None else server.snapshot()[1],  # None: the SQLite file
+        )
+        storage = Storage.open(settings)
         try:
             import_site(storage, site_dir, SITE, kinds=("mapping", "localisation"))
             with storage.blobs.batch() as batch, storage.db.session() as session:
@@ -33,7 +39,7 @@ def tiny_map_data_dir(tmp_path_factory: pytest.TempPathFactory, site_dir: Path) 
                 map_service.build_site_map(session, storage.blobs, batch, site, FAST)
         finally:
             storage.close()
-        _BUILT[site_dir] = data_dir
+        _BUILT[site_dir] = settings
     return _BUILT[site_dir]
 
 

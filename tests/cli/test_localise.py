@@ -1,4 +1,4 @@
-"""``driftmap localise`` and ``driftmap report localisation`` end to end on real SQLite files."""
+"""``driftmap localise`` and ``driftmap report localisation`` end to end on the run's real database."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from driftmap.config import get_settings
 from driftmap.formats.csv_exports import read_localisation_csv
 from driftmap.formats.drive_folder import read_drive_folder
 from tests.drive_factory import write_test_drive
-from tests.localisation_site import SITE, loc_drive_dir, tiny_map_data_dir
+from tests.localisation_site import SITE, loc_drive_dir, tiny_map_settings
 
 runner = CliRunner()
 
@@ -22,11 +22,14 @@ runner = CliRunner()
 def tiny_env(
     tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> Iterator[Path]:
-    data = tiny_map_data_dir(tmp_path_factory, tiny_site_dir)
-    monkeypatch.setenv("DRIFTMAP_DATA_DIR", str(data))
-    monkeypatch.delenv("DRIFTMAP_DATABASE_URL", raising=False)
+    settings = tiny_map_settings(tmp_path_factory, tiny_site_dir)
+    monkeypatch.setenv("DRIFTMAP_DATA_DIR", str(settings.data_dir))
+    if settings.database_url is None:
+        monkeypatch.delenv("DRIFTMAP_DATABASE_URL", raising=False)
+    else:
+        monkeypatch.setenv("DRIFTMAP_DATABASE_URL", settings.database_url)
     get_settings.cache_clear()
-    yield data
+    yield settings.data_dir
     get_settings.cache_clear()
 
 

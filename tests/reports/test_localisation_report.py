@@ -7,7 +7,6 @@ from pathlib import Path
 
 import pytest
 
-from driftmap.config import Settings
 from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
 from driftmap.errors import BadInputError
 from driftmap.reports.localisation_report import METHODS, condition_of, run_localisation_report
@@ -15,7 +14,7 @@ from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
-from tests.localisation_site import SITE, tiny_map_data_dir
+from tests.localisation_site import SITE, tiny_map_settings
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 MIN_HMM_AUC = 0.7  # HMM methods on the tiny site's clean drive
@@ -36,7 +35,7 @@ class TestReport:
     def test_tiny_site(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path
     ) -> None:
-        storage = Storage.open(Settings(data_dir=tiny_map_data_dir(tmp_path_factory, tiny_site_dir)))
+        storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
         try:
             with storage.db.session() as session:
                 site = site_service.get_site(session, SITE)
@@ -69,7 +68,7 @@ class TestReport:
     def test_needs_drives_and_positive_tolerance(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path
     ) -> None:
-        storage = Storage.open(Settings(data_dir=tiny_map_data_dir(tmp_path_factory, tiny_site_dir)))
+        storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
         try:
             with storage.db.session() as session:
                 site = site_service.get_site(session, SITE)

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from driftmap.config import Settings
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
@@ -17,7 +16,7 @@ from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.models import MapVersion
 from driftmap.store.storage import Storage
-from tests.localisation_site import SITE, loc_drive_dir, tiny_map_data_dir
+from tests.localisation_site import SITE, loc_drive_dir, tiny_map_settings
 
 ON_NODE_M = 15.0  # a frame is localised right when its node centre is within this of the truth, metres
 MIN_RIGHT = 0.9  # fraction of matched frames of the tiny site's localisation drive that must be right
@@ -26,7 +25,7 @@ MIN_MATCHED = 0.5  # fraction of its frames the HMM must mark matched
 
 @pytest.fixture(scope="module")
 def tiny_store(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Iterator[Storage]:
-    storage = Storage.open(Settings(data_dir=tiny_map_data_dir(tmp_path_factory, tiny_site_dir)))
+    storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
     yield storage
     storage.close()
 
