@@ -1,12 +1,24 @@
-"""Localiser worker processes do not outlive the server process that started them."""
+"""Localiser worker processes: they do not outlive the server process that started them, and a database
+error inside one reaches the server as a readable error."""
 
 from __future__ import annotations
 
+import asyncio
+import pickle
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
+import pytest
+from sqlalchemy import text
+
+from driftmap.config import Settings
+from driftmap.services import vehicles as vehicle_service
+from driftmap.services.live_workers import LiveDatabaseError, LocaliserWorkers
+from driftmap.store.storage import Storage
+from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
 from tests.processes import alive
 
 
@@ -32,3 +44,24 @@ def test_a_worker_exits_when_its_parent_is_killed() -> None:
     while alive(worker) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not alive(worker)
+
+
+def test_a_database_error_in_a_worker_reaches_the_server_as_text(
+    tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path
+) -> None:
+    data = copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
+    settings = Settings(data_dir=data)
+    storage = Storage.open(settings)
+    with storage.db.session() as session:
+        vehicle, _token = vehicle_service.create_vehicle(session, "lhd", 1)
+    with storage.db.engine.begin() as connection:  # the write of every estimate now fails
+        connection.execute(text("DROP TABLE vehicle_positions"))
+    storage.close()
+    frame = recorded_frames(localisation_drive(tiny_site_dir), 1)[0]
+    workers = LocaliserWorkers(settings, processes=1)
+    try:
+        with pytest.raises(LiveDatabaseError, match="vehicle_positions") as raised:
+            asyncio.run(workers.localise(vehicle.id, frame.t, frame.data, (0, 0)))
+    finally:
+        workers.close()
+    assert pickle.loads(pickle.dumps(raised.value)).args == raised.value.args

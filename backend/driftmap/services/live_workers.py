@@ -12,6 +12,7 @@ slot's reloads the state from it.
 from __future__ import annotations
 
 import asyncio
+import functools
 import multiprocessing
 import os
 import threading
@@ -20,6 +21,8 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import TypeVar
+
+from sqlalchemy.exc import SQLAlchemyError
 
 from driftmap.config import Settings
 from driftmap.errors import ConflictError
@@ -62,6 +65,23 @@ def _ping() -> bool:
     return _storage is not None
 
 
+class LiveDatabaseError(RuntimeError):
+    """A database error in a localiser process, as plain text: SQLAlchemy's errors carry the statement's
+    parameters (frame bytes as ``memoryview`` on PostgreSQL), which cannot be pickled back to the server."""
+
+
+def _database_errors_as_text(fn: Callable[..., R]) -> Callable[..., R]:
+    @functools.wraps(fn)
+    def run(*args: object) -> R:
+        try:
+            return fn(*args)
+        except SQLAlchemyError as exc:
+            raise LiveDatabaseError(f"{type(exc).__name__}: {getattr(exc, 'orig', None) or exc}") from None
+
+    return run
+
+
+@_database_errors_as_text
 def _localise(vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int]) -> FrameOutcome:
     storage = _opened()
     frame = decode_gray(data, "frame")
@@ -74,6 +94,7 @@ def _localise(vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int])
     return outcome
 
 
+@_database_errors_as_text
 def _store_counts(vehicle_id: int, skipped: int, out_of_order: int) -> None:
     before, after = live_service.add_counts(_opened().db, vehicle_id, skipped, out_of_order)
     slot = _slots.get(vehicle_id)

@@ -53,6 +53,20 @@ describe("LiveState", () => {
     expect(s.lastSeq).toBe(8);
   });
 
+  it("resumes from the oldest last position of the vehicles that are not stale", () => {
+    const s = new LiveState(60);
+    expect(s.resumeSeq()).toBeNull();
+    s.apply({ type: "position", ...position(11, 1, 1, 0) });
+    s.apply({ type: "position", ...position(10, 2, 1, 0) }); // published by another API process, later
+    s.apply({ type: "position", ...position(12, 1, 2, 0) });
+    expect(s.lastSeq).toBe(12);
+    expect(s.resumeSeq()).toBe(10);
+    s.apply({ type: "stale", vehicle_id: 2, received_at: "x" });
+    expect(s.resumeSeq()).toBe(12);
+    s.apply({ type: "stale", vehicle_id: 1, received_at: "x" });
+    expect(s.resumeSeq()).toBe(12); // nobody moving: the highest seq seen
+  });
+
   it("ignores replayed positions and trims the trail to its window", () => {
     const s = new LiveState(5);
     for (let i = 1; i <= 10; i++) s.apply({ type: "position", ...position(i, 1, i, i) });

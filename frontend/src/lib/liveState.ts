@@ -160,6 +160,19 @@ export class LiveState {
     }
   }
 
+  /**
+   * The ``since`` a reconnect resumes from: the oldest last position among the vehicles that are not stale.
+   * With several API processes, positions of different vehicles may arrive out of ``seq`` order, so resuming
+   * from the highest seq seen could skip another vehicle's position still in flight; per-vehicle dedupe drops
+   * what is replayed twice. Falls back to ``lastSeq`` when no vehicle is moving.
+   */
+  resumeSeq(): number | null {
+    const active = [...this.vehicles.values()]
+      .filter((v) => !v.stale && v.position !== null)
+      .map((v) => v.position!.seq);
+    return active.length > 0 ? Math.min(...active) : this.lastSeq;
+  }
+
   private vehicle(id: number, name: string, siteId: number): VehicleState {
     let v = this.vehicles.get(id);
     if (!v) {

@@ -42,7 +42,7 @@ export function MonitorView({ siteId }: { siteId: number }) {
     };
     const socket = new LiveSocket({
       url: liveUrl,
-      lastSeq: () => state.current.lastSeq,
+      lastSeq: () => state.current.resumeSeq(),
       onMessage: (m) => {
         state.current.apply(m);
         bump();
