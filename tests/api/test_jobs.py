@@ -23,7 +23,7 @@ from sqlalchemy import func, select
 
 from driftmap.api.jobs import JobKind, JobStatus
 from driftmap.config import Settings
-from driftmap.services.jobs import JOB_KINDS
+from driftmap.services.jobs import QUEUE_KINDS
 from driftmap.store.job_models import JOB_STATUSES
 from driftmap.store.models import Frame, MapPose, MapVersion
 from driftmap.store.storage import Storage
@@ -110,6 +110,12 @@ class TestLifecycle:
         assert len(residuals) == 2 and all(r["distance_m"] < 2.0 for r in residuals)
         listed = users.get("/api/jobs", params={"site_id": site_id, "kind": "drive.import"})
         assert listed["total"] == 2 and {j["status"] for j in listed["items"]} == {"succeeded"}
+        top_level = users.get("/api/jobs", params={"site_id": site_id})["items"]
+        assert {j["kind"] for j in top_level} == {"drive.import", "map.build"}
+        assert all(j["parent_id"] is None for j in top_level)
+        subtasks = users.get("/api/jobs", params={"parent_id": build["id"]})["items"]
+        assert [j["kind"] for j in subtasks] == ["map.drive", "map.drive"]  # one per mapping drive
+        assert {(j["parent_id"], j["status"]) for j in subtasks} == {(build["id"], "succeeded")}
 
     def test_progress_stream_ends_with_the_final_state(
         self, users: ApiUsers, settings: Settings, site_id: int
@@ -332,7 +338,7 @@ def _wait_http(http: httpx.Client, job_id: int) -> dict[str, object]:
 
 class TestListFilters:
     def test_filters_are_the_stored_kinds_and_statuses(self, users: ApiUsers) -> None:
-        assert set(get_args(JobKind)) == set(JOB_KINDS) and set(get_args(JobStatus)) == set(JOB_STATUSES)
+        assert set(get_args(JobKind)) == set(QUEUE_KINDS) and set(get_args(JobStatus)) == set(JOB_STATUSES)
         response = users.client.get("/api/jobs", params={"status": "done"}, headers=users.auth("viewer"))
         assert response.status_code == 422
         assert users.get("/api/jobs", params={"status": "queued", "kind": "map.build"})["total"] == 0

@@ -20,7 +20,7 @@ from driftmap.store.storage import Storage
 
 router = APIRouter(tags=["jobs"])
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-JobKind = Literal["map.build", "drive.localise", "drive.import", "site.simulate"]
+JobKind = Literal["map.build", "drive.localise", "drive.import", "site.simulate", "map.drive"]
 
 STREAM_POLL_S = 0.5  # how often the progress stream looks at the job row
 STREAM_KEEPALIVE_S = 15.0  # a comment line this often keeps proxies from closing a quiet stream
@@ -44,12 +44,15 @@ def list_jobs(
     site_id: int | None = None,
     status: JobStatus | None = None,
     kind: JobKind | None = None,
+    parent_id: Annotated[
+        int | None, Query(description="List this job's subtasks instead of the top-level jobs.")
+    ] = None,
     offset: Annotated[int, Query(ge=0)] = 0,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
 ) -> Page[JobRead]:
-    """Jobs, newest first, optionally of one site, status or kind."""
+    """Top-level jobs (or the subtasks of ``parent_id``), newest first, optionally of one site, status or kind."""
     rows, total = job_service.list_jobs(
-        session, site_id=site_id, status=status, kind=kind, offset=offset, limit=limit
+        session, site_id=site_id, status=status, kind=kind, parent_id=parent_id, offset=offset, limit=limit
     )
     return Page[JobRead](
         items=[JobRead.model_validate(j) for j in rows], total=total, offset=offset, limit=limit

@@ -205,3 +205,5 @@ class JobRead(BaseModel):
     heartbeat_at: datetime | None
     cancel_requested_at: datetime | None
     worker_id: str | None
+    parent_id: int | None = None
+    """The job this one is a subtask of (``map.drive`` subtasks of a ``map.build``), else None."""

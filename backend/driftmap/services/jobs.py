@@ -107,11 +107,13 @@ def list_jobs(
     site_id: int | None = None,
     status: str | None = None,
     kind: str | None = None,
+    parent_id: int | None = None,
     offset: int = 0,
     limit: int = 50,
 ) -> tuple[list[Job], int]:
-    """Jobs matching the filters, newest first, and how many match in all."""
-    query = select(Job)
+    """Jobs matching the filters, newest first, and how many match in all: the top-level jobs, or the
+    subtasks of job ``parent_id``."""
+    query = select(Job).where(Job.parent_id.is_(None) if parent_id is None else Job.parent_id == parent_id)
     if site_id is not None:
         query = query.where(Job.site_id == site_id)
     if status is not None:
