@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import socket
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -56,6 +57,28 @@ def wait_healthy(process: subprocess.Popen[bytes], base: str, log: Path, deadlin
             pass
         assert time.monotonic() < deadline, f"no health answer within {deadline_s} s:\n{log.read_text()}"
         time.sleep(0.2)
+
+
+def start_server(
+    env: dict[str, str], log: Path, *extra: str, deadline_s: float = 120.0
+) -> tuple[subprocess.Popen[bytes], str]:
+    """Start ``driftmap serve`` on a free port with ``extra`` arguments, output to ``log``; wait for its health
+    answer. Returns the process and its base URL; a server that does not come up is stopped before failing."""
+    port = free_port()
+    with log.open("wb") as sink:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *extra],
+            env=env,
+            stdout=sink,
+            stderr=sink,
+        )
+    base = f"http://127.0.0.1:{port}"
+    try:
+        wait_healthy(process, base, log, deadline_s)
+    except BaseException:
+        stop(process)
+        raise
+    return process, base
 
 
 def stop(process: subprocess.Popen[bytes], timeout_s: float = 30.0) -> None:

@@ -21,7 +21,7 @@ from driftmap.config import Settings
 from driftmap.services import users as user_service
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
-from tests.processes import alive, driftmap_env, free_port, wait_healthy
+from tests.processes import alive, driftmap_env, start_server
 
 START_DEADLINE_S = 90.0
 STOP_DEADLINE_S = 60.0
@@ -36,16 +36,7 @@ def _serve(
     env: dict[str, str], log: Path, *extra: str
 ) -> Iterator[tuple[subprocess.Popen[bytes], str, Path]]:
     """Start ``driftmap serve`` and wait for its health answer; the second ``next`` kills what is left."""
-    port = free_port()
-    with log.open("wb") as sink:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *extra],
-            env=env,
-            stdout=sink,
-            stderr=sink,
-        )
-    base = f"http://127.0.0.1:{port}"
-    wait_healthy(process, base, log, START_DEADLINE_S)
+    process, base = start_server(env, log, *extra, deadline_s=START_DEADLINE_S)
     yield process, base, log
     if process.poll() is None:
         process.kill()

@@ -43,7 +43,7 @@ from tests.api.access_helpers import (
     make_actors,
     recorded_frames,
 )
-from tests.processes import driftmap_env, free_port, stop, wait_healthy
+from tests.processes import driftmap_env, start_server, stop
 from tests.redis_server import running_redis
 
 FRAMES = 24
@@ -312,25 +312,6 @@ class TestRedisFrames:
         assert kept == (2.5, b"\x89PNG newer") and other == (0.1, b"\xff\xd8 other")
 
 
-def _serve(env: dict[str, str], log: Path, *extra: str) -> tuple[subprocess.Popen[bytes], str]:
-    """Start ``driftmap serve`` on a free port and wait for its health answer; returns it and its base URL."""
-    port = free_port()
-    with log.open("wb") as sink:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *extra],
-            env=env,
-            stdout=sink,
-            stderr=sink,
-        )
-    base = f"http://127.0.0.1:{port}"
-    try:
-        wait_healthy(process, base, log, START_DEADLINE_S)
-    except BaseException:
-        stop(process)
-        raise
-    return process, base
-
-
 @dataclass(frozen=True)
 class Fleet:
     """Servers on one data dir and one Redis, a viewer's token and a vehicle with its token."""
@@ -360,7 +341,9 @@ def _fleet(data: Path, redis: str, tmp_path: Path, *serves: tuple[str, ...]) -> 
     bases = []
     try:
         for k, extra in enumerate(serves):
-            process, base = _serve(_env(data, redis), tmp_path / f"serve-{k}.log", *extra)
+            process, base = start_server(
+                _env(data, redis), tmp_path / f"serve-{k}.log", *extra, deadline_s=START_DEADLINE_S
+            )
             started.append(process)
             bases.append(base)
         login = httpx.post(

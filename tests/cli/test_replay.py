@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive
-from tests.processes import alive, driftmap_env, free_port, stop, wait_healthy
+from tests.processes import alive, driftmap_env, free_port, start_server, stop
 
 PASSWORD = "replay-admin-password"
 START_DEADLINE_S = 120.0
@@ -63,18 +63,8 @@ def _stored(base: str, name: str) -> bool:
 @pytest.fixture
 def server(env: dict[str, str], tmp_path: Path) -> Iterator[str]:
     """``driftmap serve`` (no job worker) on a free port; yields its base URL."""
-    port = free_port()
-    log = tmp_path / "serve.log"
-    with log.open("wb") as sink:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), "--no-worker"],
-            env=env,
-            stdout=sink,
-            stderr=sink,
-        )
-    base = f"http://127.0.0.1:{port}"
+    process, base = start_server(env, tmp_path / "serve.log", "--no-worker", deadline_s=START_DEADLINE_S)
     try:
-        wait_healthy(process, base, log, START_DEADLINE_S)
         yield base
     finally:
         stop(process)

@@ -18,7 +18,7 @@ import pytest
 from playwright.sync_api import Browser, ConsoleMessage, Error, Page, sync_playwright
 
 from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
-from tests.processes import driftmap_env, free_port, stop, wait_healthy
+from tests.processes import driftmap_env, start_server, stop
 
 REPO = Path(__file__).resolve().parents[2]
 FRONTEND = REPO / "frontend"
@@ -101,18 +101,9 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
         check=False,
     )
     assert added.returncode == 0, added.stderr.decode()
-    port = free_port()
     log = work / "serve.log"
-    with log.open("wb") as sink:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), "--no-worker"],
-            env=env,
-            stdout=sink,
-            stderr=sink,
-        )
-    base = f"http://127.0.0.1:{port}"
+    process, base = start_server(env, log, "--no-worker", deadline_s=START_DEADLINE_S)
     try:
-        wait_healthy(process, base, log, START_DEADLINE_S)
         login = httpx.post(f"{base}/api/auth/login", json={"username": "admin", "password": ADMIN_PASSWORD})
         assert login.status_code == 200, login.text
         yield Server(base, env, {"Authorization": f"Bearer {login.json()['access_token']}"}, log)

@@ -6,7 +6,6 @@ on two real worker processes is bench/bench_map_workers.py.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +13,6 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
-from driftmap.config import Settings
 from driftmap.core.mapping import FAST, build_map
 from driftmap.jobs import map_tasks
 from driftmap.jobs.map_tasks import map_build
@@ -26,30 +24,7 @@ from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
 from driftmap.store.models import Frame, MapNode, MapPose, MapVersion
 from driftmap.store.storage import Storage
-from tests.jobs.mini_site import mini_site_dir
 from tests.sim_site import import_site
-
-
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
-
-
-@pytest.fixture
-def runtime(settings: Settings, storage: Storage) -> JobRuntime:
-    return JobRuntime(settings=settings, storage=storage, heartbeat_s=0.2, progress_interval_s=0.0)
-
-
-@pytest.fixture
-def queue(settings: Settings, runtime: JobRuntime) -> Iterator[JobQueue]:
-    """Tasks run as soon as they are enqueued (subtasks inside the parent's fan-out)."""
-    yield JobQueue(settings, immediate=True, runtime=runtime)
-
-
-@pytest.fixture
-def stored_queue(settings: Settings, runtime: JobRuntime) -> JobQueue:
-    """Messages wait on the SqliteHuey file: no other worker takes a subtask."""
-    return JobQueue(settings, runtime=runtime)
 
 
 def _submit(storage: Storage, queue: JobQueue) -> int:

@@ -10,7 +10,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import pytest
 from sqlalchemy import func, select
 
 from driftmap.config import Settings
@@ -21,15 +20,9 @@ from driftmap.store.job_models import Job
 from driftmap.store.models import Frame, MapPose, MapVersion
 from driftmap.store.storage import Storage
 from tests.api.data_helpers import stop_worker
-from tests.jobs.mini_site import mini_site_dir
 from tests.sim_site import import_site
 
 DEADLINE_S = 300.0  # a build of the mini site on a loaded 2-core machine
-
-
-@pytest.fixture(scope="module")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
 
 
 def _submit(storage: Storage, settings: Settings) -> int:

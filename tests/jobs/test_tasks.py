@@ -7,14 +7,12 @@ tests/api/test_jobs.py.
 from __future__ import annotations
 
 import shutil
-from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
 
 import pytest
 from sqlalchemy import delete, func, select, update
 
-from driftmap.config import Settings
 from driftmap.jobs.queue import JobQueue
 from driftmap.jobs.runtime import JobContext, JobRuntime, run_job
 from driftmap.jobs.tasks import map_build
@@ -23,30 +21,8 @@ from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, Frame, Grounding, MapPose, MapVersion, utc_now
 from driftmap.store.storage import Storage
-from tests.jobs.mini_site import drive_folders, mini_site_dir, zip_folder
+from tests.jobs.mini_site import drive_folders, zip_folder
 from tests.sim_site import import_site
-
-
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
-
-
-@pytest.fixture
-def runtime(settings: Settings, storage: Storage) -> JobRuntime:
-    return JobRuntime(settings=settings, storage=storage, heartbeat_s=0.2, progress_interval_s=0.0)
-
-
-@pytest.fixture
-def queue(settings: Settings, runtime: JobRuntime) -> Iterator[JobQueue]:
-    """A queue whose tasks run as soon as they are enqueued."""
-    yield JobQueue(settings, immediate=True, runtime=runtime)
-
-
-@pytest.fixture
-def stored_queue(settings: Settings, runtime: JobRuntime) -> JobQueue:
-    """A queue on the SqliteHuey file of the data dir, with no consumer: messages wait."""
-    return JobQueue(settings, runtime=runtime)
 
 
 def _submit(storage: Storage, queue: JobQueue, kind: str, args: dict[str, object], site: str | None) -> int:
