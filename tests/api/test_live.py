@@ -31,8 +31,6 @@ from driftmap.store.storage import Storage
 from tests.api.access_helpers import (
     Actors,
     RecordedFrame,
-    built_tiny_data,
-    copy_data,
     localisation_drive,
     make_actors,
     recorded_frames,
@@ -42,12 +40,6 @@ ON_NODE_M = 15.0  # an estimate is right when its node centre is within this of 
 MIN_RIGHT = 0.8  # fraction of matched estimates that must be right
 MIN_MATCHED = 0.2  # fraction of frames of the drive's first 15 s that must be matched
 DRIVE_FRAMES = 150
-
-
-@pytest.fixture
-def built(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path) -> Path:
-    """A private copy of a data dir holding the tiny site with a built map."""
-    return copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
 
 
 @pytest.fixture

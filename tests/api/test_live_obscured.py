@@ -19,8 +19,6 @@ from driftmap.formats.frame_images import decode_gray, encode_png
 from tests.api.access_helpers import (
     Actors,
     RecordedFrame,
-    built_tiny_data,
-    copy_data,
     localisation_drive,
     make_actors,
     recorded_frames,
@@ -28,11 +26,6 @@ from tests.api.access_helpers import (
 
 CLEAN = 15  # clean frames first (more than the warm-up), then dusty ones
 DUSTY = 15
-
-
-@pytest.fixture
-def built(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path) -> Path:
-    return copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
 
 
 @pytest.fixture

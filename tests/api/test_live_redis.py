@@ -37,8 +37,6 @@ from driftmap.store.access_models import VehicleLiveState, VehiclePosition
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import (
     RecordedFrame,
-    built_tiny_data,
-    copy_data,
     localisation_drive,
     make_actors,
     recorded_frames,
@@ -57,12 +55,6 @@ def redis_url(tmp_path: Path) -> Iterator[str]:
     """A private redis-server for this test (skipped without redis-server)."""
     with running_redis(tmp_path) as url:
         yield url
-
-
-@pytest.fixture
-def built(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, tmp_path: Path) -> Path:
-    """A private copy of a data dir holding the tiny site with a built map."""
-    return copy_data(built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data")
 
 
 @pytest.fixture
