@@ -35,10 +35,13 @@ __all__ = [
     "PairCache",
     "coarse_candidates",
     "describe",
+    "query_blocks",
     "sad_pairs",
     "thumbnails",
 ]
 
+COARSE_BLOCK = 256
+"""Queries per matrix product of :func:`coarse_candidates` (and the grid its query ranges follow)."""
 _NEG = np.float32(-1e30)  # "not eligible": below any cosine similarity, safe in OpenCV filters
 
 
@@ -129,7 +132,8 @@ def coarse_candidates(
     seq_len: int = 1,
     jitter: int = 1,
     nms_radius: int = 2,
-    block: int = 256,
+    block: int = COARSE_BLOCK,
+    queries: tuple[int, int] | None = None,
 ) -> CoarseCandidates:
     """Rank, for every query frame, the earlier frames it may close a loop with.
 
@@ -152,12 +156,16 @@ def coarse_candidates(
         jitter: reference frames either side over which each earlier diagonal term is maximised.
         nms_radius: a candidate must be the maximum within this many reference frames either side.
         block: queries per matrix product (memory ~ ``(block + seq_len) x N`` float32 x 4).
+        queries: ``(q0, q1)``: rank only queries ``q0 .. q1 - 1`` (``index`` then has ``q1 - q0``
+            rows). Both ends must lie on the grid of :func:`query_blocks`, so that every query is
+            ranked in the same matrix product as in a run over all queries (same rounding).
 
     Returns:
         :class:`CoarseCandidates`.
 
     Raises:
-        ValueError: shapes disagree or ``limit`` is not a non-decreasing prefix bound.
+        ValueError: shapes disagree, ``limit`` is not a non-decreasing prefix bound, or ``queries``
+            is off the block grid.
     """
     d = np.ascontiguousarray(desc, dtype=np.float32)
     lim = np.asarray(limit, dtype=np.int64)
@@ -169,10 +177,15 @@ def coarse_candidates(
         raise ValueError("top_k, seq_len and block must be >= 1")
     if n and (np.any(np.diff(lim) < 0) or np.any(lim > np.arange(n)) or np.any(lim < 0)):
         raise ValueError("limit must be non-decreasing with 0 <= limit[g] <= g")
-    index = np.full((n, top_k + top_k_single), -1, dtype=np.int64)
+    q0, q1 = queries if queries is not None else (0, n)
+    grid = query_blocks(lim, block)
+    if not (q0 in grid or q0 == 0) or not (q1 in grid or q1 == n) or q0 > q1:
+        raise ValueError(f"queries {q0} .. {q1} are off the block grid {grid[:4]} ... of {n} frames")
+    index = np.full((q1 - q0, top_k + top_k_single), -1, dtype=np.int64)
     n_compared = 0
-    first = int(np.searchsorted(lim, 1))  # queries before this have no eligible reference
-    for b0 in range(first, n, block):
+    for b0 in grid[:-1]:
+        if not q0 <= b0 < q1:
+            continue
         b1 = min(n, b0 + block)
         r = int(lim[b1 - 1])
         e0 = max(0, b0 - seq_len + 1)
@@ -184,8 +197,25 @@ def coarse_candidates(
             idx1 = _select(np.array(s[b0 - e0 :]), lim[b0:b1], top_k_single, nms_radius)
             idx1[(idx1[:, :, None] == idx[:, None, :]).any(axis=2)] = -1
             idx = np.concatenate([idx, idx1], axis=1)
-        index[b0:b1, : idx.shape[1]] = idx
+        index[b0 - q0 : b1 - q0, : idx.shape[1]] = idx
     return CoarseCandidates(index=index, n_compared=n_compared)
+
+
+def query_blocks(limit: NDArray, block: int = COARSE_BLOCK) -> list[int]:
+    """Starts of :func:`coarse_candidates`' query blocks, then the number of frames ``N``.
+
+    The first block starts at the first query with an eligible reference (``limit > 0``); the
+    queries before it have none. A split of the queries at these indices ranks every query exactly
+    as a run over all of them.
+
+    Args:
+        limit: ``(N,)`` exclusive end of each query's eligible references (non-decreasing).
+        block: queries per block.
+    """
+    lim = np.asarray(limit, dtype=np.int64)
+    n = int(lim.size)
+    first = int(np.searchsorted(lim, 1))
+    return [*range(first, n, block), n]
 
 
 def _select(c: NDArray[np.float32], lim: NDArray[np.int64], k: int, nms_radius: int) -> NDArray[np.int64]:
@@ -316,7 +346,6 @@ def sad_pairs(
     best = np.full(qi.size, np.inf, dtype=np.float32)
     best_k = np.zeros(qi.size, dtype=np.int64)
     chunk = max(1, params.chunk_bytes // (height * width * 4))
-    ones = np.ones(width, dtype=np.float32)
     rows = np.empty(chunk * height, dtype=np.float32)
     diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
     for c0 in range(0, qi.size, chunk):
@@ -331,7 +360,9 @@ def sad_pairs(
             k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
             diff = diff_buf[: (k1 - k0) * (qx.stop - qx.start)].reshape(k1 - k0, qx.stop - qx.start)
             cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff)
-            np.matmul(diff, ones[: qx.stop - qx.start], out=rows[k0:k1])
+            # Row sums by OpenCV: each row summed alike whatever the chunk holds (BLAS gemv is not:
+            # its rounding varies with the rows around), so a pair's d does not depend on its batch.
+            rows[k0:k1] = cv2.reduce(diff, 1, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
             score = rows[: m * height].reshape(m, height)[:, qy].sum(axis=1)
             score *= np.float32(1.0 / ((qy.stop - qy.start) * (qx.stop - qx.start)))
             better = score < best[c0:c1]

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.descriptors import DiagonalScorer, PairCache, coarse_candidates, describe, thumbnails
+from driftmap.core.loop_scores import LoopSearch, QueryScores, plan_search, score_queries
 from driftmap.core.params import SAD_DEFAULT, SAD_FAST, SadParams
 
 __all__ = [
@@ -58,6 +58,7 @@ __all__ = [
     "LoopParams",
     "LoopResult",
     "LoopStats",
+    "decide_loops",
     "detect_loops",
 ]
 
@@ -225,35 +226,6 @@ class LoopResult:
         return np.asarray(rows, dtype=np.int64).reshape(-1, 4)
 
 
-def _stack(
-    chains: Sequence[NDArray], timestamps_s: Sequence[NDArray] | None, params: LoopParams
-) -> tuple[NDArray[np.float32], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """Validate the input; return frames ``(G, H, W)``, chain ``(G,)``, pos ``(G,)``, limit ``(G,)``."""
-    arrays = [np.asarray(c) for c in chains]
-    shapes = {a.shape[1:] for a in arrays if a.ndim == 3}
-    if any(a.ndim != 3 for a in arrays) or len(shapes) > 1:
-        raise ValueError(f"chains must be (N_i, H, W) arrays of one H, W; got {[a.shape for a in arrays]}")
-    if timestamps_s is not None and len(timestamps_s) != len(arrays):
-        raise ValueError(f"timestamps_s has {len(timestamps_s)} entries for {len(arrays)} chains")
-    sizes = [a.shape[0] for a in arrays]
-    frames = (
-        np.concatenate([a.astype(np.float32, copy=False) for a in arrays]) if arrays else np.zeros((0, 1, 1))
-    )
-    chain = np.repeat(np.arange(len(arrays), dtype=np.int64), sizes)
-    starts = np.concatenate([[0], np.cumsum(sizes)])[:-1].astype(np.int64)
-    pos = np.arange(chain.size, dtype=np.int64) - (starts[chain] if chain.size else 0)
-    limit = starts[chain] + np.maximum(0, pos - params.recent_frames) if chain.size else pos.copy()
-    if timestamps_s is not None:
-        for c, t in enumerate(timestamps_s):
-            t = np.asarray(t, dtype=np.float64)
-            if t.shape != (sizes[c],) or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
-                raise ValueError(f"timestamps_s[{c}] must be ({sizes[c]},) finite and non-decreasing")
-            n_old = np.searchsorted(t, t - params.recent_s, side="right")
-            sl = slice(starts[c], starts[c] + sizes[c])
-            limit[sl] = np.minimum(limit[sl], starts[c] + n_old)
-    return np.asarray(frames, dtype=np.float32), chain, pos, limit.astype(np.int64)
-
-
 _Place = tuple[int, float, int, bool]  # a sequence-checked place: (reference, score, hits, tracked)
 
 
@@ -290,6 +262,9 @@ def detect_loops(
 
     Every keyframe is compared with every earlier keyframe in the global order (all frames of
     earlier chains; its own chain outside the recent window) through the coarse candidate search.
+    This is :func:`~driftmap.core.loop_scores.plan_search`, then
+    :func:`~driftmap.core.loop_scores.score_queries` of all queries (or of any split of them, e.g. in
+    other processes: the same scores), then :func:`decide_loops`.
 
     Args:
         chains: one ``(N_i, H, W)`` float32 stack of pre-processed keyframes per drive
@@ -304,113 +279,110 @@ def detect_loops(
         ValueError: chains not 3-D or of different image sizes, timestamps of the wrong shape,
             or a SAD shift range leaving no overlap.
     """
+    search = plan_search(chains, params, timestamps_s)
+    if search is None:
+        return LoopResult([], LoopStats(n_frames=sum(int(np.shape(c)[0]) for c in chains)))
+    return decide_loops(search, [score_queries(search, params)], params)
+
+
+_Pairs = dict[tuple[int, int], tuple[float, int, int]]  # (query, reference) -> eq. 3 (d, dx, dy)
+
+
+def decide_loops(
+    search: LoopSearch, blocks: Sequence[QueryScores], params: LoopParams = LOOPS_DEFAULT
+) -> LoopResult:
+    """Step 3: accept closures query by query, in order, from the scores of every query block.
+
+    Args:
+        search: the plan the blocks were scored with.
+        blocks: :func:`~driftmap.core.loop_scores.score_queries` of ranges covering all queries once,
+            in any order.
+        params: the parameters the plan and the blocks used.
+
+    Raises:
+        ValueError: the blocks do not cover the queries exactly once.
+    """
     p = params
-    frames, chain, pos, limit = _stack(chains, timestamps_s, p)
-    n = frames.shape[0]
-    if n == 0 or limit[-1] == 0:
-        return LoopResult([], LoopStats(n_frames=n))
+    blocks = sorted(blocks, key=lambda b: b.q0)
+    cuts = [0, *(b.q0 + b.checked.size for b in blocks)]
+    if [b.q0 for b in blocks] != cuts[:-1] or cuts[-1] != search.n:
+        raise ValueError(f"query blocks starting at {cuts[:-1]} do not cover the {search.n} queries once")
     t0 = time.perf_counter()
-    desc = describe(thumbnails(frames, p.coarse_size_px, p.coarse_blur_px), p.coarse_dims)
-    t1 = time.perf_counter()
-    cand = coarse_candidates(
-        desc,
-        limit,
-        pos,
-        top_k=p.top_k,
-        top_k_single=p.top_k_single,
-        seq_len=p.coarse_seq_len,
-        nms_radius=p.nms_radius,
-    )
-    t2 = time.perf_counter()
-    cache = PairCache(frames, p.sad)
-    median, sigma = cache.background(limit, p.background_pairs, p.seed)
-    sigma = max(sigma, p.sigma_floor * median, 1e-3)
-    n_bg = cache.n_computed
-    d_t = p.d_t if p.d_t is not None else median - p.d_t_sigmas * sigma
-    d_hit = d_t if p.d_t is not None else median - p.hit_sigmas * sigma
-    valid = cand.index >= 0
-    qi = np.broadcast_to(np.arange(n)[:, None], cand.index.shape)
-    d_cand = np.full(cand.index.shape, np.inf, dtype=np.float32)
-    d_cand[valid] = cache.fetch(qi[valid], cand.index[valid])
-    n_cand = cache.n_computed - n_bg
-    t3 = time.perf_counter()
-    # Sequence checks of the lowest-d candidates whose query frame itself matches, in one batch.
-    order = np.argsort(d_cand, axis=1, kind="stable")
-    d_sorted = np.take_along_axis(d_cand, order, axis=1)
-    idx_sorted = np.take_along_axis(cand.index, order, axis=1)
-    gate = max(d_t, d_hit)  # the query frame itself must match
-    checked = (d_sorted < gate) & (np.arange(d_sorted.shape[1]) < p.max_seq_checks)[None, :]
-    diag = DiagonalScorer(cache, chain, pos, limit, p.seq_len, p.seq_slopes, (d_hit, d_t, p.seq_min_hits))
+    chain, pos = search.chain, search.pos
+    median, sigma, d_t, d_hit = search.background.tolist()
     places_of = _Places(chain, p.same_place_frames)
-    seq = np.full(d_cand.shape, np.inf, dtype=np.float32)
-    hits = np.zeros(d_cand.shape, dtype=np.int64)
-    seq[checked], hits[checked] = diag.scores(qi[checked], idx_sorted[checked])
-    # Rivals: the frames beside every candidate of a query that may close a loop (a coarse peak may
-    # be one frame off the true one), checked in a second batch before any decision.
-    passing = checked & (seq < d_t) & (hits >= p.seq_min_hits)
-    beside = _beside(
-        np.flatnonzero(passing.any(axis=1)), cand.index, np.where(checked, idx_sorted, -1), limit
-    )
-    beside = beside[cache.fetch(beside[:, 0], beside[:, 1]) < gate]
-    rival_seq, rival_hits = diag.scores(beside[:, 0], beside[:, 1])
-    n_checks = int(checked.sum()) + len(beside)
-    extra: dict[int, list[_Place]] = {}
-    for (g, x), s_x, h_x in zip(beside.tolist(), rival_seq.tolist(), rival_hits.tolist(), strict=True):
-        if np.isfinite(s_x):
-            extra.setdefault(g, []).append((x, s_x, h_x, False))
     closures: list[LoopClosure] = []
     accepted: dict[int, list[int]] = {}
-    for g in np.flatnonzero(checked.any(axis=1)).tolist():
-        prev = accepted.get(g - 1, []) if p.track and pos[g] > 0 else []
-        places: list[_Place] = [
-            (r, s_r, h_r, any(chain[e] == chain[r] and abs(e - r) <= 2 for e in prev))
-            for r, s_r, h_r in zip(idx_sorted[g].tolist(), seq[g].tolist(), hits[g].tolist(), strict=True)
-            if np.isfinite(s_r)
-        ]
-        emitted = _decide(g, places + extra.get(g, []), (cache, places_of, pos), p, (d_t, median), closures)
-        if emitted:
-            accepted[g] = emitted
-    t4 = time.perf_counter()
+    for b in blocks:
+        extra, pairs = _rival_places(b)
+        for row in np.flatnonzero(b.checked).tolist():
+            g = b.q0 + row
+            prev = accepted.get(g - 1, []) if p.track and pos[g] > 0 else []
+            places: list[_Place] = []
+            for r, s_r, h_r, pair in zip(
+                b.index[row].tolist(),
+                b.seq[row].tolist(),
+                b.hits[row].tolist(),
+                b.pair[row].tolist(),
+                strict=True,
+            ):
+                if np.isfinite(s_r):
+                    places.append((r, s_r, h_r, any(chain[e] == chain[r] and abs(e - r) <= 2 for e in prev)))
+                    pairs[g, r] = (pair[0], int(pair[1]), int(pair[2]))
+            state = (pairs, places_of, pos)
+            emitted = _decide(g, places + extra.get(g, []), state, p, (d_t, median), closures)
+            if emitted:
+                accepted[g] = emitted
+    counts = np.sum([b.counts for b in blocks], axis=0)
+    seconds = np.sum([b.seconds for b in blocks], axis=0)
     stats = LoopStats(
-        n_frames=n,
-        n_eligible_pairs=int(limit.sum()),
-        n_coarse=cand.n_compared,
-        n_full_background=n_bg,
-        n_full_candidates=n_cand,
-        n_full_sequence=cache.n_computed - n_bg - n_cand,
-        n_sequence_checks=n_checks,
+        n_frames=search.n,
+        n_eligible_pairs=int(search.limit.sum()),
+        n_coarse=int(counts[0]),
+        n_full_background=search.n_background,
+        n_full_candidates=int(counts[1]),
+        n_full_sequence=int(counts[2]),
+        n_sequence_checks=sum(int(np.isfinite(b.seq).sum()) + b.rivals.shape[0] for b in blocks),
         background_median=median,
         background_sigma=sigma,
         d_t=d_t,
         d_hit=d_hit,
-        time_s={"descriptors": t1 - t0, "coarse": t2 - t1, "full": t3 - t2, "sequence": t4 - t3},
+        time_s={
+            "descriptors": search.descriptors_s,
+            "coarse": float(seconds[0]),
+            "full": float(seconds[1]),
+            "sequence": float(seconds[2]) + time.perf_counter() - t0,
+        },
     )
-    log.debug("loop closure: %d frames, %d closures, %s", n, len(closures), stats)
+    log.debug("loop closure: %d frames, %d closures, %s", search.n, len(closures), stats)
     return LoopResult(closures, stats)
 
 
-def _beside(
-    queries: NDArray[np.int64], index: NDArray[np.int64], known: NDArray[np.int64], limit: NDArray[np.int64]
-) -> NDArray[np.int64]:
-    """``(M, 2)`` unique (query, frame) pairs: eligible frames next to a query's candidates, not known."""
-    c = index[queries]
-    nb = np.concatenate([c - 1, c + 1], axis=1)
-    ok = (np.concatenate([c, c], axis=1) >= 0) & (nb >= 0) & (nb < limit[queries][:, None])
-    ok &= ~(nb[:, :, None] == known[queries][:, None, :]).any(axis=2)
-    q = np.broadcast_to(queries[:, None], nb.shape)
-    return np.unique(np.stack([q[ok], nb[ok]], axis=1).reshape(-1, 2), axis=0).astype(np.int64)
+def _rival_places(block: QueryScores) -> tuple[dict[int, list[_Place]], _Pairs]:
+    """The block's sequence-checked rivals as places per query, and their eq. 3 results."""
+    extra: dict[int, list[_Place]] = {}
+    pairs: _Pairs = {}
+    rows = zip(
+        block.rivals.tolist(), block.rival_seq.tolist(), block.rival_hits.tolist(), block.rival_pair.tolist(),
+        strict=True,
+    )  # fmt: skip
+    for (g, x), s_x, h_x, pair in rows:
+        if np.isfinite(s_x):
+            extra.setdefault(g, []).append((x, s_x, h_x, False))
+            pairs[g, x] = (pair[0], int(pair[1]), int(pair[2]))
+    return extra, pairs
 
 
 def _decide(
     g: int,
     places: list[_Place],
-    state: tuple[PairCache, _Places, NDArray[np.int64]],
+    state: tuple[_Pairs, _Places, NDArray[np.int64]],
     p: LoopParams,
     thresholds: tuple[float, float],
     out: list[LoopClosure],
 ) -> list[int]:
     """Accept the distinctive, sequence-consistent places of query ``g``; append closures to ``out``."""
-    cache, m, pos = state
+    pairs, m, pos = state
     d_t, median = thresholds
     emitted: list[int] = []
     for r, score, n_hits, tracked in sorted(places, key=lambda x: x[1]):
@@ -424,7 +396,7 @@ def _decide(
         ratio = max(rival, 0.0) / max(median - score, 1e-6)
         if ratio > (1.0 / p.uniqueness_ratio if tracked else p.uniqueness_ratio):
             continue
-        d, dx, dy = cache.get(g, r)
+        d, dx, dy = pairs[g, r]
         conf_d = min(1.0, max(0.0, (d_t - score) / max(median - d_t, 1e-6)))
         conf_u = 0.5 if tracked else max(0.0, 1.0 - ratio / p.uniqueness_ratio)
         conf = float(np.sqrt(conf_d * conf_u))
