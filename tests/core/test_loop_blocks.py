@@ -12,12 +12,12 @@ import io
 import numpy as np
 import pytest
 from numpy.typing import NDArray
+from tests.core.test_loops import make_strip, views
 
 from driftmap.core.descriptors import coarse_candidates, query_blocks, sad_pairs
 from driftmap.core.images import patch_normalise
 from driftmap.core.loop_scores import LoopSearch, QueryScores, plan_search, score_queries, split_queries
 from driftmap.core.loops import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams, decide_loops, detect_loops
-from tests.core.test_loops import make_strip, views
 
 N_VIEWS = 300
 F32 = NDArray[np.float32]
@@ -47,7 +47,7 @@ def npz_round_trip(arrays: dict[str, NDArray]) -> dict[str, NDArray]:
 def test_blocks_scored_apart_decide_exactly_like_one_run(three_passes: list[F32], params: LoopParams) -> None:
     one_run = detect_loops(three_passes, params)
     search = plan(three_passes, params)
-    ranges = split_queries(search, 256)
+    ranges = split_queries(search, params, 256)
     assert len(ranges) == 4 and ranges[0][0] == 0 and ranges[-1][1] == search.n
     # Each block in its own fresh state, through the bytes a blob store keeps, joined in reverse order.
     shipped = LoopSearch.from_arrays(npz_round_trip(search.to_arrays()))
@@ -65,7 +65,7 @@ def test_blocks_scored_apart_decide_exactly_like_one_run(three_passes: list[F32]
 
 def test_blocks_that_miss_or_repeat_queries_are_refused(three_passes: list[F32]) -> None:
     search = plan(three_passes, LOOPS_DEFAULT)
-    (a0, a1), (b0, b1), *_ = split_queries(search, 256)
+    (a0, a1), (b0, b1), *_ = split_queries(search, LOOPS_DEFAULT, 256)
     first, second = score_queries(search, LOOPS_DEFAULT, a0, a1), score_queries(search, LOOPS_DEFAULT, b0, b1)
     for blocks in ([first, second], [first, first], [second]):
         with pytest.raises(ValueError, match="do not cover"):

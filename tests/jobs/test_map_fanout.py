@@ -6,6 +6,8 @@ on two real worker processes is bench/bench_map_workers.py.
 
 from __future__ import annotations
 
+import itertools
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -13,8 +15,8 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
-from driftmap.core.mapping import FAST, build_map
-from driftmap.jobs import map_tasks
+from driftmap.core.mapping import FAST, MAP_PRESETS, build_map
+from driftmap.jobs import loop_tasks, map_tasks
 from driftmap.jobs.map_tasks import map_build
 from driftmap.jobs.queue import JobQueue
 from driftmap.jobs.runtime import JobContext, JobRuntime, process_worker_prefix, run_job
@@ -43,12 +45,20 @@ def _jobs(storage: Storage, parent_id: int) -> tuple[Job, list[Job]]:
 
 class TestFanOut:
     def test_the_build_equals_the_one_process_build_bit_for_bit(
-        self, storage: Storage, queue: JobQueue, mini_site: Path
+        self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch
     ) -> None:
+        # Dense keyframes in blocks of 8, four blocks to a map.loops subtask: several on this small site.
+        params = replace(FAST, keyframe_spacing_m=0.25, loops=replace(FAST.loops, coarse_block=8))
+        monkeypatch.setitem(MAP_PRESETS, "fast", params)
+        monkeypatch.setattr(loop_tasks, "QUERIES_PER_TASK", 32)
         import_site(storage, mini_site)
         parent, subtasks = _jobs(storage, _submit(storage, queue))
         assert parent.status == "succeeded", parent.error
-        assert [j.kind for j in subtasks] == ["map.drive", "map.drive"]
+        n_blocks = sum(j.kind == "map.loops" for j in subtasks)
+        assert [j.kind for j in subtasks] == ["map.drive", "map.drive"] + ["map.loops"] * n_blocks
+        assert n_blocks >= 3
+        blocks = [(j.args["q0"], j.args["q1"]) for j in subtasks[2:]]
+        assert blocks[0][0] == 0 and all(a[1] == b[0] for a, b in itertools.pairwise(blocks))
         assert all(j.status == "succeeded" and j.site_id == parent.site_id for j in subtasks)
         with storage.db.session() as session:
             loaded = map_service.load_site_drives(
@@ -61,13 +71,14 @@ class TestFanOut:
             )
             centres = np.array(session.execute(select(MapNode.x_m, MapNode.y_m).order_by(MapNode.node)).all())
             version = session.scalars(select(MapVersion)).one()
-        alone = build_map(loaded.inputs, FAST)
+        alone = build_map(loaded.inputs, params)
         np.testing.assert_array_equal(stored, np.concatenate(alone.wTi))
         np.testing.assert_array_equal(centres, alone.topomap.centres_m)
         figures = {k: v for k, v in alone.stats.items() if not k.endswith("_s")}
         assert {k: version.stats[k] for k in figures} == pytest.approx(figures, rel=0, abs=0)
-        for job in subtasks:  # the pieces were dropped once the version was stored
-            assert job.result is not None and not storage.blobs.exists(job.result["piece_sha256"])
+        for job in subtasks:  # the blobs handed over were dropped once the version was stored
+            shas = [v for d in (job.args, job.result or {}) for k, v in d.items() if k.endswith("_sha256")]
+            assert shas and not any(storage.blobs.exists(sha) for sha in shas)
 
     def test_one_worker_alone_runs_every_subtask_itself(
         self, storage: Storage, runtime: JobRuntime, stored_queue: JobQueue, mini_site: Path
@@ -77,7 +88,7 @@ class TestFanOut:
         run_job(runtime, map_build, "map.build", parent_id, stored_queue.enqueue)
         parent, subtasks = _jobs(storage, parent_id)
         assert parent.status == "succeeded", parent.error
-        assert len(subtasks) == 2
+        assert [j.kind for j in subtasks] == ["map.drive", "map.drive", "map.loops"]
         for job in subtasks:
             assert (job.status, job.attempts) == ("succeeded", 1)
             assert (job.worker_id or "").startswith(process_worker_prefix())
@@ -107,13 +118,13 @@ class TestFanOut:
         with pytest.raises(RuntimeError):
             run_job(runtime, map_build, "map.build", parent_id, stored_queue.enqueue)
         parent, subtasks = _jobs(storage, parent_id)
-        assert parent.status == "queued" and [j.status for j in subtasks] == ["succeeded", "succeeded"]
+        assert parent.status == "queued" and [j.status for j in subtasks] == ["succeeded"] * 3
         monkeypatch.setattr(map_service, "store_map_version", real_store)
         run_job(runtime, map_build, "map.build", parent_id, stored_queue.enqueue)
         parent, again = _jobs(storage, parent_id)
         assert (parent.status, parent.attempts) == ("succeeded", 2), parent.error
         assert [j.id for j in again] == [j.id for j in subtasks]
-        assert [j.attempts for j in again] == [1, 1]  # not run twice
+        assert [j.attempts for j in again] == [1, 1, 1]  # the drives and the loop search not run twice
         with storage.db.session() as session:
             assert session.scalar(select(func.count()).select_from(MapPose)) == session.scalar(
                 select(func.count()).select_from(Frame)
@@ -129,7 +140,7 @@ class TestFanOut:
         storage.blobs.path_of(sha).write_bytes(b"not a png")
         parent, subtasks = _jobs(storage, _submit(storage, queue))
         assert parent.status == "failed"
-        assert f"drive subtask {subtasks[-1].id} failed" in (parent.error or ""), parent.error
+        assert f"map.drive subtask {subtasks[-1].id} failed" in (parent.error or ""), parent.error
         assert subtasks[-1].status == "failed"
         with storage.db.session() as session:
             assert session.scalar(select(func.count()).select_from(MapVersion)) == 0
@@ -167,7 +178,7 @@ class TestCancel:
     ) -> None:
         import_site(storage, mini_site)
         parent_id = _submit(storage, stored_queue)
-        real = map_tasks._subtasks
+        real = map_tasks._drive_subtasks
 
         def submitted_then_one_cancelled(ctx: JobContext, *args: Any) -> list[int]:
             ids = real(ctx, *args)
@@ -175,7 +186,7 @@ class TestCancel:
                 job_service.cancel(session, ids[1])
             return ids
 
-        monkeypatch.setattr(map_tasks, "_subtasks", submitted_then_one_cancelled)
+        monkeypatch.setattr(map_tasks, "_drive_subtasks", submitted_then_one_cancelled)
         run_job(runtime, map_build, "map.build", parent_id, stored_queue.enqueue)
         parent, subtasks = _jobs(storage, parent_id)
         assert parent.status == "cancelled"

@@ -20,7 +20,7 @@ from driftmap.store.storage import Storage
 
 router = APIRouter(tags=["jobs"])
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-JobKind = Literal["map.build", "drive.localise", "drive.import", "site.simulate", "map.drive"]
+JobKind = Literal["map.build", "drive.localise", "drive.import", "site.simulate", "map.drive", "map.loops"]
 
 STREAM_POLL_S = 0.5  # how often the progress stream looks at the job row
 STREAM_KEEPALIVE_S = 15.0  # a comment line this often keeps proxies from closing a quiet stream

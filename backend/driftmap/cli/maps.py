@@ -13,7 +13,7 @@ from rich.table import Table
 
 from driftmap.cli.common import console, open_storage, stage_progress, user_errors
 from driftmap.config import get_settings
-from driftmap.core.mapping import FAST, PAPER, MappingParams
+from driftmap.core.mapping import MAP_PRESETS, MappingParams
 from driftmap.core.odometry import dead_reckon
 from driftmap.core.params import ODOMETRY_DEFAULT, OdometryModel
 from driftmap.errors import BadInputError
@@ -28,7 +28,6 @@ map_app = typer.Typer(help="Map versions: build, show, export.", no_args_is_help
 report_app = typer.Typer(help="Evaluation reports against ground truth.", no_args_is_help=True)
 
 MODELS: dict[str, OdometryModel] = {"auto": "auto", "linear": "linear", "homography": "homography"}
-PRESETS: dict[str, MappingParams] = {"paper": PAPER, "fast": FAST}
 PresetOption = Annotated[str, typer.Option("--preset", help="Parameter preset: paper or fast.")]
 DEFAULT_WORKERS = min(2, os.cpu_count() or 1)
 WorkersOption = Annotated[
@@ -38,9 +37,9 @@ WorkersOption = Annotated[
 
 
 def _preset(name: str) -> MappingParams:
-    if name not in PRESETS:
-        raise BadInputError(f"unknown preset {name!r}; choose {', '.join(PRESETS)}", field="--preset")
-    return PRESETS[name]
+    if name not in MAP_PRESETS:
+        raise BadInputError(f"unknown preset {name!r}; choose {', '.join(MAP_PRESETS)}", field="--preset")
+    return MAP_PRESETS[name]
 
 
 def odometry(

@@ -8,8 +8,8 @@
 2. :func:`score_queries` on each block of query frames ``q0 .. q1 - 1``: coarse candidates, eq. 3 on
    them, the sequence checks of the best ones and of their neighbours (the rivals). A block needs only
    the plan, so blocks can run anywhere (a map build's ``map.loops`` subtasks); their boundaries follow
-   the grid of :func:`~driftmap.core.descriptors.query_blocks`, so every score is computed exactly as
-   in one run over all queries;
+   the grid of :func:`~driftmap.core.descriptors.query_blocks` (``coarse_block`` queries), so every
+   score is computed exactly as in one run over all queries;
 3. the decisions, in query order (:mod:`driftmap.core.loops`): whether a place is distinctive depends
    on the closures already accepted.
 
@@ -28,7 +28,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.descriptors import (
-    COARSE_BLOCK,
     DiagonalScorer,
     PairCache,
     coarse_candidates,
@@ -205,11 +204,11 @@ def plan_search(
     return LoopSearch(frames, chain, pos, limit, desc, background, cache.n_computed, t1 - t0)
 
 
-def split_queries(search: LoopSearch, queries_per_block: int) -> list[tuple[int, int]]:
-    """Query ranges ``(q0, q1)`` of about ``queries_per_block`` frames covering every query, on the grid
-    of :func:`~driftmap.core.descriptors.query_blocks` (whole coarse blocks)."""
-    grid = query_blocks(search.limit, COARSE_BLOCK)
-    step = max(1, round(queries_per_block / COARSE_BLOCK))
+def split_queries(search: LoopSearch, p: LoopParams, queries: int) -> list[tuple[int, int]]:
+    """Query ranges ``(q0, q1)`` of about ``queries`` frames covering every query, on the grid of
+    :func:`~driftmap.core.descriptors.query_blocks` (whole blocks of ``p.coarse_block``)."""
+    grid = query_blocks(search.limit, p.coarse_block)
+    step = max(1, round(queries / p.coarse_block))
     cuts = [0, *grid[step:-1:step], search.n]
     return [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
 
@@ -231,6 +230,7 @@ def score_queries(search: LoopSearch, p: LoopParams, q0: int = 0, q1: int | None
         top_k_single=p.top_k_single,
         seq_len=p.coarse_seq_len,
         nms_radius=p.nms_radius,
+        block=p.coarse_block,
         queries=(q0, q1),
     )
     t1 = time.perf_counter()

@@ -84,6 +84,7 @@ class LoopParams:
     top_k: int = 4  # distinct-place candidates per query by sequence-filtered descriptors, full SAD
     top_k_single: int = 4  # plus this many by single-frame descriptors (revisit starts, turns)
     nms_radius: int = 2  # a coarse candidate is the best within this many frames of its chain
+    coarse_block: int = 256  # queries per descriptor matrix product; a search splits between blocks
     seq_len: int = 5  # query frames i-seq_len+1 .. i that must match a diagonal; 1 = single frame
     seq_min_hits: int = 4  # of those, frames that must have d < d_hit
     seq_slopes: tuple[float, ...] = (-1.5, -1, -0.67, 0.67, 1, 1.5)  # ref./query frames; < 0 reversing
@@ -111,7 +112,7 @@ class LoopParams:
         for name in nonneg:
             if getattr(self, name) < 0:
                 raise ValueError(f"LoopParams.{name} must be >= 0, got {getattr(self, name)}")
-        for name in ("top_k", "seq_len", "coarse_seq_len", "max_seq_checks", "max_closures_per_query"):
+        for name in ("top_k", "seq_len", "coarse_seq_len", "max_seq_checks", "max_closures_per_query", "coarse_block"):
             if getattr(self, name) < 1:
                 raise ValueError(f"LoopParams.{name} must be >= 1, got {getattr(self, name)}")
         if not 1 <= self.seq_min_hits <= self.seq_len:

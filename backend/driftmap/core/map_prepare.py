@@ -76,6 +76,8 @@ class MappingParams:
 
 PAPER = MappingParams()
 FAST = MappingParams(odometry=ODOMETRY_FAST, loops=loop_search.LOOPS_FAST, keyframe_spacing_m=2.0)
+MAP_PRESETS: dict[str, MappingParams] = {"paper": PAPER, "fast": FAST}
+"""The parameter sets a build can be asked for by name (``--preset`` of the CLI, ``preset`` of a job)."""
 
 
 def _keyframes(wTi: F64, spacing_m: float) -> NDArray[np.int64]:
@@ -190,6 +192,7 @@ def join_drives(
     params: MappingParams = PAPER,
     progress: ProgressFn | None = None,
     odometry_s: float = float("nan"),
+    closures: tuple[Sequence[loop_search.LoopClosure], float] | None = None,
 ) -> PreparedDrives:
     """Stages 2-3 on the drives' stage-1 pieces (computed anywhere): frame statistics, keyframes, loops.
 
@@ -199,6 +202,8 @@ def join_drives(
         params: pipeline parameters.
         progress: called with (stage name, fraction 0..1 of that stage).
         odometry_s: wall time stage 1 took, seconds (reported in the build's figures).
+        closures: (the closures, wall seconds) of a loop-closure search already made elsewhere on
+            :func:`loop_inputs` of these pieces (a build's ``map.loops`` subtasks); None: search here.
 
     Raises:
         ValueError: no drive, or not one piece per drive.
@@ -219,21 +224,31 @@ def join_drives(
         timings["frame_stats_s"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    raw_poses = [p.raw_poses for p in pieces]
-    thumbs = [p.thumbs for p in pieces]
-    keyframes = tuple(_keyframes(p, params.keyframe_spacing_m) for p in raw_poses)
+    keyframes, key_thumbs, key_times = loop_inputs(pieces, drives, params)
     found: tuple[loop_search.LoopClosure, ...] = ()
-    if params.use_loop_closures:
-        report("loop closure", 0.0)
-        key_thumbs = [t[k] for t, k in zip(thumbs, keyframes, strict=True)]
-        key_times = [d.t_s[k] for d, k in zip(drives, keyframes, strict=True)]
-        found = tuple(loop_search.detect_loops(key_thumbs, params.loops, key_times).closures)
+    if params.use_loop_closures and closures is not None:
+        found, timings["loop_closure_s"] = tuple(closures[0]), closures[1]
+    else:
+        if params.use_loop_closures:
+            report("loop closure", 0.0)
+            found = tuple(loop_search.detect_loops(key_thumbs, params.loops, key_times).closures)
+        timings["loop_closure_s"] = time.perf_counter() - start
     report("loop closure", 1.0)
-    timings["loop_closure_s"] = time.perf_counter() - start
     return PreparedDrives(
-        tuple(p.chain for p in pieces), tuple(raw_poses), tuple(p.confidence for p in pieces), tuple(thumbs),
-        keyframes, found, timings, stats, (db, params.images),
+        tuple(p.chain for p in pieces), tuple(p.raw_poses for p in pieces), tuple(p.confidence for p in pieces),
+        tuple(p.thumbs for p in pieces), keyframes, found, timings, stats, (db, params.images),
     )  # fmt: skip
+
+
+def loop_inputs(
+    pieces: Sequence[PreparedDrive], drives: Sequence[MappingDrive], params: MappingParams = PAPER
+) -> tuple[tuple[NDArray[np.int64], ...], list[NDArray[np.float32]], list[F64]]:
+    """Stage 2: per drive, the keyframes' positions, ``(K_d, h, w)`` thumbnails and ``(K_d,)`` times (s),
+    the input of the loop-closure search (:func:`driftmap.core.loops.detect_loops`)."""
+    keyframes = tuple(_keyframes(p.raw_poses, params.keyframe_spacing_m) for p in pieces)
+    key_thumbs = [p.thumbs[k] for p, k in zip(pieces, keyframes, strict=True)]
+    key_times = [d.t_s[k] for d, k in zip(drives, keyframes, strict=True)]
+    return keyframes, key_thumbs, key_times
 
 
 def variant(params: MappingParams, *, loops: bool, groundings: bool) -> MappingParams:

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from driftmap.core import posegraph
 from driftmap.core.map_prepare import (
     FAST,
+    MAP_PRESETS,
     PAPER,
     MappingDrive,
     MappingParams,
@@ -39,6 +40,7 @@ from driftmap.core.topomap import TopoMap, build_topomap
 
 __all__ = [
     "FAST",
+    "MAP_PRESETS",
     "PAPER",
     "ClosureRecord",
     "GroundingResidual",

@@ -23,7 +23,8 @@ from sqlalchemy.orm import Session
 from driftmap.errors import ConflictError, DriftmapError, NotFoundError
 from driftmap.formats.csv_exports import localisation_text
 from driftmap.formats.frame_images import decode_gray
-from driftmap.jobs.map_tasks import MAP_PRESETS, map_build, map_drive
+from driftmap.jobs.loop_tasks import map_loops
+from driftmap.jobs.map_tasks import map_build, map_drive
 from driftmap.jobs.runtime import JobContext
 from driftmap.services import drives as drive_service
 from driftmap.services import localisation as loc_service
@@ -209,18 +210,19 @@ def site_simulate(ctx: JobContext) -> None:
 
 
 __all__ = [
-    "MAP_PRESETS",
     "TASKS",
     "drive_import",
     "drive_localise",
     "map_build",
     "map_drive",
+    "map_loops",
     "site_simulate",
 ]
 
 TASKS: dict[str, Callable[[JobContext], None]] = {
     "map.build": map_build,
     "map.drive": map_drive,
+    "map.loops": map_loops,
     "drive.import": drive_import,
     "drive.localise": drive_localise,
     "site.simulate": site_simulate,

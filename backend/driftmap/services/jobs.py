@@ -35,7 +35,7 @@ log = logging.getLogger(__name__)
 
 JOB_KINDS = ("map.build", "drive.localise", "drive.import", "site.simulate")
 """The kinds a user submits (the API's)."""
-SUBTASK_KINDS = ("map.drive",)
+SUBTASK_KINDS = ("map.drive", "map.loops")
 """Kinds a job submits as its own subtasks: ``map.drive``, one drive of a ``map.build``
 (:mod:`driftmap.jobs.map_tasks`)."""
 QUEUE_KINDS = JOB_KINDS + SUBTASK_KINDS

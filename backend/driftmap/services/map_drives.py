@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import io
 import multiprocessing
+import zipfile
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,7 +26,7 @@ from sqlalchemy.orm import Session
 
 from driftmap.core.drive_prep import PreparedDrive
 from driftmap.core.mapping import MappingDrive, MappingParams, prepare_drive
-from driftmap.errors import NotFoundError
+from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import drive_meta, frame_rows
 from driftmap.store.blobs import BlobStore
@@ -111,17 +113,34 @@ def prepare_stored_drive(
     return prepare_drive(loaded.input, params, flat, report)
 
 
-def piece_bytes(piece: PreparedDrive) -> bytes:
-    """``piece`` as an uncompressed ``.npz`` (thumbnails are noise-like: compression gains little)."""
+def arrays_bytes(arrays: dict[str, NDArray[Any]]) -> bytes:
+    """Named arrays as an uncompressed ``.npz`` (thumbnails are noise-like: compression gains little)."""
     buffer = io.BytesIO()
-    np.savez(buffer, **piece.to_arrays())  # type: ignore[arg-type]
+    np.savez(buffer, **arrays)  # type: ignore[arg-type]
     return buffer.getvalue()
+
+
+def bytes_arrays(data: bytes, what: str) -> dict[str, NDArray[Any]]:
+    """The arrays :func:`arrays_bytes` wrote.
+
+    Raises:
+        BadInputError: ``data`` (named ``what`` in the message) is no ``.npz``.
+    """
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as arrays:
+            return {k: arrays[k] for k in arrays.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise BadInputError(f"{what} is not a readable .npz: {exc}") from exc
+
+
+def piece_bytes(piece: PreparedDrive) -> bytes:
+    """``piece`` as ``.npz`` bytes for the blob store."""
+    return arrays_bytes(piece.to_arrays())
 
 
 def piece_from_bytes(data: bytes, params: MappingParams, flat: tuple[int, int]) -> PreparedDrive:
     """The piece :func:`piece_bytes` wrote, for a build of ``params`` (``flat`` as it was prepared with)."""
-    with np.load(io.BytesIO(data)) as arrays:
-        named = {k: arrays[k] for k in arrays.files}
+    named = bytes_arrays(data, "a drive's prepared piece")
     return PreparedDrive.from_arrays(named, params.database, params.images, flat[0], flat[1])
 
 

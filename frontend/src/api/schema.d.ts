@@ -233,7 +233,8 @@ export interface paths {
         };
         /**
          * Latest Frame
-         * @description The vehicle's last localised frame (404 before its first, or when another server process took it).
+         * @description The vehicle's last localised frame (404 before its first; without Redis, 404 too when another server
+         *     process localised it).
          */
         get: operations["latest_frame_api_vehicles__vehicle_id__frames_latest_get"];
         put?: never;
@@ -861,7 +862,7 @@ export interface paths {
         };
         /**
          * List Jobs
-         * @description Jobs, newest first, optionally of one site, status or kind.
+         * @description Top-level jobs (or the subtasks of ``parent_id``), newest first, optionally of one site, status or kind.
          */
         get: operations["list_jobs_api_jobs_get"];
         put?: never;
@@ -1301,6 +1302,8 @@ export interface components {
             cancel_requested_at: string | null;
             /** Worker Id */
             worker_id: string | null;
+            /** Parent Id */
+            parent_id?: number | null;
         };
         /** LiveStateRead */
         LiveStateRead: {
@@ -3651,7 +3654,9 @@ export interface operations {
             query?: {
                 site_id?: number | null;
                 status?: ("queued" | "running" | "succeeded" | "failed" | "cancelled") | null;
-                kind?: ("map.build" | "drive.localise" | "drive.import" | "site.simulate") | null;
+                kind?: ("map.build" | "drive.localise" | "drive.import" | "site.simulate" | "map.drive" | "map.loops") | null;
+                /** @description List this job's subtasks instead of the top-level jobs. */
+                parent_id?: number | null;
                 offset?: number;
                 limit?: number;
             };
