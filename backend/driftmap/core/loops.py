@@ -112,7 +112,14 @@ class LoopParams:
         for name in nonneg:
             if getattr(self, name) < 0:
                 raise ValueError(f"LoopParams.{name} must be >= 0, got {getattr(self, name)}")
-        for name in ("top_k", "seq_len", "coarse_seq_len", "max_seq_checks", "max_closures_per_query", "coarse_block"):
+        for name in (
+            "top_k",
+            "seq_len",
+            "coarse_seq_len",
+            "max_seq_checks",
+            "max_closures_per_query",
+            "coarse_block",
+        ):
             if getattr(self, name) < 1:
                 raise ValueError(f"LoopParams.{name} must be >= 1, got {getattr(self, name)}")
         if not 1 <= self.seq_min_hits <= self.seq_len:
