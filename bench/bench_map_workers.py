@@ -3,10 +3,11 @@
 Imports a simulated site's mapping drives (survey and groundings included) into a fresh data dir, then for
 each worker count starts that many real ``driftmap worker`` processes (one job thread each), waits until
 they are up, submits a ``map.build`` job and times it from submission to ``succeeded``; the workers are
-stopped after each build. The build's drives run as ``map.drive`` subtasks that any worker takes
-(driftmap.jobs.map_tasks), so the second worker should cut the odometry stage, the bulk of a build, about
-in half on two cores; the join (loop closure, pose graph, topological map) runs once, on the parent's
-worker. Prints each build's wall time, its stage seconds, which worker processes ran the drives, the medians
+stopped after each build. The build's drives run as ``map.drive`` subtasks and its loop-closure search as
+``map.loops`` subtasks (blocks of query keyframes) that any worker takes (driftmap.jobs.map_tasks), so the
+second worker should cut the odometry stage, the bulk of a build, about in half on two cores; the pose graph
+and topological map run once, on the parent's worker. Prints each build's wall time, its stage seconds, how
+many drives and loop blocks each worker process ran (``drives+blocks`` per process), the medians
 and the speed-up of 2 workers over 1, and checks that every build stored the same poses. The 1-minute load
 average before and after each build is printed too: other jobs on the machine take cores from the workers.
 
@@ -170,7 +171,7 @@ def main() -> None:
     )
     print(f"\n{site.name}: map.build (preset {args.preset}) on {backend}, {os.cpu_count()} cores")
     header = f"{'workers':>7}{'run':>5}{'wall s':>9}" + "".join(f"{s[:-2]:>14}" for s in STAGES)
-    print(header + "   drives per worker process   poses   load before/after")
+    print(header + "   drives+blocks per process   poses   load before/after")
     walls: dict[int, list[float]] = {}
     digests = set()
     for n in args.workers:
@@ -184,15 +185,16 @@ def main() -> None:
             if job.status != "succeeded" or job.result is None:
                 raise SystemExit(f"build job {job.id} {job.status}: {job.error}")
             stats = job.result["stats"]
-            per_process: dict[str, int] = {}
+            per_process: dict[str, list[int]] = {}
             for sub in subtasks:
                 key = ":".join((sub.worker_id or "?").split(":")[:2])
-                per_process[key] = per_process.get(key, 0) + 1
+                counts = per_process.setdefault(key, [0, 0])
+                counts[sub.kind == "map.loops"] += 1
             digest = poses_digest(storage, int(job.result["map_version_id"]))
             digests.add(digest)
             walls.setdefault(n, []).append(seconds)
             cells = "".join(f"{float(stats.get(s, float('nan'))):>14.1f}" for s in STAGES)
-            spread = "/".join(str(v) for v in sorted(per_process.values(), reverse=True))
+            spread = " ".join(f"{d}+{b}" for d, b in sorted(per_process.values(), reverse=True))
             load = f"{load_before:.1f}/{os.getloadavg()[0]:.1f}"
             print(f"{n:>7}{run + 1:>5}{seconds:>9.1f}{cells}   {spread:<27} {digest}   {load}", flush=True)
     print()
