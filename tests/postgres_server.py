@@ -71,6 +71,8 @@ class PostgresServer:
         if os.geteuid() == 0:  # initdb and postgres refuse root
             self._as_user = ["setpriv", "--reuid=postgres", "--regid=postgres", "--clear-groups"]
             shutil.chown(self.root, "postgres")
+        if shutil.which("setpriv"):  # the server stops with the test process, even when that is killed
+            self._as_user = [*(self._as_user or ["setpriv"]), "--pdeathsig=INT"]  # INT: fast shutdown
 
     def url(self, database: str = "postgres") -> str:
         """SQLAlchemy URL of ``database`` on this server (psycopg 3 driver)."""

@@ -28,8 +28,20 @@ def running_redis(directory: Path) -> Iterator[str]:
     if binary is None:
         pytest.skip("redis-server is not installed")
     port = free_port()
+    dies_with_us = ["setpriv", "--pdeathsig=TERM"] if shutil.which("setpriv") else []  # even when killed
     server = subprocess.Popen(
-        [binary, "--port", str(port), "--bind", "127.0.0.1", "--save", "", "--appendonly", "no"],
+        [
+            *dies_with_us,
+            binary,
+            "--port",
+            str(port),
+            "--bind",
+            "127.0.0.1",
+            "--save",
+            "",
+            "--appendonly",
+            "no",
+        ],
         cwd=directory,
         stdout=subprocess.DEVNULL,
     )
