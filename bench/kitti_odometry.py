@@ -4,9 +4,15 @@ For each clip (``shared/data/kitti/kitti-clip-{1,2}``) and each model, integrate
 first frame's true pose and prints distance travelled, final position error (absolute and as a
 percentage of the distance), final heading error and the median wall-clock time per step. Models:
 
-* ``birdseye``: the homography (bird's-eye) model with horizon self-calibration (the default);
-* ``birdseye-raw``: the same without self-calibration, i.e. the drive.json homography as given;
+* ``birdseye``: the homography (bird's-eye) model with horizon and rotation-centre self-calibration (the
+  default);
+* ``birdseye-fixed-yc``: the same with the rotation centre fixed at drive.json's ``y_c``;
+* ``birdseye-raw``: no self-calibration, i.e. the drive.json homography and ``y_c`` as given;
 * ``linear``: the paper's linear k_x/k_y model (eq. 1, 2).
+
+Two more columns split each final error by its source, step by step against the ground truth:
+``head-only %`` integrates the true step translations with our heading changes, ``step-only %`` our step
+translations with the true heading changes (the two add roughly in quadrature).
 
 Writes a plot of estimated against true trajectories to ``bench/out/kitti_odometry.png`` and copies
 it to ``docs/kitti_odometry.png``. Ground truth positions are the camera's floor point, as ours.
@@ -19,6 +25,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import itertools
 import json
 import shutil
 from pathlib import Path
@@ -28,12 +35,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.camera import CameraModel
-from driftmap.core.odometry import DeadReckoning, dead_reckon
+from driftmap.core.odometry import DeadReckoning, compose, dead_reckon
 from driftmap.core.params import ODOMETRY_DEFAULT, ODOMETRY_PAPER, OdometryParams
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS: dict[str, OdometryParams] = {
     "birdseye": ODOMETRY_DEFAULT,
+    "birdseye-fixed-yc": dataclasses.replace(ODOMETRY_DEFAULT, calibrate_lever=False),
     "birdseye-raw": dataclasses.replace(ODOMETRY_DEFAULT, self_calibrate=False),
     "linear": ODOMETRY_PAPER,
 }
@@ -75,8 +83,8 @@ def main() -> None:
     if not clips:
         raise SystemExit(f"no KITTI clips under {args.data}")
     header = (
-        f"{'clip':<13} {'model':<13} {'dist m':>7} {'err m':>6} {'err %':>6} {'yaw err':>8} "
-        f"{'ms/step':>8} {'horizon px':>10}"
+        f"{'clip':<13} {'model':<17} {'dist m':>7} {'err m':>6} {'err %':>6} {'yaw err':>8} "
+        f"{'head-only %':>11} {'step-only %':>11} {'ms/step':>8} {'horizon px':>10} {'y_c m':>6}"
     )
     print(header)
     print("-" * len(header))
@@ -93,15 +101,39 @@ def main() -> None:
             err = float(np.linalg.norm(run.wTi[-1, :2] - truth[-1, :2]))
             yaw_err = float(np.angle(np.exp(1j * (run.wTi[-1, 2] - truth[-1, 2]))))
             flag = "" if 100 * err / distance <= TARGET_PCT else "  > target"
+            head_only, step_only = split_error(run, truth)
             print(
-                f"{clip.name:<13} {name:<13} {distance:>7.1f} {err:>6.2f} {100 * err / distance:>6.1f} "
-                f"{yaw_err:>+8.3f} {np.median(run.ms_per_step):>8.0f} {run.horizon_offset_px:>10.1f}{flag}"
+                f"{clip.name:<13} {name:<17} {distance:>7.1f} {err:>6.2f} {100 * err / distance:>6.1f} "
+                f"{yaw_err:>+8.3f} {100 * head_only / distance:>11.1f} {100 * step_only / distance:>11.1f} "
+                f"{np.median(run.ms_per_step):>8.0f} {run.horizon_offset_px:>10.1f} {run.lever_m:>6.2f}{flag}"
             )
     plot(results, truths, args.out)
     docs = ROOT / "docs" / "kitti_odometry.png"
     docs.parent.mkdir(exist_ok=True)
     shutil.copyfile(args.out, docs)
     print(f"plot: {args.out} (copied to {docs.relative_to(ROOT)})")
+
+
+def relative_steps(wTi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(N - 1, 3)`` steps ``[x_m, y_m, yaw_rad]`` of each pose in the previous one's frame."""
+    out = []
+    for (x0, y0, a0), (x1, y1, a1) in itertools.pairwise(wTi):
+        c, s = np.cos(a0), np.sin(a0)
+        dx, dy = x1 - x0, y1 - y0
+        out.append((c * dx + s * dy, -s * dx + c * dy, np.angle(np.exp(1j * (a1 - a0)))))
+    return np.asarray(out, dtype=np.float64).reshape(-1, 3)
+
+
+def split_error(run: DeadReckoning, truth: NDArray[np.float64]) -> tuple[float, float]:
+    """Final position errors (m) of (true translations + our headings, our translations + true headings)."""
+    ours, true = relative_steps(run.wTi), relative_steps(truth)
+    errors = []
+    for mixed in (np.c_[true[:, :2], ours[:, 2]], np.c_[ours[:, :2], true[:, 2]]):
+        pose = truth[0]
+        for step in mixed:
+            pose = compose(pose, step)
+        errors.append(float(np.linalg.norm(pose[:2] - truth[-1, :2])))
+    return errors[0], errors[1]
 
 
 def plot(
@@ -115,6 +147,7 @@ def plot(
 
     styles = {
         "birdseye": ("tab:blue", "-"),
+        "birdseye-fixed-yc": ("tab:green", "-."),
         "birdseye-raw": ("tab:blue", ":"),
         "linear": ("tab:orange", "--"),
     }

@@ -21,8 +21,11 @@ THETA_TOL_RAD = 0.0015  # bird's-eye heading change per step
 LINEAR_D_TOL_M = 0.002  # linear model on a pure image translation (k_y = 0.01 m/px)
 PATH_TOL_FRAC = 0.02  # dead-reckoned end-point error / distance on the synthetic floor
 HORIZON_TOL_PX = 2.0  # self-calibrated horizon offset
+ROTATION_CENTRE_M = 0.5  # true lever (rear axle to camera) of the drive whose drive.json says 1.5 m
+LEVER_TOL_M = 0.15  # self-calibrated lever
 KITTI = Path(__file__).parents[2].parent / "shared" / "data" / "kitti"
 KITTI_TARGET_FRAC = 0.05
+KITTI_CLIP_2_GUARD = 0.075  # clip 2's measured 6.5 % plus a margin (it was 12.5 % with the fixed lever)
 
 
 def floor_texture(size: int = 2400, seed: int = SEED) -> np.ndarray:
@@ -210,6 +213,25 @@ class TestDeadReckon:
         err_cal = np.linalg.norm(cal.wTi[-1, :2] - truth[-1, :2])
         assert err_cal < 0.5 * err_raw and err_cal < PATH_TOL_FRAC * distance
 
+    def test_self_calibrates_the_rotation_centre(self, tex: np.ndarray) -> None:
+        """The vehicle turns about a point 0.5 m behind the camera, drive.json says 1.5 m (slip, another
+        vehicle): the fixed lever under-reads every turn; the fitted one follows the floor's rotation."""
+        cam = pinhole_camera()
+        start = (-4.0, -1.5, 0.3)  # 6 m of S-bends that stay on the texture
+        poses = [start]
+        for k in range(24):
+            poses.append(arc_step(poses[-1], 0.25, 0.05 * math.sin(k / 3), ROTATION_CENTRE_M))
+        frames = np.stack([render(tex, cam, p) for p in poses])
+        truth = np.array(poses)
+        distance = np.linalg.norm(np.diff(truth[:, :2], axis=0), axis=1).sum()
+        fixed = dead_reckon(frames, cam, dataclasses.replace(ODOMETRY_DEFAULT, calibrate_lever=False), start)
+        fitted = dead_reckon(frames, cam, ODOMETRY_DEFAULT, start)
+        assert fixed.lever_m == cam.y_c_m
+        assert fitted.lever_m == pytest.approx(ROTATION_CENTRE_M, abs=LEVER_TOL_M)
+        err_fixed = np.linalg.norm(fixed.wTi[-1, :2] - truth[-1, :2])
+        err_fitted = np.linalg.norm(fitted.wTi[-1, :2] - truth[-1, :2])
+        assert err_fitted < 0.5 * err_fixed and err_fitted < PATH_TOL_FRAC * distance
+
     def test_no_frames(self) -> None:
         assert dead_reckon([], pinhole_camera()).wTi.shape == (0, 3)
 
@@ -247,10 +269,15 @@ class TestKitti:
         assert self.run("kitti-clip-1") < KITTI_TARGET_FRAC
 
     def test_clip_2_holds_its_measured_error(self) -> None:
-        """Clip 2 misses the 5 % target (README): a regression guard at its measured 12.5 % plus a margin.
+        """Clip 2 (a 98 degree right turn up a ramp) still misses the 5 % target (README): a regression guard at
+        its measured 6.5 % plus a margin (12.5 % before the rotation centre was self-calibrated).
 
-        Its ~0.47 g ramp turn is taken with tyre slip: the ground truth's lateral-to-yaw ratio puts the
-        turning centre ~0.6 m behind the camera against y_c = 1.0 m in drive.json, so the no-slip lever
-        arm of eq. 1 under-reads the turn by ~8 %.
+        Per step against the ground truth: the fixed lever y_c = 1.0 m under-read every turn step by ~7 %
+        (0.14 rad short after the turn; ground-truth translation with our headings alone ends 8.3 % off),
+        while the floor's own near-far rotation matched the truth (-1.738 vs -1.709 rad); the fitted
+        rotation centre (~0.3 m) removes it (final heading error 0.003 rad). What is left is step length:
+        the camera's pitch to the road ahead drifts by ~16 px of horizon along the ramp (KITTI's 3-D poses;
+        one median horizon for the drive: the first steps read 25-36 % long, the last ~10 % short) and two
+        failed matches (step 38 +0.53 m, step 40 -1.30 m).
         """
-        assert self.run("kitti-clip-2") < 0.14
+        assert self.run("kitti-clip-2") < KITTI_CLIP_2_GUARD

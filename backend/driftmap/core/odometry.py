@@ -22,7 +22,10 @@ depth-dependent factor (about 17 % on the KITTI clips). Floor motion is rigid, s
 between matched points in the nearest and the farthest slice of the ROI footprint must be the
 same in both frames; each moving step yields the ``delta`` that makes it so, and the median over
 the drive is applied to every step at the end. :func:`shift_horizon` gives the corrected camera
-for later single steps. Camera height (the overall scale) is not observable this way.
+for later single steps. Camera height (the overall scale) is not observable this way. The same pass
+self-calibrates the rotation centre (the lever ``y_c`` of the arc below) from the floor's own rotation
+between the near and far slices, when the drive turns enough to determine it
+(:mod:`driftmap.core.odometry_selfcal`).
 
 Signs. ``theta`` is counter-clockwise (left turn) positive. Floor content moves right in the
 image (+u) when the vehicle turns left, for forward- and rear-looking cameras alike (the camera
@@ -52,6 +55,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.camera import CameraModel
 from driftmap.core.images import mask_pyramid, patch_normalise, pyramid
+from driftmap.core.odometry_selfcal import direct_turn, fit_rotation_centre
 from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
 from driftmap.core.sad import register_shift
 
@@ -99,12 +103,15 @@ class DeadReckoning:
         steps: the ``N - 1`` steps between consecutive frames.
         ms_per_step: ``(N - 1,)`` float64 wall-clock milliseconds per step (frame preparation included).
         horizon_offset_px: horizon offset applied by the self-calibration (0 when off or unobservable).
+        lever_m: the rotation-centre lever arm (rear axle to camera, metres) the steps were solved with:
+            the camera's ``y_c_m``, or the self-calibrated one when it was well determined.
     """
 
     wTi: NDArray[np.float64]
     steps: list[OdometryStep]
     ms_per_step: NDArray[np.float64]
     horizon_offset_px: float
+    lever_m: float
 
 
 @dataclass(frozen=True)
@@ -620,6 +627,46 @@ def compose(wTa: NDArray | tuple[float, ...], aTb: NDArray | tuple[float, ...]) 
     )
 
 
+def _self_calibrate(
+    steps: list[OdometryStep],
+    pairs: list[list[Pair]],
+    camera: CameraModel,
+    hom: NDArray,
+    params: OdometryParams,
+) -> tuple[float, float]:
+    """The drive's horizon offset (median of the steps' estimates) and rotation centre
+    (:mod:`driftmap.core.odometry_selfcal`); re-solves ``steps`` in place with both. Returns the offset (0
+    when unobservable, steps then untouched) and the lever arm used, metres."""
+    usable = [not s.stationary and s.confidence >= params.stationary_min_confidence for s in steps]
+    found = [
+        _horizon_offset(hom, p, params.horizon_max_px) if u else None
+        for u, p in zip(usable, pairs, strict=True)
+    ]
+    estimates = np.array([math.nan if f is None else f for f in found], dtype=np.float64)
+    if int(np.isfinite(estimates).sum()) < 3:
+        return 0.0, camera.y_c_m
+    offset = float(np.nanmedian(estimates))
+    shifted = np.asarray(shift_horizon(camera, offset).homography())
+    floor = [[(_apply(shifted, a), _apply(shifted, b)) for a, b in p] for p in pairs]
+    lever = camera.y_c_m
+    if params.calibrate_lever:
+        rows = [k for k, (u, f) in enumerate(zip(usable, floor, strict=True)) if u and len(f) == 3]
+        fit = fit_rotation_centre(
+            np.array([floor[k][0][0] for k in rows]).reshape(-1, 2),
+            np.array([floor[k][0][1] for k in rows]).reshape(-1, 2),
+            np.array([direct_turn(floor[k][1], floor[k][2]) for k in rows], dtype=np.float64),
+            camera.y_c_m,
+            params.lever_max_gain_se,
+        )
+        lever = camera.y_c_m if fit is None else fit[0]
+    solved = dataclasses.replace(camera, y_c_m=lever)
+    for k, (s, f) in enumerate(zip(steps, floor, strict=True)):
+        if not s.stationary and f:
+            d, theta = _solve_arc(f[0][0], f[0][1], lever)
+            steps[k] = _finish(d, theta, s.shift_px, s.confidence, solved, s.model, params)
+    return offset, lever
+
+
 def dead_reckon(
     frames: Iterable[NDArray] | NDArray,
     camera: CameraModel,
@@ -663,24 +710,12 @@ def dead_reckon(
             pairs.append(pair)
             times.append(1e3 * (time.perf_counter() - t0))
         prev = curr
-    offset = 0.0
+    offset, lever = 0.0, camera.y_c_m
     hom = camera.homography()
     if params.self_calibrate and setup.model == "homography" and hom is not None:
-        found = [
-            _horizon_offset(hom, p, params.horizon_max_px)
-            for s, p in zip(steps, pairs, strict=True)
-            if not s.stationary and s.confidence >= params.stationary_min_confidence
-        ]
-        estimates = [f for f in found if f is not None]
-        if len(estimates) >= 3:
-            offset = float(np.median(estimates))
-            shifted = np.asarray(shift_horizon(camera, offset).homography())
-            for i, (s, p) in enumerate(zip(steps, pairs, strict=True)):
-                if not s.stationary:
-                    d, theta = _solve_arc(_apply(shifted, p[0][0]), _apply(shifted, p[0][1]), camera.y_c_m)
-                    steps[i] = _finish(d, theta, s.shift_px, s.confidence, camera, s.model, params)
+        offset, lever = _self_calibrate(steps, pairs, camera, hom, params)
     poses = [start] if n_frames else []
     for s in steps:
         poses.append(compose(poses[-1], s.prev_T_curr))
     wTi = np.stack(poses) if poses else np.zeros((0, 3))
-    return DeadReckoning(wTi, steps, np.asarray(times, dtype=np.float64), offset)
+    return DeadReckoning(wTi, steps, np.asarray(times, dtype=np.float64), offset, lever)

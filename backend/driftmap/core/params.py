@@ -89,6 +89,8 @@ class OdometryParams:
     )  # linear model: ROI split into (cols, rows) tracked patches, median
     self_calibrate: bool = True  # dead_reckon, bird's-eye: estimate the homography's horizon offset
     horizon_max_px: float = 40.0  # largest horizon offset searched by the self-calibration, pixels
+    calibrate_lever: bool = True  # self-calibration also fits the rotation centre y_c to the floor's turns
+    lever_max_gain_se: float = 0.025  # ... kept when its standard error moves the turn gain less than this
     subpixel: Literal["lk", "parabola"] = "lk"  # sub-pixel: Gauss-Newton on the SSD, or per-axis SAD parabola
     stationary_px: float = 0.3  # |shift| below this (pixels of the matching grid) with a good match -> zero
     stationary_min_confidence: float = 0.3  # the "good match" of stationary detection
@@ -120,6 +122,8 @@ class OdometryParams:
                 raise ValueError(f"OdometryParams.{name} must be > 0, got {value}")
         if self.max_turn_rad < 0 or self.max_lateral_m < 0:
             raise ValueError("OdometryParams: max_turn_rad and max_lateral_m must be >= 0")
+        if not self.lever_max_gain_se > 0:
+            raise ValueError(f"OdometryParams.lever_max_gain_se must be > 0, got {self.lever_max_gain_se}")
         if min(self.linear_patches) < 1 or self.horizon_max_px <= 0:
             raise ValueError("OdometryParams: linear_patches >= (1, 1) and horizon_max_px > 0")
         if self.patch_px < 2 or self.coarse_min_px < 2 or self.coarse_candidates < 1:
