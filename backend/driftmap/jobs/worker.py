@@ -6,9 +6,10 @@ commit and a crash), and starts the reaper thread: every
 ``reap_every_s`` it re-queues running jobs whose heartbeat is older than ``stale_after_s``
 (:func:`driftmap.services.jobs.requeue_stale`). Several workers, on one machine with the SQLite queue or on
 several with Redis, share the queue; the conditional updates on the jobs row make sure one job runs on one
-worker at a time. A map build fans its drives out as ``map.drive`` subtasks (:mod:`driftmap.jobs.map_tasks`):
-every worker takes them off the queue, and the build's own worker runs those still queued, so more workers
-build a site faster and one worker alone never waits on itself. On SIGINT the consumer finishes its running
+worker at a time. A map build fans its drives out as ``map.drive`` subtasks and its loop-closure search as
+``map.loops`` subtasks (:mod:`driftmap.jobs.map_tasks`): every worker takes them off the queue, and the
+build's own worker runs those still queued, so more workers build a site faster and one worker alone never
+waits on itself. On SIGINT the consumer finishes its running
 jobs; on SIGTERM it stops at once, and the jobs it was running are put back on the queue before the process
 exits.
 """
