@@ -425,9 +425,19 @@ def _match_linear(
 
 
 def _match_birdseye(
-    prev: _Frame, curr: _Frame, camera: CameraModel, setup: _Setup, params: OdometryParams
+    prev: _Frame,
+    curr: _Frame,
+    camera: CameraModel,
+    setup: _Setup,
+    params: OdometryParams,
+    prior_px: tuple[float, float] | None = None,
 ) -> tuple[OdometryStep, list[Pair]]:
-    """Bird's-eye model; also the matched pixel pairs [ROI centre, near slice, far slice]."""
+    """Bird's-eye model; also the matched pixel pairs [ROI centre, near slice, far slice].
+
+    ``prior_px`` (the previous step's grid shift) is one more start for the coarse search: refined
+    downhill from it, it replaces the exhaustive search's pick when it ends at a lower cost (the coarse
+    level can rank the true minimum below a false one: lane lines along the motion, periodic markings).
+    """
     hom = camera.homography()
     assert hom is not None
     rx, ry = setup.range_px
@@ -486,6 +496,15 @@ def _match_birdseye(
         prev.pyr[mid:], curr.pyr[mid:], setup.regions[0][mid:], setup.valid[mid:], rx / 2**mid, ry / 2**mid,
         candidates=params.coarse_candidates, radius=params.refine_radius_px, subpixel=sub,
     )  # fmt: skip
+    if prior_px is not None and params.motion_prior:
+        start = (round(prior_px[0] / 2**mid), round(prior_px[1] / 2**mid))
+        if abs(start[0]) <= rx / 2**mid and abs(start[1]) <= ry / 2**mid:
+            alt = register_shift(
+                prev.pyr[mid:], curr.pyr[mid:], setup.regions[0][mid:], setup.valid[mid:], rx / 2**mid,
+                ry / 2**mid, radius=params.refine_radius_px, subpixel=sub, start_px=start,
+            )  # fmt: skip
+            if alt.cost < first.cost:
+                first = dataclasses.replace(alt, distinctiveness=first.distinctiveness)
     shift, theta_w = (first.shift_px[0] * 2**mid, first.shift_px[1] * 2**mid), 0.0
     for i, level in enumerate((mid, 0)):
         theta = turn(shift, theta_w)
@@ -522,11 +541,16 @@ def _match_birdseye(
 
 
 def _match(
-    prev: _Frame, curr: _Frame, camera: CameraModel, setup: _Setup, params: OdometryParams
+    prev: _Frame,
+    curr: _Frame,
+    camera: CameraModel,
+    setup: _Setup,
+    params: OdometryParams,
+    prior_px: tuple[float, float] | None = None,
 ) -> tuple[OdometryStep, list[Pair]]:
     if setup.model == "linear":
         return _match_linear(prev, curr, camera, setup, params), []
-    return _match_birdseye(prev, curr, camera, setup, params)
+    return _match_birdseye(prev, curr, camera, setup, params, prior_px)
 
 
 def _horizon_offset(hom: NDArray, pairs: list[Pair], max_px: float) -> float | None:
@@ -705,7 +729,7 @@ def dead_reckon(
         curr = _prepare(_check_frame(frame, camera, f"frame {k}"), camera, setup, params)
         n_frames += 1
         if prev is not None:
-            step, pair = _match(prev, curr, camera, setup, params)
+            step, pair = _match(prev, curr, camera, setup, params, steps[-1].shift_px if steps else None)
             steps.append(step)
             pairs.append(pair)
             times.append(1e3 * (time.perf_counter() - t0))

@@ -80,6 +80,9 @@ class OdometryParams:
     coarse_candidates: int = 3  # local minima of the coarse exhaustive search refined to full resolution
     refine_radius_px: int = 2  # search radius around the up-sampled estimate on each finer level
     rerotate: bool = True  # bird's-eye: re-match with the current grid rotated by the estimated turn
+    motion_prior: bool = (
+        True  # bird's-eye drives: also descend from the previous step's shift; lower cost wins
+    )
     linear_blur_px: float = (
         3.0  # linear model: Gaussian blur before matching (fine grain decorrelates under zoom)
     )
