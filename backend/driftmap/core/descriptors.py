@@ -314,7 +314,8 @@ def sad_pairs(
     against ``frames[rj[p]]``, with the conventions of :func:`driftmap.core.sad.sad_one_to_many`.
 
     Pairs are gathered in chunks of about ``params.chunk_bytes`` and laid out as two tall images, so
-    each shift costs one ``cv2.absdiff`` and one row-sum per chunk whatever the pairs are.
+    each shift costs one ``cv2.absdiff`` and one sum per pair whatever the pairs are. A pair's result
+    does not depend on the other pairs of its call (so a search split over processes scores alike).
 
     Args:
         frames: ``(N, H, W)`` float32 patch-normalised frames.
@@ -346,7 +347,6 @@ def sad_pairs(
     best = np.full(qi.size, np.inf, dtype=np.float32)
     best_k = np.zeros(qi.size, dtype=np.int64)
     chunk = max(1, params.chunk_bytes // (height * width * 4))
-    rows = np.empty(chunk * height, dtype=np.float32)
     diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
     for c0 in range(0, qi.size, chunk):
         c1 = min(qi.size, c0 + chunk)
@@ -358,13 +358,14 @@ def sad_pairs(
             qx = slice(max(0, -dx), width - max(0, dx))
             rx = slice(qx.start + dx, qx.stop + dx)
             k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
-            diff = diff_buf[: (k1 - k0) * (qx.stop - qx.start)].reshape(k1 - k0, qx.stop - qx.start)
-            cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff)
-            # Row sums by OpenCV: each row summed alike whatever the chunk holds (BLAS gemv is not:
-            # its rounding varies with the rows around), so a pair's d does not depend on its batch.
-            rows[k0:k1] = cv2.reduce(diff, 1, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
-            score = rows[: m * height].reshape(m, height)[:, qy].sum(axis=1)
-            score *= np.float32(1.0 / ((qy.stop - qy.start) * (qx.stop - qx.start)))
+            cols = qx.stop - qx.start
+            diff = diff_buf[: m * height * cols].reshape(m * height, cols)
+            cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff[k0:k1])
+            # Each pair's overlap is one contiguous run of the buffer, summed on its own (numpy's pairwise
+            # sum): a pair's d is the same whatever else its batch holds (a BLAS row sum is not).
+            overlap = diff.reshape(m, height, cols)[:, qy, :].reshape(m, -1)
+            score = np.add.reduce(overlap, axis=1)
+            score *= np.float32(1.0 / ((qy.stop - qy.start) * cols))
             better = score < best[c0:c1]
             best[c0:c1][better] = score[better]
             best_k[c0:c1][better] = k
