@@ -45,9 +45,7 @@ def map_loops(ctx: JobContext) -> None:
     scores = score_queries(search, params.loops, int(ctx.args["q0"]), int(ctx.args["q1"]))
     data = arrays_bytes(scores.to_arrays())
     with ctx.runtime.storage.blobs.batch() as batch, ctx.runtime.storage.db.session() as session:
-        ctx.succeed(
-            session, {"scores_sha256": batch.put(data), "closure_candidates": int(scores.checked.sum())}
-        )
+        ctx.succeed(session, {"scores_sha256": batch.put(data), "queries_checked": int(scores.checked.sum())})
 
 
 def find_loops(
@@ -66,7 +64,6 @@ def find_loops(
         JobCancelled: the build or a subtask was cancelled.
     """
     start = time.monotonic()
-    _keyframes, key_thumbs, key_times = loop_inputs(pieces, drives, params)
     earlier = existing_subtasks(ctx, KIND)
     if earlier:  # a re-run: the plan of the first run, whose blocks may be scored already
         sha = str(earlier[0][1]["search_sha256"])
@@ -74,6 +71,7 @@ def find_loops(
         ids = [job_id for job_id, _args in earlier]
     else:
         ctx.report("loop closure", 0.0)
+        _keyframes, key_thumbs, key_times = loop_inputs(pieces, drives, params)
         planned = plan_search(key_thumbs, params.loops, key_times)
         if planned is None:  # no keyframe has an eligible earlier one
             return (), time.monotonic() - start, []
