@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.camera import CameraModel
 from driftmap.core.images import mask_pyramid, patch_normalise, pyramid
+from driftmap.core.odometry_pitch import horizon_floor
 from driftmap.core.odometry_selfcal import direct_turn, fit_rotation_centre
 from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
 from driftmap.core.sad import register_shift
@@ -667,11 +668,10 @@ def _self_calibrate(
         for u, p in zip(usable, pairs, strict=True)
     ]
     estimates = np.array([math.nan if f is None else f for f in found], dtype=np.float64)
-    if int(np.isfinite(estimates).sum()) < 3:
+    tracked = horizon_floor(hom, pairs, estimates, params.pitch_window_m, params.pitch_gate_z)
+    if tracked is None:  # fewer than 3 estimates
         return 0.0, camera.y_c_m
-    offset = float(np.nanmedian(estimates))
-    shifted = np.asarray(shift_horizon(camera, offset).homography())
-    floor = [[(_apply(shifted, a), _apply(shifted, b)) for a, b in p] for p in pairs]
+    offset, floor = tracked[0].median_px, tracked[1]  # median; local pitch where it demonstrably varies
     lever = camera.y_c_m
     if params.calibrate_lever:
         rows = [k for k, (u, f) in enumerate(zip(usable, floor, strict=True)) if u and len(f) == 3]

@@ -94,6 +94,8 @@ class OdometryParams:
     horizon_max_px: float = 40.0  # largest horizon offset searched by the self-calibration, pixels
     calibrate_lever: bool = True  # self-calibration also fits the rotation centre y_c to the floor's turns
     lever_max_gain_se: float = 0.025  # ... kept when its standard error moves the turn gain less than this
+    pitch_window_m: float = 12.0  # horizon tracked over this window of travel (Gaussian sd, m); 0: one median
+    pitch_gate_z: float = 3.0  # ... applied where it departs from the median by this many standard errors
     subpixel: Literal["lk", "parabola"] = "lk"  # sub-pixel: Gauss-Newton on the SSD, or per-axis SAD parabola
     stationary_px: float = 0.3  # |shift| below this (pixels of the matching grid) with a good match -> zero
     stationary_min_confidence: float = 0.3  # the "good match" of stationary detection
@@ -127,6 +129,8 @@ class OdometryParams:
             raise ValueError("OdometryParams: max_turn_rad and max_lateral_m must be >= 0")
         if not self.lever_max_gain_se > 0:
             raise ValueError(f"OdometryParams.lever_max_gain_se must be > 0, got {self.lever_max_gain_se}")
+        if self.pitch_window_m < 0 or self.pitch_gate_z < 0:
+            raise ValueError("OdometryParams: pitch_window_m and pitch_gate_z must be >= 0")
         if min(self.linear_patches) < 1 or self.horizon_max_px <= 0:
             raise ValueError("OdometryParams: linear_patches >= (1, 1) and horizon_max_px > 0")
         if self.patch_px < 2 or self.coarse_min_px < 2 or self.coarse_candidates < 1:
