@@ -42,6 +42,7 @@ IRLS_ITERATIONS = 5  # reweighting rounds of each local mean
 MIN_ESTIMATES = 3  # fewer finite estimates than this: no horizon at all
 MIN_EFFECTIVE = 8.0  # fewer effective estimates than this in a step's window: it keeps the median
 WINDOW_SPAN = 3.0  # estimates farther than this many window_m from a step do not enter its mean
+GRID_STEP = 0.25  # the local means are computed every this many window_m along the drive, then interpolated
 
 
 @dataclass(frozen=True)
@@ -74,27 +75,36 @@ def _local_means(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Gaussian-windowed Huber means of the finite ``estimates`` (positions ``at_m``) at every position.
 
-    Returns ``(mean, sum_w, sum_w2)`` per position; ``mean`` is NaN where no estimate is within the span.
+    The means are computed every ``GRID_STEP * window_m`` metres along the drive and interpolated (a mean
+    over a Gaussian window barely changes within a quarter of it), so the cost does not grow with the
+    frame rate. Returns ``(mean, sum_w, sum_w2)`` per position; ``mean`` is NaN where no estimate is near.
     """
     ok = np.isfinite(estimates)
     pos, vals = at_m[ok], estimates[ok]  # sorted: travel only grows
-    n = len(at_m)
+    spacing = max(GRID_STEP * window_m, float(at_m[-1] - at_m[0]) / len(at_m))  # at most ~N + 1 means
+    grid = np.arange(float(at_m[0]), float(at_m[-1]) + spacing, spacing)
+    n = len(grid)
     mean, sum_w, sum_w2 = np.full(n, math.nan), np.zeros(n), np.zeros(n)
-    lo = np.searchsorted(pos, at_m - WINDOW_SPAN * window_m, side="left")
-    hi = np.searchsorted(pos, at_m + WINDOW_SPAN * window_m, side="right")
+    lo = np.searchsorted(pos, grid - WINDOW_SPAN * window_m, side="left")
+    hi = np.searchsorted(pos, grid + WINDOW_SPAN * window_m, side="right")
     cut = HUBER_K * scale
     for k in range(n):
         v = vals[lo[k] : hi[k]]
         if len(v) == 0:
             continue
-        w0 = np.exp(-0.5 * ((pos[lo[k] : hi[k]] - at_m[k]) / window_m) ** 2)
+        w0 = np.exp(-0.5 * ((pos[lo[k] : hi[k]] - grid[k]) / window_m) ** 2)
         mu, w = float(np.median(v)), w0
         for _ in range(IRLS_ITERATIONS):
             r = np.abs(v - mu)
             w = w0 * (np.minimum(1.0, cut / np.maximum(r, 1e-12)) if cut > 0 else 1.0)
             mu = float(np.sum(w * v) / np.sum(w))
         mean[k], sum_w[k], sum_w2[k] = mu, float(np.sum(w)), float(np.sum(w * w))
-    return mean, sum_w, sum_w2
+    known = np.isfinite(mean)
+    if not known.any():
+        return np.full(len(at_m), math.nan), np.zeros(len(at_m)), np.zeros(len(at_m))
+    at_mean = np.interp(at_m, grid[known], mean[known])
+    at_mean[np.interp(at_m, grid, (~known).astype(np.float64)) > 0] = math.nan  # next to a gap: no mean
+    return at_mean, np.interp(at_m, grid, sum_w), np.interp(at_m, grid, sum_w2)
 
 
 def track_horizon(
