@@ -150,3 +150,32 @@ class TestRegisterShift:
             [patch_normalise(a, 6)], [patch_normalise(b, 6)], [roi], [valid], 12, 12, subpixel="lk"
         )
         assert match.shift_px[1] == pytest.approx(9.0, abs=SUBPIXEL_TOL)
+
+    def test_an_extra_start_is_one_more_descent(self) -> None:
+        """``also_from_px`` gives what the exhaustive run and a descent from that start give, whichever
+        ends lower, with the exhaustive run's distinctiveness (one cost table, one sub-pixel refinement)."""
+        a, b = self.pair((22.4, -2.7))  # beyond the exhaustive range below: only a start can get there
+        roi = np.zeros(a.shape, np.float32)
+        roi[40:120, 40:120] = 1.0
+        levels = 2
+        args = (
+            [patch_normalise(p, 6) for p in pyramid(a, levels)],
+            [patch_normalise(p, 6) for p in pyramid(b, levels)],
+            mask_pyramid(roi, levels),
+            mask_pyramid(np.ones_like(roi), levels),
+            12,
+            12,
+        )
+        exhaustive = register_shift(*args, candidates=1, subpixel="lk")
+        won = []
+        for start in [(5, -1), (1, 1), (-2, 0)]:  # coarsest-level pixels (a quarter of level 0)
+            alone = register_shift(*args, start_px=start, subpixel="lk")
+            both = register_shift(*args, candidates=1, also_from_px=start, subpixel="lk")
+            best = min(exhaustive, alone, key=lambda m: m.cost)
+            assert both.shift_px == best.shift_px and both.cost == best.cost
+            assert both.distinctiveness == exhaustive.distinctiveness
+            won.append(alone.cost < exhaustive.cost)
+        assert won == [True, False, False]
+        assert register_shift(*args, candidates=1, also_from_px=(5, -1), subpixel="lk").shift_px == (
+            pytest.approx((22.4, -2.7), abs=SUBPIXEL_TOL)
+        )

@@ -443,6 +443,7 @@ def register_shift(
     candidates: int = 3,
     radius: int = 1,
     start_px: tuple[int, int] | None = None,
+    also_from_px: tuple[int, int] | None = None,
     subpixel: str = "parabola",
     side: str = "both",
 ) -> ShiftMatch:
@@ -471,6 +472,9 @@ def register_shift(
         radius: refinement window radius per level, pixels.
         start_px: skip the exhaustive search and descend from this shift, in pixels of the coarsest
             level given (level 0 when the pyramids have one level).
+        also_from_px: one more start for the descent beside the exhaustive search's minima (e.g. a motion
+            prior), in pixels of the coarsest level given; the lowest level-0 cost wins as for the others,
+            and the distinctiveness still comes from the exhaustive search.
         subpixel: "lk" (Gauss-Newton on the two-sided SSD, most accurate) or "parabola" (per-axis
             fit of the SAD values around the minimum).
         side: "both" (two-sided), or only "a"'s ROI against ``b`` or only "b"'s ROI against ``a``;
@@ -500,6 +504,8 @@ def register_shift(
         rx, ry = int(np.ceil(max_dx / 2**top)), int(np.ceil(max_dy / 2**top))
         seeds, distinct = _coarse_minima(costs[top].ssd_surface(rx, ry), candidates)
         seeds = [(sx - rx, sy - ry) for sx, sy in seeds]
+        if also_from_px is not None:
+            seeds.append(also_from_px)
     results = []
     for sx, sy in seeds:
         for level in range(top, -1, -1):
