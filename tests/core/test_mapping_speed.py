@@ -18,7 +18,7 @@ from driftmap.core.mapping import FAST, MappingDrive, flat_offsets, join_drives,
 from driftmap.core.odometry import _apply, _horizon_offset, _masks, _setup, _warp
 from driftmap.core.params import ODOMETRY_DEFAULT
 from driftmap.core.place_database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
-from driftmap.core.sad import _gradient
+from driftmap.core.registration import _gradient
 from driftmap.errors import BadInputError
 
 CAM = CameraModel(160, 120, (30, 40, 100, 60), 0.01, 0.01, 1.0, 4.0, 1)

@@ -8,7 +8,8 @@ import pytest
 
 from driftmap.core.images import mask_pyramid, patch_normalise, pyramid
 from driftmap.core.params import SadParams
-from driftmap.core.sad import register_shift, sad_matrix, sad_one_to_many
+from driftmap.core.registration import register_shift
+from driftmap.core.sad import sad_matrix, sad_one_to_many
 
 SEED = 3
 FLOAT_TOL = 1e-4  # float32 vectorised sums against float64 loops

@@ -2,7 +2,7 @@
 
 Two consecutive frames are compared over the calibrated floor region (``ground_roi``); the motion
 of the floor content is found by coarse-to-fine, sub-pixel, two-sided SAD registration
-(:func:`driftmap.core.sad.register_shift`) of patch-normalised images. Two models turn it into
+(:func:`driftmap.core.registration.register_shift`) of patch-normalised images. Two models turn it into
 vehicle motion:
 
 * **linear** (the paper): the ROI is split into ``linear_patches`` (the paper's tracked patches;
@@ -58,7 +58,7 @@ from driftmap.core.images import mask_pyramid, patch_normalise, pyramid
 from driftmap.core.odometry_pitch import horizon_floor
 from driftmap.core.odometry_selfcal import direct_turn, fit_rotation_centre
 from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
-from driftmap.core.sad import register_shift
+from driftmap.core.registration import register_shift
 
 __all__ = ["DeadReckoning", "OdometryStep", "compose", "dead_reckon", "estimate_step", "shift_horizon"]
 

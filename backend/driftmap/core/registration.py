@@ -1,0 +1,354 @@
+"""Shift registration: the sub-pixel content motion between two images by coarse-to-fine masked SAD.
+
+The visual odometry (:mod:`driftmap.core.odometry`) measures each step as the motion of the floor between
+two frames: :func:`register_shift` searches the coarsest pyramid level exhaustively (a masked squared
+difference computed by correlation), carries its best local minima down the pyramid by downhill SAD
+windows (the two-sided, overlap-normalised cost of eq. 3 of paper 000 with the region-of-interest and
+valid-pixel masks as weights) and refines the winner to sub-pixel (Gauss-Newton on the SSD, or a parabola
+per axis). Shift convention as in :mod:`driftmap.core.sad`: content moving right and down in ``b`` gives a
+positive ``(dx, dy)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ShiftMatch", "register_shift"]
+
+
+@dataclass(frozen=True)
+class ShiftMatch:
+    """Result of :func:`register_shift`.
+
+    Attributes:
+        shift_px: ``(dx, dy)`` sub-pixel content motion from image ``a`` to image ``b``, level-0 px.
+        cost: mean absolute difference at the integer minimum (level 0).
+        distinctiveness: ``1 - best / second-best`` local minimum of the coarse exhaustive (squared
+            difference) search, in [0, 1]; near 0 when another shift matches about as well.
+        at_range_edge: the minimum lies on the border of the searched range (motion maybe larger).
+        overlap: weighted pixels compared at the minimum / ROI pixels of the sides used, in [0, 1].
+    """
+
+    shift_px: tuple[float, float]
+    cost: float
+    distinctiveness: float
+    at_range_edge: bool
+    overlap: float
+
+
+def _bbox(mask: NDArray) -> tuple[int, int, int, int]:
+    """Bounding box (r0, r1, c0, c1) of a mask's support; a 1x1 box of zeros when it is empty."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return 0, 1, 0, 1
+    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+
+@lru_cache(maxsize=256)
+def _box_grid(r0: int, r1: int, c0: int, c1: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Row and column coordinates ``(r1 - r0, c1 - c0)`` float32 of a box (cached, read-only)."""
+    rows, cols = np.mgrid[r0:r1, c0:c1].astype(np.float32)
+    rows.flags.writeable = cols.flags.writeable = False
+    return rows, cols
+
+
+def _gradient(img: NDArray) -> tuple[NDArray, NDArray]:
+    """``np.gradient`` of an ``(H, W)`` float image without its per-call overhead: ``(d/drow, d/dcol)``,
+    each ``(H, W)`` of the input dtype (central differences inside, one-sided on the border: the
+    same operations, so bit-identical)."""
+    if min(img.shape) < 2:
+        np.gradient(img)  # raises as numpy does
+    if img.ndim != 2:
+        raise ValueError(f"_gradient needs an (H, W) image, got shape {img.shape}")
+    g_y, g_x = np.empty_like(img), np.empty_like(img)
+    np.subtract(img[2:], img[:-2], out=g_y[1:-1])
+    g_y[1:-1] /= 2.0
+    np.subtract(img[1], img[0], out=g_y[0])
+    np.subtract(img[-1], img[-2], out=g_y[-1])
+    np.subtract(img[:, 2:], img[:, :-2], out=g_x[:, 1:-1])
+    g_x[:, 1:-1] /= 2.0
+    np.subtract(img[:, 1], img[:, 0], out=g_x[:, 0])
+    np.subtract(img[:, -1], img[:, -2], out=g_x[:, -1])
+    return g_y, g_x
+
+
+class _TwoSided:
+    """Cost of one shift on one pyramid level, both ways round (see :func:`register_shift`)."""
+
+    def __init__(
+        self, a: NDArray, b: NDArray, roi_a: NDArray, valid_a: NDArray, roi_b: NDArray, valid_b: NDArray,
+        side: str = "both",
+    ) -> None:  # fmt: skip
+        self.a, self.b = a, b
+        # (box, ROI inside the box, image holding the ROI, other image, other's valid mask, sign of s)
+        self.sides = []
+        for name, roi, img, other, valid, sign in (
+            ("a", roi_a, a, b, valid_b, 1),
+            ("b", roi_b, b, a, valid_a, -1),
+        ):
+            box = _bbox(roi)
+            box_roi = np.ascontiguousarray(roi[box[0] : box[1], box[2] : box[3]])
+            if side in ("both", name) and box_roi.any():
+                self.sides.append((box, box_roi, img, other, valid, sign))
+        self.den_max = float(sum(side_[1].sum() for side_ in self.sides))
+        if self.den_max <= 0:
+            raise ValueError("the ROI mask is empty at some pyramid level; lower the number of levels")
+        self.memo: dict[tuple[int, int], tuple[float, float]] = {}
+        # per side: the ROI box of its image, and scratch arrays for the difference and the weights
+        self.scratch = [
+            (
+                img[r0:r1, c0:c1],
+                np.empty(roi.shape, np.result_type(img, other)),
+                np.empty(roi.shape, np.result_type(roi, valid)),
+            )
+            for (r0, r1, c0, c1), roi, img, other, valid, _ in self.sides
+        ]
+
+    def __call__(self, dx: int, dy: int) -> tuple[float, float]:
+        """(mean absolute difference, weight) at integer shift (dx, dy); inf if too little overlaps."""
+        key = (dx, dy)
+        if key not in self.memo:
+            self.memo[key] = self._compute(dx, dy)
+        return self.memo[key]
+
+    def _compute(self, dx: int, dy: int) -> tuple[float, float]:
+        height, width = self.a.shape
+        num = den = 0.0
+        # a's ROI against b at p + s, and b's ROI against a at q - s; partners inside the frame only.
+        for ((r0, r1, c0, c1), roi, _, other, valid, sign), (box, diff, weight) in zip(
+            self.sides, self.scratch, strict=True
+        ):
+            sx, sy = sign * dx, sign * dy
+            if min(r0 + sy, c0 + sx) < 0 or r1 + sy > height or c1 + sx > width:
+                continue
+            moved = (slice(r0 + sy, r1 + sy), slice(c0 + sx, c1 + sx))
+            np.multiply(roi, valid[moved], out=weight)
+            if box.dtype == other.dtype == np.float32:  # one pass; OpenCV float absdiff is |a - b| too
+                cv2.absdiff(box, other[moved], dst=diff)
+            else:
+                np.abs(np.subtract(box, other[moved], out=diff), out=diff)
+            num += float(np.vdot(diff, weight))
+            den += float(weight.sum())
+        if den < 0.25 * self.den_max:
+            return np.inf, den
+        return num / den, den
+
+    def refine(self, dx: int, dy: int, iterations: int = 5) -> tuple[float, float]:
+        """Sub-pixel shift near integer (dx, dy) by Gauss-Newton on the masked two-sided SSD.
+
+        Each side's partner image is resampled bilinearly at the current shift and linearised
+        (Lucas-Kanade); the shift stays within one pixel of (dx, dy); a singular system (no
+        texture) stops the iteration. The Jacobian of a side is ``sign`` times the partner's
+        gradient; the sign is applied to the dot products (exact, rounding is sign-symmetric).
+        """
+        fx, fy = float(dx), float(dy)
+        height, width = self.a.shape
+        for _ in range(iterations):
+            hess, grad = np.zeros((2, 2)), np.zeros(2)
+            for (r0, r1, c0, c1), roi, img, other, valid, sign in self.sides:
+                off_x, off_y = np.float32(sign * fx), np.float32(sign * fy)
+                # float32 rounding is monotonic: the extremes of the sample maps are the box corners'
+                if (
+                    min(np.float32(c0) + off_x, np.float32(r0) + off_y) < 1
+                    or np.float32(c1 - 1) + off_x > width - 2
+                    or np.float32(r1 - 1) + off_y > height - 2
+                ):
+                    continue
+                rows, cols = _box_grid(r0, r1, c0, c1)
+                map_x, map_y = cols + off_x, rows + off_y
+                warped = cv2.remap(other, map_x, map_y, cv2.INTER_LINEAR)
+                w = roi * cv2.remap(valid, map_x, map_y, cv2.INTER_NEAREST)
+                g_y, g_x = _gradient(warped)
+                w_g = (w * g_x, w * g_y)
+                resid = img[r0:r1, c0:c1] - warped
+                for i in range(2):
+                    grad[i] += sign * float(np.vdot(w_g[i], resid))
+                    hess[i, 0] += float(np.vdot(w_g[i], g_x))
+                    hess[i, 1] += float(np.vdot(w_g[i], g_y))
+            if np.linalg.det(hess) <= 1e-12 * max(1.0, float(np.trace(hess))) ** 2:
+                break
+            step = np.linalg.solve(hess, grad)
+            fx, fy = (
+                float(np.clip(fx + step[0], dx - 1, dx + 1)),
+                float(np.clip(fy + step[1], dy - 1, dy + 1)),
+            )
+            if float(np.abs(step).max()) < 1e-3:
+                break
+        return fx, fy
+
+    def ssd_surface(self, rx: int, ry: int) -> NDArray[np.float64]:
+        """Two-sided masked mean squared difference for all shifts, ``(2 ry + 1, 2 rx + 1)``.
+
+        Exact weighted SSD from four correlations per side (``cv2.matchTemplate`` TM_CCORR, FFT for
+        large templates): ``sum m v (t - s)^2 = corr(v, m t^2) - 2 corr(v s, m t) + corr(v s^2, m)``.
+        """
+        num = np.zeros((2 * ry + 1, 2 * rx + 1))
+        den = np.zeros_like(num)
+        for (r0, r1, c0, c1), roi, tmpl, img, valid, sign in self.sides:
+            pad = (
+                (max(0, ry - r0), max(0, r1 + ry - img.shape[0])),
+                (max(0, rx - c0), max(0, c1 + rx - img.shape[1])),
+            )
+            window = (
+                slice(r0 - ry + pad[0][0], r1 + ry + pad[0][0]),
+                slice(c0 - rx + pad[1][0], c1 + rx + pad[1][0]),
+            )
+            v = np.pad(valid, pad)[window]
+            sv = np.pad(img, pad)[window] * v
+            t = tmpl[r0:r1, c0:c1] * roi
+            terms = [
+                cv2.matchTemplate(v, np.ascontiguousarray(t * t), cv2.TM_CCORR),
+                cv2.matchTemplate(sv, np.ascontiguousarray(t), cv2.TM_CCORR),
+                cv2.matchTemplate(np.ascontiguousarray(sv * sv), roi, cv2.TM_CCORR),
+                cv2.matchTemplate(v, roi, cv2.TM_CCORR),
+            ]
+            ssd = np.maximum(terms[0] - 2.0 * terms[1] + terms[2], 0.0)
+            step = sign  # b's ROI placed at offset o in a is the shift -o
+            num += ssd[::step, ::step]
+            den += terms[3][::step, ::step]
+        out = np.full(num.shape, np.inf)
+        ok = den >= 0.25 * self.den_max
+        out[ok] = num[ok] / den[ok]
+        return out
+
+
+def _parabola(c_minus: float, c_0: float, c_plus: float) -> float:
+    """Offset in [-0.5, 0.5] of the vertex of the parabola through three equally spaced costs."""
+    curv = c_minus - 2.0 * c_0 + c_plus
+    if not np.isfinite(curv) or curv <= 0:
+        return 0.0
+    return float(np.clip(0.5 * (c_minus - c_plus) / curv, -0.5, 0.5))
+
+
+def _coarse_minima(surf: NDArray, candidates: int) -> tuple[list[tuple[int, int]], float]:
+    """The best ``candidates`` 3x3 local minima ``(x, y)`` of a cost surface, and 1 - best/second."""
+    finite = np.isfinite(surf)
+    if not finite.any():
+        return [(surf.shape[1] // 2, surf.shape[0] // 2)], 0.0
+    filled = np.where(finite, surf, surf[finite].max() * 2 + 1).astype(np.float32)
+    minima = np.argwhere((filled <= cv2.erode(filled, np.ones((3, 3), np.uint8))) & finite)
+    values = filled[minima[:, 0], minima[:, 1]]
+    order = np.argsort(values)
+    second = values[order[1]] if values.size > 1 else float(surf[finite].max())
+    distinct = float(np.clip(1.0 - values[order[0]] / second, 0.0, 1.0)) if second > 0 else 0.0
+    return [(int(minima[i, 1]), int(minima[i, 0])) for i in order[:candidates]], distinct
+
+
+def _descend(cost: _TwoSided, dx: int, dy: int, radius: int, max_steps: int = 20) -> tuple[int, int, float]:
+    """Move a (2 radius + 1)^2 window downhill until its minimum is interior."""
+    for _ in range(max_steps):
+        window = [
+            (cost(dx + i, dy + j)[0], dx + i, dy + j)
+            for j in range(-radius, radius + 1)
+            for i in range(-radius, radius + 1)
+        ]
+        best, bx, by = min(window)
+        if (bx, by) == (dx, dy) or not np.isfinite(best):
+            return dx, dy, cost(dx, dy)[0]
+        dx, dy = bx, by
+    return dx, dy, cost(dx, dy)[0]
+
+
+def register_shift(
+    a: list[NDArray],
+    b: list[NDArray],
+    roi: list[NDArray],
+    valid: list[NDArray],
+    max_dx: float,
+    max_dy: float,
+    *,
+    roi_b: list[NDArray] | None = None,
+    valid_b: list[NDArray] | None = None,
+    candidates: int = 3,
+    radius: int = 1,
+    start_px: tuple[int, int] | None = None,
+    also_from_px: tuple[int, int] | None = None,
+    subpixel: str = "parabola",
+    side: str = "both",
+) -> ShiftMatch:
+    """Find the content motion from image ``a`` to image ``b`` by coarse-to-fine masked SAD.
+
+    The cost of an integer shift ``s`` is two-sided: the mean absolute difference of ``a`` over its
+    region of interest against ``b`` at ``p + s``, pooled with ``b`` over its region of interest
+    against ``a`` at ``q - s``, counting only partners inside the frame (``valid``). Motion in
+    either direction keeps a full-size comparison even when the ROI touches the frame border. The
+    coarsest level is searched exhaustively over the whole range with the same two-sided masked
+    cost in squared form (computed by correlation, so the range costs little); its best
+    ``candidates`` local minima are carried down, each refined by a downhill SAD window of
+    ``radius`` per level; the best wins and its level-0 minimum is refined to sub-pixel per axis
+    (parabola or equiangular-line fit).
+
+    Args:
+        a: pyramid of the first image, ``[(H, W), (H/2, W/2), ...]`` float32 (e.g. normalised).
+        b: pyramid of the second image, same shapes.
+        roi: pyramid of the {0, 1} region of interest of ``a`` (and of ``b`` unless ``roi_b``).
+        valid: pyramid of the {0, 1} pixels of ``a`` holding image content (and of ``b``).
+        max_dx: horizontal search range at level 0, pixels.
+        max_dy: vertical search range at level 0, pixels.
+        roi_b: ROI pyramid of ``b`` when it differs from ``a``'s (e.g. ``b`` was warped differently).
+        valid_b: valid-pixel pyramid of ``b`` when it differs.
+        candidates: coarse local minima refined.
+        radius: refinement window radius per level, pixels.
+        start_px: skip the exhaustive search and descend from this shift, in pixels of the coarsest
+            level given (level 0 when the pyramids have one level).
+        also_from_px: one more start for the descent beside the exhaustive search's minima (e.g. a motion
+            prior), in pixels of the coarsest level given; the lowest level-0 cost wins as for the others,
+            and the distinctiveness still comes from the exhaustive search.
+        subpixel: "lk" (Gauss-Newton on the two-sided SSD, most accurate) or "parabola" (per-axis
+            fit of the SAD values around the minimum).
+        side: "both" (two-sided), or only "a"'s ROI against ``b`` or only "b"'s ROI against ``a``;
+            one side puts the correspondence exactly at that image's ROI.
+
+    Returns:
+        :class:`ShiftMatch`.
+
+    Raises:
+        ValueError: pyramids of different lengths or shapes, or an empty ROI.
+    """
+    levels = len(a) - 1
+    roi_b = roi if roi_b is None else roi_b
+    valid_b = valid if valid_b is None else valid_b
+    pyramids = (a, b, roi, valid, roi_b, valid_b)
+    if levels < 0 or any(len(p) != levels + 1 for p in pyramids):
+        raise ValueError("a, b and the masks must be pyramids of the same length")
+    for i in range(levels + 1):
+        if a[i].ndim != 2 or any(p[i].shape != a[i].shape for p in pyramids):
+            raise ValueError(f"pyramid level {i}: shapes differ")
+    costs = [_TwoSided(a[i], b[i], roi[i], valid[i], roi_b[i], valid_b[i], side) for i in range(levels + 1)]
+    distinct = 1.0
+    top = levels
+    if start_px is not None:
+        seeds = [start_px]
+    else:
+        rx, ry = int(np.ceil(max_dx / 2**top)), int(np.ceil(max_dy / 2**top))
+        seeds, distinct = _coarse_minima(costs[top].ssd_surface(rx, ry), candidates)
+        seeds = [(sx - rx, sy - ry) for sx, sy in seeds]
+        if also_from_px is not None:
+            seeds.append(also_from_px)
+    results = []
+    for sx, sy in seeds:
+        for level in range(top, -1, -1):
+            sx, sy, c = _descend(costs[level], sx, sy, radius)
+            if level:
+                sx, sy = 2 * sx, 2 * sy
+        results.append((c, sx, sy))
+    c0, sx, sy = min(results)
+    cost = costs[0]
+    if subpixel == "lk":
+        fx, fy = cost.refine(sx, sy)
+    else:
+        fx = sx + _parabola(cost(sx - 1, sy)[0], c0, cost(sx + 1, sy)[0])
+        fy = sy + _parabola(cost(sx, sy - 1)[0], c0, cost(sx, sy + 1)[0])
+    return ShiftMatch(
+        shift_px=(fx, fy),
+        cost=float(c0),
+        distinctiveness=distinct,
+        at_range_edge=abs(sx) >= max_dx or abs(sy) >= max_dy,
+        overlap=min(1.0, float(cost(sx, sy)[1] / cost.den_max)),
+    )
