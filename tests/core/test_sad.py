@@ -8,7 +8,7 @@ import pytest
 
 from driftmap.core.images import mask_pyramid, patch_normalise, pyramid
 from driftmap.core.params import SadParams
-from driftmap.core.registration import register_shift
+from driftmap.core.registration import _TwoSided, register_shift
 from driftmap.core.sad import sad_matrix, sad_one_to_many
 
 SEED = 3
@@ -180,3 +180,25 @@ class TestRegisterShift:
         assert register_shift(*args, candidates=1, also_from_px=(5, -1), subpixel="lk").shift_px == (
             pytest.approx((22.4, -2.7), abs=SUBPIXEL_TOL)
         )
+
+    def test_cost_counts_only_valid_partners(self) -> None:
+        """The two-sided cost of a shift, written out, with partners missing in part of each image (the
+        shortcut for shifts whose partners are all valid must agree with the weighted sum)."""
+        a, b = (patch_normalise(x, 6) for x in self.pair((3.0, -2.0), size=64))
+        roi = np.zeros(a.shape, np.float32)
+        roi[16:48, 12:50] = 1.0
+        valid = np.ones_like(roi)
+        valid[:, 54:] = 0.0  # the right edge of both frames shows nothing
+        cost = _TwoSided(a, b, roi, valid, roi, valid)
+        for dx, dy in [(0, 0), (3, -2), (-4, 5), (6, 1)]:  # (6, 1): a's ROI reaches the invalid columns
+            num = den = 0.0
+            for src, dst, sign in ((a, b, 1), (b, a, -1)):
+                moved_valid = np.roll(valid, (-sign * dy, -sign * dx), axis=(0, 1))
+                moved = np.roll(dst, (-sign * dy, -sign * dx), axis=(0, 1))
+                w = roi * moved_valid
+                num += float(np.sum(w * np.abs(src - moved), dtype=np.float64))
+                den += float(w.sum())
+            for _ in range(2):  # computed, then remembered
+                got = cost(dx, dy)
+                assert got[1] == pytest.approx(den)
+                assert got[0] == pytest.approx(num / den, rel=1e-5)

@@ -11,8 +11,12 @@ positive ``(dx, dy)``.
 
 from __future__ import annotations
 
+import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -48,6 +52,42 @@ def _bbox(mask: NDArray) -> tuple[int, int, int, int]:
     if rows.size == 0:
         return 0, 1, 0, 1
     return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+
+_FACTS: OrderedDict[tuple[str, int], tuple[NDArray, Any]] = OrderedDict()
+_FACTS_LOCK = threading.Lock()
+_FACTS_SIZE = 64  # masks remembered: a drive's fixed pyramids plus the turned ones of a few frames
+
+
+def _mask_fact(kind: str, mask: NDArray) -> Any:
+    """What the search derives from a mask, computed once per mask object (the masks a drive's odometry
+    passes are fixed, or made anew per frame; none is changed after use).
+
+    ``kind`` "roi": ``(box, ROI inside the box (contiguous), its sum as float, any support)``; "holes": the
+    ``(H + 1, W + 1)`` int32 summed-area table of the pixels that are not 1 (partners missing or partial).
+    """
+    key = (kind, id(mask))
+    with _FACTS_LOCK:
+        hit = _FACTS.get(key)
+        if hit is not None and hit[0] is mask:
+            _FACTS.move_to_end(key)
+            return hit[1]
+    if kind == "roi":
+        box = _bbox(mask)
+        box_roi = np.ascontiguousarray(mask[box[0] : box[1], box[2] : box[3]])
+        fact: Any = (box, box_roi, float(box_roi.sum()), bool(box_roi.any()))
+    else:
+        fact = cv2.integral(np.ascontiguousarray(mask != 1, dtype=np.uint8))
+    with _FACTS_LOCK:
+        _FACTS[key] = (mask, fact)  # the reference keeps the id from being reused while cached
+        while len(_FACTS) > _FACTS_SIZE:
+            _FACTS.popitem(last=False)
+    return fact
+
+
+def _all_ones(holes: NDArray, r0: int, r1: int, c0: int, c1: int) -> bool:
+    """Whether every pixel of the box ``[r0, r1) x [c0, c1)`` of the mask behind ``holes`` is 1."""
+    return int(holes[r1, c1] - holes[r0, c1] - holes[r1, c0] + holes[r0, c0]) == 0
 
 
 @lru_cache(maxsize=256)
@@ -88,14 +128,16 @@ class _TwoSided:
         self.a, self.b = a, b
         # (box, ROI inside the box, image holding the ROI, other image, other's valid mask, sign of s)
         self.sides = []
+        # per side: the ROI box's sum, and the summed-area table of the other's invalid pixels
+        self.sums: list[tuple[float, NDArray]] = []
         for name, roi, img, other, valid, sign in (
             ("a", roi_a, a, b, valid_b, 1),
             ("b", roi_b, b, a, valid_a, -1),
         ):
-            box = _bbox(roi)
-            box_roi = np.ascontiguousarray(roi[box[0] : box[1], box[2] : box[3]])
-            if side in ("both", name) and box_roi.any():
+            box, box_roi, box_sum, support = _mask_fact("roi", roi)
+            if side in ("both", name) and support:
                 self.sides.append((box, box_roi, img, other, valid, sign))
+                self.sums.append((box_sum, _mask_fact("holes", valid)))
         self.den_max = float(sum(side_[1].sum() for side_ in self.sides))
         if self.den_max <= 0:
             raise ValueError("the ROI mask is empty at some pyramid level; lower the number of levels")
@@ -121,20 +163,25 @@ class _TwoSided:
         height, width = self.a.shape
         num = den = 0.0
         # a's ROI against b at p + s, and b's ROI against a at q - s; partners inside the frame only.
-        for ((r0, r1, c0, c1), roi, _, other, valid, sign), (box, diff, weight) in zip(
-            self.sides, self.scratch, strict=True
+        for ((r0, r1, c0, c1), roi, _, other, valid, sign), (box, diff, weight), (roi_sum, holes) in zip(
+            self.sides, self.scratch, self.sums, strict=True
         ):
             sx, sy = sign * dx, sign * dy
             if min(r0 + sy, c0 + sx) < 0 or r1 + sy > height or c1 + sx > width:
                 continue
             moved = (slice(r0 + sy, r1 + sy), slice(c0 + sx, c1 + sx))
-            np.multiply(roi, valid[moved], out=weight)
             if box.dtype == other.dtype == np.float32:  # one pass; OpenCV float absdiff is |a - b| too
                 cv2.absdiff(box, other[moved], dst=diff)
             else:
                 np.abs(np.subtract(box, other[moved], out=diff), out=diff)
-            num += float(np.vdot(diff, weight))
-            den += float(weight.sum())
+            if weight.dtype == roi.dtype and _all_ones(holes, r0 + sy, r1 + sy, c0 + sx, c1 + sx):
+                # every partner is valid: the weights are the ROI itself
+                num += float(np.vdot(diff, roi))
+                den += roi_sum
+            else:
+                np.multiply(roi, valid[moved], out=weight)
+                num += float(np.vdot(diff, weight))
+                den += float(weight.sum())
         if den < 0.25 * self.den_max:
             return np.inf, den
         return num / den, den
@@ -151,7 +198,9 @@ class _TwoSided:
         height, width = self.a.shape
         for _ in range(iterations):
             hess, grad = np.zeros((2, 2)), np.zeros(2)
-            for (r0, r1, c0, c1), roi, img, other, valid, sign in self.sides:
+            for ((r0, r1, c0, c1), roi, img, other, valid, sign), (_, holes) in zip(
+                self.sides, self.sums, strict=True
+            ):
                 off_x, off_y = np.float32(sign * fx), np.float32(sign * fy)
                 # float32 rounding is monotonic: the extremes of the sample maps are the box corners'
                 if (
@@ -163,7 +212,16 @@ class _TwoSided:
                 rows, cols = _box_grid(r0, r1, c0, c1)
                 map_x, map_y = cols + off_x, rows + off_y
                 warped = cv2.remap(other, map_x, map_y, cv2.INTER_LINEAR)
-                w = roi * cv2.remap(valid, map_x, map_y, cv2.INTER_NEAREST)
+                lo_x, hi_x, lo_y, hi_y = (
+                    math.floor(off_x),
+                    math.ceil(off_x),
+                    math.floor(off_y),
+                    math.ceil(off_y),
+                )
+                if valid.dtype == roi.dtype and _all_ones(holes, r0 + lo_y, r1 + hi_y, c0 + lo_x, c1 + hi_x):
+                    w = roi  # every nearest partner is valid
+                else:
+                    w = roi * cv2.remap(valid, map_x, map_y, cv2.INTER_NEAREST)
                 g_y, g_x = _gradient(warped)
                 w_g = (w * g_x, w * g_y)
                 resid = img[r0:r1, c0:c1] - warped
