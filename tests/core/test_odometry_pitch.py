@@ -13,15 +13,16 @@ from driftmap.core.odometry import dead_reckon, shift_horizon
 from driftmap.core.odometry_pitch import MIN_EFFECTIVE, horizon_floor, track_horizon
 from driftmap.core.params import ODOMETRY_DEFAULT
 
-NOISE_PX = 4.0  # scatter of one step's horizon estimate (KITTI: 4-8 px)
+NOISE_PX = 4.0  # scatter of the horizon estimate of a 1 m step (KITTI: 4-8 px; simulated mine ~10 px)
 WINDOW_M = 12.0
 GATE_Z = 3.0
 
 
-def noisy(truth_px: np.ndarray, seed: int = 3, outliers: float = 0.0) -> np.ndarray:
-    """Per-step estimates: the truth plus Gaussian noise, a fraction of wild values, some steps without one."""
+def noisy(truth_px: np.ndarray, travel_m: float = 0.5, seed: int = 3, outliers: float = 0.0) -> np.ndarray:
+    """Per-step estimates: the truth plus Gaussian noise (variance NOISE_PX^2 / travel), a fraction of wild
+    values, some steps without one."""
     rng = np.random.default_rng(seed)
-    est = truth_px + NOISE_PX * rng.standard_normal(len(truth_px))
+    est = truth_px + NOISE_PX / math.sqrt(travel_m) * rng.standard_normal(len(truth_px))
     wild = rng.random(len(est)) < outliers
     est[wild] = rng.uniform(-40.0, 40.0, int(wild.sum()))
     est[rng.random(len(est)) < 0.1] = math.nan
@@ -33,7 +34,7 @@ class TestTrackHorizon:
         """A drive at one pitch (ride bounce only): chance departures of the local means stay inside the
         gate, every step gets the drive's median."""
         for seed in range(5):
-            est = noisy(np.full(300, 6.0), seed)
+            est = noisy(np.full(300, 6.0), seed=seed)
             track = track_horizon(est, np.full(300, 0.5), WINDOW_M, GATE_Z)
             assert track is not None
             assert not track.tracked.any()
@@ -55,8 +56,8 @@ class TestTrackHorizon:
 
     def test_outliers_do_not_move_it(self) -> None:
         truth = np.where(np.arange(200) < 100, 0.0, 12.0)
-        clean = track_horizon(noisy(truth, 5), np.full(200, 0.5), WINDOW_M, GATE_Z)
-        dirty = track_horizon(noisy(truth, 5, outliers=0.15), np.full(200, 0.5), WINDOW_M, GATE_Z)
+        clean = track_horizon(noisy(truth, seed=5), np.full(200, 0.5), WINDOW_M, GATE_Z)
+        dirty = track_horizon(noisy(truth, seed=5, outliers=0.15), np.full(200, 0.5), WINDOW_M, GATE_Z)
         assert clean is not None and dirty is not None
         far = np.r_[0:60, 140:200]  # away from the step, where the window straddles it
         assert np.abs(dirty.offsets_px[far] - truth[far]).max() < 4.0
@@ -67,10 +68,23 @@ class TestTrackHorizon:
         n = 240
         truth = np.where(np.arange(n) < n // 2, 0.0, 15.0)
         travel = np.where((np.arange(n) > 40) & (np.arange(n) < 100), 0.0, 1.0)
-        track = track_horizon(noisy(truth), travel, 4.0, GATE_Z)
+        track = track_horizon(noisy(truth, 1.0), travel, 4.0, GATE_Z)
         assert track is not None
         assert np.abs(track.offsets_px[10:40] - 0.0).max() < 4.0  # 60 steps at one place: 0 m away
         assert np.abs(track.offsets_px[150:225] - 15.0).max() < 4.0
+
+    def test_creeping_steps_weigh_their_travel(self) -> None:
+        """A drive at one pitch whose vehicle creeps for 80 frames (5 cm steps, as at a start or in a queue):
+        those steps' estimates scatter widely and lean high (the simulated mine: ~15 px at 0.1-0.2 m steps),
+        but they cover 4 m of floor, and weigh as much, not as much as 80 full steps would."""
+        n = 300
+        travel = np.where((np.arange(n) >= 100) & (np.arange(n) < 180), 0.05, 0.5)
+        rng = np.random.default_rng(8)
+        est = NOISE_PX / np.sqrt(travel) * rng.standard_normal(n) + np.where(travel < 0.1, 15.0, 0.0)
+        track = track_horizon(est, travel, WINDOW_M, GATE_Z)
+        assert track is not None and not track.tracked.any()
+        unweighted = track_horizon(est, np.full(n, 0.5), WINDOW_M, GATE_Z)  # as if each frame were 0.5 m
+        assert unweighted is not None and unweighted.tracked[100:180].any()
 
     def test_sparse_evidence_keeps_the_median(self) -> None:
         """Where fewer than MIN_EFFECTIVE estimates fall in the window, the step keeps the median."""
