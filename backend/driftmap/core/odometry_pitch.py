@@ -19,12 +19,14 @@ median where the evidence says so:
   falls as 1 / travel), with Huber weights (``HUBER_K`` robust standard deviations) so a bad step's estimate
   (a false match, a root of the rigid-gap equation far off) does not pull it. The robust standard deviation
   of one estimate is the MAD of the residuals about the track, so a trend does not inflate it.
-* **Gate.** The local mean replaces the median only where it differs from it by more than ``gate_z`` of its
-  own standard error, raised to the family-wise bound of the drive's number of independent windows
-  (``FALSE_ALARM``), and where enough estimates support it (``MIN_EFFECTIVE`` effective samples): a drive at
-  one pitch keeps the median, as the simulated mine vehicles do (ride bounce of about a degree at 1-3 Hz,
-  a fixed calibration error per drive: the largest departure on the small site's drives is 2.8 standard
-  errors, on a window of 12 m).
+* **Gate.** A step's offset is its local mean where that departs from the drive's level (the same robust
+  mean over the whole drive, so that the estimator's own bias does not pose as a change) by more than
+  ``gate_z`` of the local mean's standard error, raised to the family-wise bound of the drive's number of
+  independent windows (``FALSE_ALARM``), and where enough estimates support it (``MIN_EFFECTIVE`` effective
+  samples); elsewhere the drive's median, as before. A drive at one pitch keeps the median, as the
+  simulated mine vehicles do (ride bounce of about a degree at 1-3 Hz, a fixed calibration error per drive:
+  on a 12 m window the largest departure on the small site's and two medium drives is 2.5 standard errors
+  against a gate of 3.2-3.6).
 
 Camera height (the overall scale) is not observable from the floor this way, only the pitch.
 """
@@ -56,12 +58,14 @@ class HorizonTrack:
 
     Attributes:
         median_px: the drive's median horizon offset, pixels.
-        offsets_px: ``(N,)`` float64 offset applied to each step, pixels: the local mean where it passed the
-            gate, else the median.
+        offsets_px: ``(N,)`` float64 offset applied to each step, pixels: the local mean where its departure
+            from the drive's level passed the gate, else the median.
         local_px: ``(N,)`` float64 local robust mean at each step (NaN where no estimate is near), pixels.
         se_px: ``(N,)`` float64 standard error of ``local_px``, pixels (inf where undetermined).
         sigma_px: robust standard deviation of the estimate of a step of 1 m about the track, pixels (that
             of a step of ``t`` metres is ``sigma_px / sqrt(t)``; NaN when not tracked).
+        level_px: the same robust mean as ``local_px`` over the whole drive, pixels: the local mean is applied
+            where it departs from this by more than the gate (NaN when not tracked).
     """
 
     median_px: float
@@ -69,11 +73,26 @@ class HorizonTrack:
     local_px: NDArray[np.float64]
     se_px: NDArray[np.float64]
     sigma_px: float
+    level_px: float
 
     @property
     def tracked(self) -> NDArray[np.bool_]:
-        """``(N,)`` bool: the step's offset is its local mean, not the drive's median."""
+        """``(N,)`` bool: the step's offset is its local mean (a pitch change passed the gate), not the median."""
         return np.asarray(self.offsets_px != self.median_px)
+
+
+def _huber_mean(
+    values: NDArray[np.float64], prec: NDArray[np.float64], weights: NDArray[np.float64], sigma_1m: float
+) -> tuple[float, float, float]:
+    """Huber mean of ``values`` (precisions ``prec``, extra ``weights``): ``(mean, se, n_eff)``."""
+    w0 = weights * prec
+    mu, w = float(np.median(values)), w0
+    for _ in range(IRLS_ITERATIONS):
+        r = np.abs(values - mu) * np.sqrt(prec)  # in standard deviations of sigma_1m
+        w = w0 * (np.minimum(1.0, HUBER_K * sigma_1m / np.maximum(r, 1e-12)) if sigma_1m > 0 else 1.0)
+        mu = float(np.sum(w * values) / np.sum(w))
+    total = float(np.sum(w))
+    return mu, sigma_1m * math.sqrt(float(np.sum(w * w / prec))) / total, total**2 / float(np.sum(w * w))
 
 
 def _local_means(
@@ -106,16 +125,8 @@ def _local_means(
         v, p = vals[lo[k] : hi[k]], prec[lo[k] : hi[k]]
         if len(v) == 0:
             continue
-        w0 = np.exp(-0.5 * ((pos[lo[k] : hi[k]] - grid[k]) / window_m) ** 2) * p
-        mu, w = float(np.median(v)), w0
-        for _ in range(IRLS_ITERATIONS):
-            r = np.abs(v - mu) * np.sqrt(p)  # in standard deviations of sigma_1m
-            w = w0 * (np.minimum(1.0, HUBER_K * sigma_1m / np.maximum(r, 1e-12)) if sigma_1m > 0 else 1.0)
-            mu = float(np.sum(w * v) / np.sum(w))
-        total = float(np.sum(w))
-        mean[k] = mu
-        se[k] = sigma_1m * math.sqrt(float(np.sum(w * w / p))) / total
-        n_eff[k] = total**2 / float(np.sum(w * w))
+        gauss = np.exp(-0.5 * ((pos[lo[k] : hi[k]] - grid[k]) / window_m) ** 2)
+        mean[k], se[k], n_eff[k] = _huber_mean(v, p, gauss, sigma_1m)
     known = np.isfinite(mean)
     if not known.any():
         return np.full(len(at_m), math.nan), np.full(len(at_m), math.inf), np.zeros(len(at_m))
@@ -167,7 +178,7 @@ def track_horizon(
     flat = np.full(n, median)
     used = ok & (travel > 0)
     if window_m <= 0 or int(used.sum()) < MIN_ESTIMATES:
-        return HorizonTrack(median, flat, flat.copy(), np.full(n, math.inf), math.nan)
+        return HorizonTrack(median, flat, flat.copy(), np.full(n, math.inf), math.nan, math.nan)
     at = np.cumsum(travel) - 0.5 * travel  # the middle of each step along the drive
     root_t = np.sqrt(travel[used])
     sigma = _mad((est[used] - median) * root_t)
@@ -175,9 +186,13 @@ def track_horizon(
     fit = used & np.isfinite(local)  # scatter about the track, not about the median: a trend does not count
     sigma = _mad((est[fit] - local[fit]) * np.sqrt(travel[fit])) if fit.any() else sigma
     local, se, n_eff = _local_means(est, travel, at, window_m, sigma)
+    # A pitch change is a local mean's departure from the same estimator over the whole drive (its level),
+    # not from the median: the median weighs every frame alike, and a slow step's estimate leans high, so a
+    # drive at one pitch would show departures from the median wherever it crept.
+    level = _huber_mean(est[used], travel[used], np.ones(int(used.sum())), sigma)[0]
     z = max(gate_z, _family_z(float(travel.sum()) / (WINDOW_WIDTH * window_m)))
-    apply = np.isfinite(local) & (n_eff >= MIN_EFFECTIVE) & (np.abs(local - median) > z * se)
-    return HorizonTrack(median, np.where(apply, local, median), local, se, sigma)
+    apply = np.isfinite(local) & (n_eff >= MIN_EFFECTIVE) & (np.abs(local - level) > z * se)
+    return HorizonTrack(median, np.where(apply, local, median), local, se, sigma, level)
 
 
 def _family_z(windows: float) -> float:
