@@ -12,6 +12,7 @@ from driftmap.core.adjacency import shortest_paths
 from driftmap.core.images import patch_normalise
 from driftmap.core.localiser import Estimate, Localiser, LocaliserMap, LocaliserState, build_localiser_map
 from driftmap.core.topomap import TopoMapParams, build_topomap
+from driftmap.errors import BadInputError
 
 SPACING_M = 5.0
 FRAMES_PER_NODE = 3
@@ -161,6 +162,44 @@ class TestBeyondThePaper:
             run(loc, tex, [10, 11])
             nodes.append(loc.step(frame, DT_S + gap_s).node)
         assert nodes[0] != 15 and nodes[1] == 15
+
+
+class TestBlindFrames:
+    """Opt-in ``blind_ratio``: a frame that tells no place apart leaves the belief to the motion prior."""
+
+    def test_blind_frame_follows_the_prior_and_is_not_lost(
+        self, corridor40: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor40
+        params = hmm.HmmParams(blind_ratio=0.9, lost_frames=3)
+        loc = Localiser(lmap, params, start_node=10)
+        run(loc, tex, [10, 11, 12])
+        before = loc.state()
+        blank = np.zeros(lmap.thumbs.shape[1:], dtype=np.float32)  # a black frame: every node looks alike
+        est = loc.step(blank, 3 * DT_S)
+        expected = loc.transitions.predict(before.belief, DT_S)
+        np.testing.assert_allclose(loc.state().belief, expected / expected.sum())
+        assert not est.lost and loc.state().lost_count == before.lost_count
+        assert abs(est.node - 12) <= 1  # the prior stays around the last place
+
+    def test_blind_frames_never_reinitialise_and_tracking_resumes(
+        self, corridor40: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor40
+        blank = np.zeros(lmap.thumbs.shape[1:], dtype=np.float32)
+        rng = np.random.default_rng(8)
+        frames = [view(tex[j], rng) for j in (10, 11, 12)] + [blank] * 6 + [view(tex[13], rng)]
+        out = {}
+        for ratio in (0.0, 0.9):
+            loc = Localiser(lmap, hmm.HmmParams(blind_ratio=ratio, lost_frames=3), start_node=10)
+            out[ratio] = [loc.step(f, k * DT_S) for k, f in enumerate(frames)]
+        assert sum(e.lost for e in out[0.0][3:9]) >= 3  # default: black frames count as lost
+        assert not any(e.lost for e in out[0.9])
+        assert out[0.9][-1].node == 13 and out[0.9][-1].matched
+
+    def test_negative_ratio_is_refused(self) -> None:
+        with pytest.raises(BadInputError):
+            hmm.HmmParams(blind_ratio=-0.1)
 
 
 class TestState:

@@ -68,6 +68,10 @@ class HmmParams:
     lost_distinct_ratio: float = 0.95  # lost when d(b(i)) / median d of the compared nodes is above this
     lost_elsewhere_ratio: float = 1.0  # lost when d(b(i)) / least d of compared far nodes is above this
     lost_frames: int = 20  # this many lost frames in a row (2 s at 10 fps) re-initialise globally; 0: never
+    # opt-in (0: off): a "blind" frame, whose least d of the compared nodes is above blind_ratio x their median
+    # d, tells no place apart; the belief then follows the motion prior only and the frame neither counts as
+    # lost nor resets the count (see driftmap.core.localiser)
+    blind_ratio: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("max_speed_mps", "min_a_t_m", "a_t_quantum_m", "epsilon", "lost_distinct_ratio"):
@@ -81,7 +85,7 @@ class HmmParams:
             raise BadInputError(f"must be >= 1, got {self.n_t}", field="n_t")
         for f in fields(self):
             if (
-                f.name in ("n_probe", "lost_frames", "lost_confidence", "x_thresh")
+                f.name in ("n_probe", "lost_frames", "lost_confidence", "x_thresh", "blind_ratio")
                 and getattr(self, f.name) < 0
             ):
                 raise BadInputError(f"must be >= 0, got {getattr(self, f.name)}", field=f.name)

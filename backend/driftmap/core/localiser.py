@@ -294,9 +294,13 @@ class Localiser:
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
-        d = d_all[: nodes.size]
-        gamma = hmm.observation(d, p.p_t, p.epsilon)
-        belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
+        blind = p.blind_ratio > 0 and self._is_blind(d_all, p.blind_ratio)
+        if blind:  # the frame tells no place apart: the motion prior alone
+            total = float(prior.sum())
+            belief = prior / total if total > 0 else hmm.initial_belief(lm.n_nodes)
+        else:
+            gamma = hmm.observation(d_all[: nodes.size], p.p_t, p.epsilon)
+            belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
         best = int(np.argmax(belief))
         score = float(belief[best])
         compared = np.r_[nodes, probes]
@@ -307,7 +311,8 @@ class Localiser:
         elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here, far_m)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
         lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
-        lost_count = s.lost_count + 1 if lost else 0
+        lost = lost and not blind  # no evidence of being elsewhere either
+        lost_count = s.lost_count if blind else (s.lost_count + 1 if lost else 0)
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count = hmm.initial_belief(lm.n_nodes), 0  # re-initialise globally
         self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1)
@@ -325,6 +330,14 @@ class Localiser:
             return 0.0 if not far.any() else float("inf")
         d_far = float(d[far].min())
         return d_here / d_far if d_far > 0 else float("inf")
+
+    @classmethod
+    def _is_blind(cls, d: NDArray[np.floating], ratio: float) -> bool:
+        """True when the least finite d is above ``ratio`` x the median d (or none is finite): no place stands out."""
+        finite = d[np.isfinite(d)]
+        if finite.size == 0:
+            return True
+        return 1.0 - cls._distinctness(finite, float(finite.min())) > ratio
 
     @staticmethod
     def _distinctness(d: NDArray[np.floating], d_best: float) -> float:
