@@ -4,7 +4,7 @@ Maps the mapping drives of a simulated site end to end -- visual odometry of eve
 loop-closure search, pose graph with groundings, topological map -- exactly as ``driftmap map build``
 does, but reading the drive folders directly (no database). Prints the seconds and frames per second of
 each stage and the total against the issue's 3-minute target for the medium site. The drives' odometry
-(stage 1, the bulk of the time) runs in ``--workers`` spawned processes, each given a drive folder path
+(stage 1, the bulk of the time) runs in ``--workers`` spawned processes, each given a drive segment
 (``--threads`` runs it in threads of this process instead: Python-bound, about one core); the pieces are
 joined exactly as the map.build job joins its map.drive subtasks. Then it runs the odometry stage again on
 one thread, the baseline, and prints the ratio.
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from bench_loops import load_site
-from driftmap.core.drive_prep import PreparedDrive
+from driftmap.core.drive_prep import PreparedSegment
 from driftmap.core.loops import LOOPS_DEFAULT, detect_loops
 from driftmap.core.mapping import (
     FAST,
@@ -42,10 +42,12 @@ from driftmap.core.mapping import (
     MappingDrive,
     MappingParams,
     build_map,
+    build_segments,
     flat_offsets,
     join_drives,
-    prepare_drive,
+    join_segments,
     prepare_drives,
+    prepare_segment,
     solve_map,
     variant,
 )
@@ -70,8 +72,8 @@ def site_dir(size: str, seed: int) -> Path:
     return folder
 
 
-def _frames(folder: DriveFolder) -> Iterator[np.ndarray]:
-    for path in folder.frame_files:
+def _frames(folder: DriveFolder, begin: int = 0, stop: int | None = None) -> Iterator[np.ndarray]:
+    for path in folder.frame_files[begin:stop]:
         yield decode_gray(path.read_bytes())
 
 
@@ -90,6 +92,7 @@ def folder_drive(path: Path) -> MappingDrive:
         t_s=np.array([row.t_s for row in folder.frames], dtype=np.float64),
         frames=lambda f=folder: _frames(f),  # type: ignore[misc]
         groundings=[(index[g.frame], g.x_m, g.y_m) for g in folder.groundings],
+        frame_range=lambda begin, stop, f=folder: _frames(f, begin, stop),  # type: ignore[misc]
     )
 
 
@@ -98,24 +101,34 @@ def mapping_drives(site: Path) -> list[MappingDrive]:
     return [folder_drive(p) for p in mapping_folders(site)]
 
 
-def _prepare_folder(path: Path, params: MappingParams, flat: tuple[int, int]) -> dict[str, np.ndarray]:
-    """Stage 1 of one drive folder, in a worker process; its piece as arrays."""
-    return prepare_drive(folder_drive(path), params, flat).to_arrays()
+def _prepare_folder(
+    path: Path, params: MappingParams, flat: tuple[int, int], span: tuple[int, int]
+) -> dict[str, np.ndarray]:
+    """Stage 1 of one segment of a drive folder, in a worker process; its piece as arrays."""
+    return prepare_segment(folder_drive(path), params, flat, span).to_arrays()
 
 
 def build_in_processes(site: Path, params: MappingParams, workers: int) -> MapBuild:
-    """The build with every drive's stage 1 in one of ``workers`` spawned processes, then joined here."""
+    """The build with every drive segment's stage 1 in one of ``workers`` spawned processes, then joined here
+    (as the map.build job joins its map.drive subtasks)."""
     paths = mapping_folders(site)
     drives = [folder_drive(p) for p in paths]
     flats = flat_offsets(drives)
+    segments = build_segments(drives, params)
     start = time.perf_counter()
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(min(workers, len(paths)), mp_context=context) as pool:
-        futures = [pool.submit(_prepare_folder, p, params, f) for p, f in zip(paths, flats, strict=True)]
-        pieces = [
-            PreparedDrive.from_arrays(fut.result(), params.database, params.images, *flat)
-            for fut, flat in zip(futures, flats, strict=True)
+    with ProcessPoolExecutor(min(workers, len(segments)), mp_context=context) as pool:
+        futures = [pool.submit(_prepare_folder, paths[k], params, flats[k], span) for k, span in segments]
+        done = [
+            PreparedSegment.from_arrays(
+                fut.result(), params.database, params.images, flats[k][0] + span[0], flats[k][1]
+            )
+            for fut, (k, span) in zip(futures, segments, strict=True)
         ]
+    pieces = [
+        join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k], params)
+        for k, d in enumerate(drives)
+    ]
     prepared = join_drives(pieces, drives, params, None, time.perf_counter() - start)
     return solve_map(prepared, drives, params)
 

@@ -13,8 +13,16 @@ import pytest
 from tests.core.test_odometry import pinhole_camera
 
 from driftmap.core.camera import CameraModel
-from driftmap.core.drive_prep import PreparedDrive
-from driftmap.core.mapping import FAST, MappingDrive, flat_offsets, join_drives, prepare_drive, prepare_drives
+from driftmap.core.drive_prep import PreparedSegment
+from driftmap.core.mapping import (
+    FAST,
+    MappingDrive,
+    flat_offsets,
+    join_drives,
+    join_segments,
+    prepare_drives,
+    prepare_segment,
+)
 from driftmap.core.odometry import _apply, _horizon_offset, _masks, _setup, _warp
 from driftmap.core.params import ODOMETRY_DEFAULT
 from driftmap.core.place_database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
@@ -105,12 +113,15 @@ def test_pieces_prepared_apart_and_carried_as_arrays_join_to_the_same_result() -
     whole = prepare_drives(drives, params, workers=1)
     flats = flat_offsets(drives)
     assert flats == [(0, 34), (14, 34), (25, 34)]
-    pieces = [
-        prepare_drive(d, params, flat) for d, flat in zip(reversed(drives), reversed(flats), strict=True)
+    segments = [
+        prepare_segment(d, params, flat, (0, d.n_frames))
+        for d, flat in zip(reversed(drives), reversed(flats), strict=True)
     ]
     carried = [
-        PreparedDrive.from_arrays(p.to_arrays(), params.database, params.images, *flat)
-        for p, flat in zip(reversed(pieces), flats, strict=True)
+        join_segments(
+            d, [PreparedSegment.from_arrays(s.to_arrays(), params.database, params.images, *flat)], params
+        )
+        for d, s, flat in zip(drives, reversed(segments), flats, strict=True)
     ]
     joined = join_drives(carried, drives, params)
     for a, b in zip(whole.chains, joined.chains, strict=True):

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
+from driftmap.core import map_prepare, place_database
 from driftmap.core.mapping import FAST, MAP_PRESETS, build_map
 from driftmap.jobs import loop_tasks, map_tasks
 from driftmap.jobs.map_tasks import map_build
@@ -47,17 +48,24 @@ class TestFanOut:
     def test_the_build_equals_the_one_process_build_bit_for_bit(
         self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch
     ) -> None:
-        # Dense keyframes in blocks of 8, four blocks to a map.loops subtask: several on this small site.
-        params = replace(FAST, keyframe_spacing_m=0.25, loops=replace(FAST.loops, coarse_block=8))
+        # Dense keyframes in blocks of 8, four blocks to a map.loops subtask: several on this small site; and
+        # drive segments of 64 frames (statistics chunks of 32): two map.drive subtasks per 100-frame drive.
+        for module in (place_database, map_prepare):
+            monkeypatch.setattr(module, "STATS_CHUNK", 32)
+        params = replace(
+            FAST, keyframe_spacing_m=0.25, loops=replace(FAST.loops, coarse_block=8), segment_frames=64
+        )
         monkeypatch.setitem(MAP_PRESETS, "fast", params)
         monkeypatch.setattr(loop_tasks, "QUERIES_PER_TASK", 32)
         import_site(storage, mini_site)
         parent, subtasks = _jobs(storage, _submit(storage, queue))
         assert parent.status == "succeeded", parent.error
         n_blocks = sum(j.kind == "map.loops" for j in subtasks)
-        assert [j.kind for j in subtasks] == ["map.drive", "map.drive"] + ["map.loops"] * n_blocks
+        assert [j.kind for j in subtasks] == ["map.drive"] * 4 + ["map.loops"] * n_blocks
+        spans = [(j.args["first"], j.args["stop"]) for j in subtasks[:4]]
+        assert spans == [(0, 64), (64, 100)] * 2
         assert n_blocks >= 3
-        blocks = [(j.args["q0"], j.args["q1"]) for j in subtasks[2:]]
+        blocks = [(j.args["q0"], j.args["q1"]) for j in subtasks[4:]]
         assert blocks[0][0] == 0 and all(a[1] == b[0] for a, b in itertools.pairwise(blocks))
         assert all(j.status == "succeeded" and j.site_id == parent.site_id for j in subtasks)
         with storage.db.session() as session:
@@ -178,7 +186,7 @@ class TestCancel:
     ) -> None:
         import_site(storage, mini_site)
         parent_id = _submit(storage, stored_queue)
-        real = map_tasks._drive_subtasks
+        real = map_tasks._segment_subtasks
 
         def submitted_then_one_cancelled(ctx: JobContext, *args: Any) -> list[int]:
             ids = real(ctx, *args)
@@ -186,7 +194,7 @@ class TestCancel:
                 job_service.cancel(session, ids[1])
             return ids
 
-        monkeypatch.setattr(map_tasks, "_drive_subtasks", submitted_then_one_cancelled)
+        monkeypatch.setattr(map_tasks, "_segment_subtasks", submitted_then_one_cancelled)
         run_job(runtime, map_build, "map.build", parent_id, stored_queue.enqueue)
         parent, subtasks = _jobs(storage, parent_id)
         assert parent.status == "cancelled"

@@ -8,6 +8,7 @@ stages 2-3 on them, with results bit-identical to the one-process build.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -19,10 +20,11 @@ from numpy.typing import NDArray
 from driftmap.core import drive_prep, posegraph
 from driftmap.core import loops as loop_search
 from driftmap.core.camera import CameraModel
-from driftmap.core.drive_prep import PreparedDrive
+from driftmap.core.drive_prep import PreparedDrive, PreparedSegment, segment_begin
 from driftmap.core.params import IMAGES_DEFAULT, ODOMETRY_DEFAULT, ODOMETRY_FAST, ImageParams, OdometryParams
 from driftmap.core.place_database import (
     DATABASE_DEFAULT,
+    STATS_CHUNK,
     DatabaseParams,
     FrameStats,
     FrameStatsPass,
@@ -46,6 +48,8 @@ class MappingDrive:
         frames: returns a fresh iterator over the N gray (H, W) uint8 frames in time order.
         groundings: (frame position 0..N-1, surveyed x_m, surveyed y_m) of each grounded frame.
         start_wT: optional known pose of the first frame; used only by variants without groundings.
+        frame_range: optional ``(begin, stop)`` -> iterator over frames ``begin .. stop - 1`` without
+            reading those before (segments of the drive); without it they are skipped from ``frames``.
     """
 
     name: str
@@ -54,6 +58,18 @@ class MappingDrive:
     frames: Callable[[], Iterable[NDArray[np.uint8]]]
     groundings: Sequence[tuple[int, float, float]] = ()
     start_wT: tuple[float, float, float] | None = None
+    frame_range: Callable[[int, int], Iterable[NDArray[np.uint8]]] | None = None
+
+    @property
+    def n_frames(self) -> int:
+        """Its number of frames N."""
+        return int(self.t_s.shape[0])
+
+    def frames_between(self, begin: int, stop: int) -> Iterable[NDArray[np.uint8]]:
+        """Frames ``begin .. stop - 1``."""
+        if self.frame_range is not None:
+            return self.frame_range(begin, stop)
+        return itertools.islice(self.frames(), begin, stop)
 
 
 @dataclass(frozen=True)
@@ -72,6 +88,12 @@ class MappingParams:
     use_groundings: bool = True
     calibration_rounds: int = 5  # most odometry self-calibration passes (scale, heading rate)
     calibration_window_m: float = 15.0  # travel per window when fitting the calibration, metres
+    segment_frames: int = 512  # stage 1 runs on drive segments of at most this many frames (a multiple of
+    #                            the database's STATS_CHUNK): the unit a build fans out
+
+    def __post_init__(self) -> None:
+        if self.segment_frames < STATS_CHUNK or self.segment_frames % STATS_CHUNK:
+            raise ValueError(f"MappingParams.segment_frames must be a multiple of {STATS_CHUNK}")
 
 
 PAPER = MappingParams()
@@ -115,34 +137,86 @@ class PreparedDrives:
     frame_stats_params: tuple[DatabaseParams, ImageParams] | None = None
 
 
-def prepare_drive(
+def drive_segments(n_frames: int, max_frames: int) -> list[tuple[int, int]]:
+    """``(first, stop)`` frame spans cutting a drive of ``n_frames`` into as few segments of at most
+    ``max_frames`` as possible, of near-equal length, each but the last a multiple of ``STATS_CHUNK``."""
+    count = max(1, -(-n_frames // max_frames))
+    size = max(1, -(-n_frames // (count * STATS_CHUNK))) * STATS_CHUNK
+    return [(first, min(first + size, n_frames)) for first in range(0, max(n_frames, 1), size)]
+
+
+def build_segments(
+    drives: Sequence[MappingDrive], params: MappingParams
+) -> list[tuple[int, tuple[int, int]]]:
+    """Every segment of a build: (drive position, ``(first, stop)``), drive by drive in order."""
+    return [
+        (k, span) for k, d in enumerate(drives) for span in drive_segments(d.n_frames, params.segment_frames)
+    ]
+
+
+def prepare_segment(
     drive: MappingDrive,
     params: MappingParams,
     flat: tuple[int, int],
+    span: tuple[int, int],
     report: Callable[[float], None] | None = None,
-) -> PreparedDrive:
-    """Stage 1 of one drive (:func:`driftmap.core.drive_prep.prepare_drive`), as a build of ``params`` needs it.
+) -> PreparedSegment:
+    """Stage 1 of the frames ``span = (first, stop)`` of a drive (:func:`driftmap.core.drive_prep.prepare_segment`).
 
     Args:
         drive: the mapping drive.
         params: pipeline parameters (odometry, images, database).
         flat: (flat index of the drive's first frame, frames of all drives of the build) for the
             database's frame statistics.
-        report: called with the fraction of the drive's frames processed.
+        span: one of :func:`drive_segments` of the drive.
+        report: called with the fraction of the segment's frames processed.
     """
     db = params.database
-    stats = FrameStatsPass(flat[0], flat[1], db, params.images) if db.enabled else None
-    return drive_prep.prepare_drive(
+    stats = FrameStatsPass(flat[0] + span[0], flat[1], db, params.images) if db.enabled else None
+    return drive_prep.prepare_segment(
         drive.name,
-        drive.frames(),
-        int(drive.t_s.shape[0]),
+        drive.frames_between(segment_begin(span[0]), span[1]),
+        span,
         drive.camera,
         params.odometry,
         params.images,
-        start_wT=drive.start_wT or (0.0, 0.0, 0.0),
         stats=stats,
         report=report,
     )
+
+
+def join_segments(
+    drive: MappingDrive, segments: Sequence[PreparedSegment], params: MappingParams
+) -> PreparedDrive:
+    """A drive's piece from its segments (:func:`driftmap.core.drive_prep.join_segments`)."""
+    return drive_prep.join_segments(
+        drive.name, segments, drive.n_frames, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0)
+    )
+
+
+def prepare_drive(
+    drive: MappingDrive,
+    params: MappingParams,
+    flat: tuple[int, int],
+    report: Callable[[float], None] | None = None,
+) -> PreparedDrive:
+    """Stage 1 of one drive, segment after segment in this thread (as a fanned-out build computes it).
+
+    Args:
+        drive: the mapping drive.
+        params: pipeline parameters (odometry, images, database).
+        flat: (flat index of the drive's first frame, frames of all drives of the build).
+        report: called with the fraction of the drive's frames processed.
+    """
+    n, pieces = max(drive.n_frames, 1), []
+    for first, stop in drive_segments(drive.n_frames, params.segment_frames):
+
+        def part(fraction: float, first: int = first, stop: int = stop) -> None:
+            if report is not None:
+                report((first + fraction * (stop - first)) / n)
+
+        pieces.append(prepare_segment(drive, params, flat, (first, stop), part))
+    return join_segments(drive, pieces, params)
 
 
 def flat_offsets(drives: Sequence[MappingDrive]) -> list[tuple[int, int]]:
@@ -164,8 +238,9 @@ def prepare_drives(
         drives: every mapping drive of the site.
         params: pipeline parameters (``use_loop_closures`` off skips the search).
         progress: called with (stage name, fraction 0..1 of that stage), from the calling thread.
-        workers: drives dead-reckoned at once in threads of this process (the odometry is mostly
-            Python-bound: for more cores, run :func:`prepare_drive` in processes and :func:`join_drives`).
+        workers: drive segments dead-reckoned at once in threads of this process (the odometry is mostly
+            Python-bound: for more cores, run :func:`prepare_segment` in processes, then
+            :func:`join_segments` and :func:`join_drives`).
 
     Raises:
         ValueError: no drive, or a drive whose frame count disagrees with its times.
@@ -175,14 +250,17 @@ def prepare_drives(
     report = progress or (lambda _stage, _fraction: None)
     start = time.perf_counter()
     report("odometry", 0.0)
-    with ThreadPoolExecutor(max(1, min(workers, len(drives)))) as pool:
-        futures = [
-            pool.submit(prepare_drive, d, params, flat)
-            for d, flat in zip(drives, flat_offsets(drives), strict=True)
-        ]
+    segments = build_segments(drives, params)
+    flats = flat_offsets(drives)
+    with ThreadPoolExecutor(max(1, min(workers, len(segments)))) as pool:
+        futures = [pool.submit(prepare_segment, drives[k], params, flats[k], span) for k, span in segments]
         for done, _ in enumerate(as_completed(futures), start=1):
-            report("odometry", done / len(drives))
-        pieces = [f.result() for f in futures]
+            report("odometry", done / len(futures))
+        done_segments = [f.result() for f in futures]
+    pieces = [
+        join_segments(d, [s for (j, _span), s in zip(segments, done_segments, strict=True) if j == k], params)
+        for k, d in enumerate(drives)
+    ]
     return join_drives(pieces, drives, params, progress, time.perf_counter() - start)
 
 

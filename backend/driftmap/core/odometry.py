@@ -60,7 +60,17 @@ from driftmap.core.odometry_selfcal import direct_turn, fit_rotation_centre
 from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
 from driftmap.core.registration import register_shift
 
-__all__ = ["DeadReckoning", "OdometryStep", "compose", "dead_reckon", "estimate_step", "shift_horizon"]
+__all__ = [
+    "DeadReckoning",
+    "MatchedSteps",
+    "OdometryStep",
+    "compose",
+    "dead_reckon",
+    "estimate_step",
+    "match_frames",
+    "reckon",
+    "shift_horizon",
+]
 
 Rect = tuple[int, int, int, int]
 Pair = tuple[NDArray[np.float64], NDArray[np.float64]]  # matched pixels (previous frame, current frame)
@@ -690,13 +700,109 @@ def _self_calibrate(
     return offset, lever
 
 
+@dataclass(frozen=True)
+class MatchedSteps:
+    """The steps between consecutive frames of a run of a drive, before the drive's self-calibration.
+
+    Attributes:
+        steps: the S steps, in frame order.
+        pairs: per step, its matched pixels ([ROI centre, near slice, far slice] with the homography
+            model and self-calibration, [ROI centre] without it, none with the linear model).
+        ms_per_step: ``(S,)`` float64 wall-clock milliseconds per step (frame preparation included).
+        frames: frames given (warm-up included).
+    """
+
+    steps: list[OdometryStep]
+    pairs: list[list[Pair]]
+    ms_per_step: NDArray[np.float64]
+    frames: int
+
+
+def match_frames(
+    frames: Iterable[NDArray] | NDArray,
+    camera: CameraModel,
+    params: OdometryParams = ODOMETRY_DEFAULT,
+    *,
+    warm_up: int = 0,
+    first_index: int = 0,
+) -> MatchedSteps:
+    """The steps between consecutive frames; each frame is prepared once.
+
+    A run that starts inside a drive (a segment) is given ``warm_up`` frames before its own: the steps
+    into them only set the motion prior of the next search and are not returned.
+
+    Args:
+        frames: ``(N, H, W)`` uint8 stack or an iterable of ``(H, W)`` uint8 frames in time order.
+        camera: the drive's camera.
+        params: odometry parameters.
+        warm_up: leading steps matched but not returned.
+        first_index: the drive's index of the first frame given (for errors).
+
+    Raises:
+        ValueError: a frame of the wrong shape.
+    """
+    setup = _setup(camera, params)
+    steps: list[OdometryStep] = []
+    pairs: list[list[Pair]] = []
+    times: list[float] = []
+    prev: _Frame | None = None
+    n_frames = 0
+    for k, frame in enumerate(frames):
+        t0 = time.perf_counter()
+        curr = _prepare(_check_frame(frame, camera, f"frame {first_index + k}"), camera, setup, params)
+        n_frames += 1
+        if prev is not None:
+            step, pair = _match(prev, curr, camera, setup, params, steps[-1].shift_px if steps else None)
+            steps.append(step)
+            pairs.append(pair)
+            times.append(1e3 * (time.perf_counter() - t0))
+        prev = curr
+    return MatchedSteps(
+        steps[warm_up:], pairs[warm_up:], np.asarray(times[warm_up:], dtype=np.float64), n_frames
+    )
+
+
+def reckon(
+    matched: MatchedSteps,
+    camera: CameraModel,
+    params: OdometryParams = ODOMETRY_DEFAULT,
+    start_wT: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> DeadReckoning:
+    """Self-calibrate a whole drive's steps and integrate them (the second half of :func:`dead_reckon`).
+
+    Args:
+        matched: every step of the drive, in order (e.g. its segments' joined).
+        camera: the drive's camera.
+        params: odometry parameters (as the steps were matched with).
+        start_wT: world pose ``(x_m, y_m, yaw_rad)`` of the camera foot at the first frame.
+
+    Returns:
+        :class:`DeadReckoning` with S + 1 poses.
+
+    Raises:
+        ValueError: a bad start pose.
+    """
+    start = np.asarray(start_wT, dtype=np.float64)
+    if start.shape != (3,) or not np.all(np.isfinite(start)):
+        raise ValueError(f"start_wT must be finite (x_m, y_m, yaw_rad), got {start_wT}")
+    steps = list(matched.steps)
+    offset, lever = 0.0, camera.y_c_m
+    hom = camera.homography()
+    if params.self_calibrate and steps and steps[0].model == "homography" and hom is not None:
+        offset, lever = _self_calibrate(steps, matched.pairs, camera, hom, params)
+    poses = [start]
+    for s in steps:
+        poses.append(compose(poses[-1], s.prev_T_curr))
+    return DeadReckoning(np.stack(poses), steps, matched.ms_per_step, offset, lever)
+
+
 def dead_reckon(
     frames: Iterable[NDArray] | NDArray,
     camera: CameraModel,
     params: OdometryParams = ODOMETRY_DEFAULT,
     start_wT: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> DeadReckoning:
-    """Integrate the steps of a frame sequence; each frame is prepared once.
+    """Integrate the steps of a frame sequence (:func:`match_frames`, then :func:`reckon`).
 
     With ``params.self_calibrate`` and the homography model, the horizon offset is estimated from
     the whole sequence (median of the moving, confident steps' estimates; needs at least 3) and
@@ -714,31 +820,8 @@ def dead_reckon(
     Raises:
         ValueError: a frame of the wrong shape or a bad start pose.
     """
-    start = np.asarray(start_wT, dtype=np.float64)
-    if start.shape != (3,) or not np.all(np.isfinite(start)):
-        raise ValueError(f"start_wT must be finite (x_m, y_m, yaw_rad), got {start_wT}")
-    setup = _setup(camera, params)
-    steps: list[OdometryStep] = []
-    pairs: list[list[Pair]] = []
-    times: list[float] = []
-    prev: _Frame | None = None
-    n_frames = 0
-    for k, frame in enumerate(frames):
-        t0 = time.perf_counter()
-        curr = _prepare(_check_frame(frame, camera, f"frame {k}"), camera, setup, params)
-        n_frames += 1
-        if prev is not None:
-            step, pair = _match(prev, curr, camera, setup, params, steps[-1].shift_px if steps else None)
-            steps.append(step)
-            pairs.append(pair)
-            times.append(1e3 * (time.perf_counter() - t0))
-        prev = curr
-    offset, lever = 0.0, camera.y_c_m
-    hom = camera.homography()
-    if params.self_calibrate and setup.model == "homography" and hom is not None:
-        offset, lever = _self_calibrate(steps, pairs, camera, hom, params)
-    poses = [start] if n_frames else []
-    for s in steps:
-        poses.append(compose(poses[-1], s.prev_T_curr))
-    wTi = np.stack(poses) if poses else np.zeros((0, 3))
-    return DeadReckoning(wTi, steps, np.asarray(times, dtype=np.float64), offset, lever)
+    empty = reckon(MatchedSteps([], [], np.zeros(0), 0), camera, params, start_wT)  # checks the start pose
+    matched = match_frames(frames, camera, params)
+    if matched.frames == 0:
+        return dataclasses.replace(empty, wTi=np.zeros((0, 3)))
+    return reckon(matched, camera, params, start_wT)

@@ -57,7 +57,7 @@ __all__ = [
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 U8 = NDArray[np.uint8]
-_CHUNK = 128  # frames processed together
+STATS_CHUNK = 128  # frames processed together (a drive segment starts on a multiple of it)
 _SOURCE_CANDIDATES = 4  # regular sample of this many times quality_sources frames; the salient half is used
 _PER_FRAME = ("chain", "row", "frame_id", "xy_m", "yaw_rad", "dist_m", "quality", "visit")
 
@@ -120,7 +120,7 @@ class FrameStatsPass:
 
     Lets the map build compute the statistics in the odometry's pass over a drive (frames decoded
     once, drives in parallel); :func:`finish_frame_stats` then trains the classifier. Frames are
-    processed in chunks of ``_CHUNK`` per drive, as :func:`frame_stats` does, so results are the same.
+    processed in chunks of ``STATS_CHUNK`` per drive, as :func:`frame_stats` does, so results are the same.
 
     Args:
         offset: flat index of the drive's first frame over all mapping drives.
@@ -146,7 +146,7 @@ class FrameStatsPass:
     def add(self, frame: NDArray[np.uint8]) -> None:
         """Take the drive's next ``(H, W)`` uint8 grey frame."""
         self._batch.append(frame)
-        if len(self._batch) == _CHUNK:
+        if len(self._batch) == STATS_CHUNK:
             self._flush()
 
     def close(self) -> FrameStatsPass:

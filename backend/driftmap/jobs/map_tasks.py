@@ -1,10 +1,11 @@
 """The map build as jobs: a ``map.build`` parent fans its stages out to subtasks any worker can take.
 
-``map.build`` (args ``preset``) puts one ``map.drive`` job per mapping drive on the queue (args ``drive_id``,
-``preset``, ``offset``, ``total``; ``parent_id`` = the build) and awaits them, running those still queued
-itself (work stealing, :mod:`driftmap.jobs.subtasks`). A ``map.drive`` job stores its piece (visual
-odometry, thumbnails, frame statistics; :func:`driftmap.services.map_drives.piece_bytes`) as a blob and its
-``succeeded`` with the blob's hash in one transaction. The parent then searches loop closures in
+``map.build`` (args ``preset``) puts one ``map.drive`` job per segment of each mapping drive on the queue
+(args ``drive_id``, ``first``/``stop`` (the segment's frames), ``preset``, ``offset``, ``total``; ``parent_id`` =
+the build) and awaits them, running those still queued itself (work stealing, :mod:`driftmap.jobs.subtasks`).
+A ``map.drive`` job stores its piece (visual odometry, thumbnails, frame statistics;
+:func:`driftmap.services.map_drives.piece_bytes`) as a blob and its ``succeeded`` with the blob's hash in one
+transaction. The parent joins each drive's segments, then searches loop closures in
 ``map.loops`` subtasks, one per block of query keyframes (:mod:`driftmap.jobs.loop_tasks`), and decides
 them. The pose graph, topological map and new map version happen once, in the parent's final
 transaction; the subtasks' blobs are then dropped. A parent re-run (its worker died; the reaper
@@ -23,9 +24,19 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.drive_prep import PreparedDrive
+from driftmap.core.drive_prep import PreparedDrive, PreparedSegment
 from driftmap.core.loops import LoopClosure
-from driftmap.core.mapping import MappingParams, join_drives, prepare_drive, solve_map
+from driftmap.core.mapping import (
+    MappingDrive,
+    MappingParams,
+    build_segments,
+    drive_segments,
+    flat_offsets,
+    join_drives,
+    join_segments,
+    prepare_segment,
+    solve_map,
+)
 from driftmap.errors import ConflictError, DriftmapError, NotFoundError
 from driftmap.jobs.loop_tasks import find_loops
 from driftmap.jobs.presets import preset_params
@@ -51,10 +62,12 @@ def _site(ctx: JobContext, session: Session) -> Site:
 
 
 def map_drive(ctx: JobContext) -> None:
-    """Stage 1 of one drive of a build: its piece becomes a blob. Args: ``drive_id``, ``preset``,
-    ``offset``/``total`` (flat index of its first frame, frames of all the build's drives)."""
+    """Stage 1 of one segment of a drive of a build: its piece becomes a blob. Args: ``drive_id``,
+    ``first``/``stop`` (the segment's frames), ``preset``, ``offset``/``total`` (flat index of the drive's
+    first frame, frames of all the build's drives)."""
     _preset_name, params = preset_params(ctx.args)
     flat = (int(ctx.args["offset"]), int(ctx.args["total"]))
+    span = (int(ctx.args["first"]), int(ctx.args["stop"]))
     storage = ctx.runtime.storage
     ctx.report("odometry", 0.0)
     with storage.db.session() as session:
@@ -62,30 +75,44 @@ def map_drive(ctx: JobContext) -> None:
         if drive is None:
             raise NotFoundError(f"job {ctx.job.id}: drive {ctx.args['drive_id']} does not exist (any more)")
         loaded = map_drives.load_mapping_drive(session, storage.blobs, drive)
-    piece = prepare_drive(loaded.input, params, flat, lambda f: ctx.report("odometry", f))
+    piece = prepare_segment(loaded.input, params, flat, span, lambda f: ctx.report("odometry", f))
     data = map_drives.piece_bytes(piece)
     with storage.blobs.batch() as batch, storage.db.session() as session:
         result = {
             "drive_id": drive.id,
+            "first": span[0],
+            "stop": span[1],
             "piece_sha256": batch.put(data),
-            "frames": piece.n_frames,
+            "frames": span[1] - span[0],
             "seconds": piece.seconds,
         }
         ctx.succeed(session, result)
 
 
-def _drive_subtasks(ctx: JobContext, drives: list[tuple[int, int]], preset: str) -> list[int]:
-    """Ids of this build's ``map.drive`` jobs, one per (drive id, frames), submitted unless they exist."""
-    earlier = existing_subtasks(ctx, "map.drive")
-    if earlier:
-        if [int(a["drive_id"]) for _i, a in earlier] != [d for d, _n in drives]:
-            raise ConflictError("the site's mapping drives changed while its map was being built")
-        return [i for i, _a in earlier]
+def _segment_subtasks(
+    ctx: JobContext, drives: list[tuple[int, int]], preset: str, params: MappingParams
+) -> list[int]:
+    """Ids of this build's ``map.drive`` jobs, one per segment of each (drive id, frames), submitted unless
+    they exist."""
     total, offsets = sum(n for _d, n in drives), np.cumsum([0] + [n for _d, n in drives]).tolist()
     args = [
-        {"drive_id": drive_id, "preset": preset, "offset": offsets[k], "total": total}
-        for k, (drive_id, _n) in enumerate(drives)
+        {
+            "drive_id": drive_id,
+            "first": first,
+            "stop": stop,
+            "preset": preset,
+            "offset": offsets[k],
+            "total": total,
+        }
+        for k, (drive_id, n) in enumerate(drives)
+        for first, stop in drive_segments(n, params.segment_frames)
     ]
+    earlier = existing_subtasks(ctx, "map.drive")
+    if earlier:
+        key = ("drive_id", "first", "stop")
+        if [[a[k] for k in key] for _i, a in earlier] != [[a[k] for k in key] for a in args]:
+            raise ConflictError("the site's mapping drives changed while its map was being built")
+        return [i for i, _a in earlier]
     return submit_subtasks(ctx, "map.drive", args)
 
 
@@ -108,16 +135,16 @@ def map_build(ctx: JobContext) -> None:
             ctx.succeed(session, _result(version))
         return
     try:
-        ids = _drive_subtasks(ctx, drives, preset)
+        ids = _segment_subtasks(ctx, drives, preset, params)
         start = time.monotonic()
         results = await_subtasks(ctx, ids, "odometry", map_drive)
+        with storage.db.session() as session:
+            inputs = _site_drives(ctx, session, drives).inputs
+        pieces = _pieces(ctx, results, params, inputs)
         odometry_s = time.monotonic() - start
-        pieces = _pieces(ctx, results, params, drives)
         loops: tuple[tuple[LoopClosure, ...], float] | None = None
         loop_blobs: list[str] = []
         if params.use_loop_closures:
-            with storage.db.session() as session:
-                inputs = _site_drives(ctx, session, drives).inputs
             closures, loop_s, loop_blobs = find_loops(ctx, pieces, inputs, params)
             loops = (closures, loop_s)
     except (DriftmapError, job_service.JobCancelled):
@@ -154,16 +181,17 @@ def _result(version: MapVersion) -> dict[str, Any]:
 
 
 def _pieces(
-    ctx: JobContext, results: list[dict[str, Any]], params: MappingParams, drives: list[tuple[int, int]]
+    ctx: JobContext, results: list[dict[str, Any]], params: MappingParams, drives: list[MappingDrive]
 ) -> list[PreparedDrive]:
-    total, offset, out = sum(n for _d, n in drives), 0, []
-    for result, (_drive_id, n) in zip(results, drives, strict=True):
+    """Each drive's piece, joined from its segments' blobs (``results`` in segment order)."""
+    flats = flat_offsets(drives)
+    segments: list[list[PreparedSegment]] = [[] for _d in drives]
+    for result, (k, (first, _stop)) in zip(results, build_segments(drives, params), strict=True):
         sha = str(result["piece_sha256"])
         if not ctx.runtime.storage.blobs.exists(sha):
             raise NotFoundError(
                 f"job {ctx.job.id}: the odometry of drive {result['drive_id']} (blob {sha}) is gone"
             )
-        data = ctx.runtime.storage.blobs.get(sha)
-        out.append(map_drives.piece_from_bytes(data, params, (offset, total)))
-        offset += n
-    return out
+        flat = (flats[k][0] + first, flats[k][1])
+        segments[k].append(map_drives.piece_from_bytes(ctx.runtime.storage.blobs.get(sha), params, flat))
+    return [join_segments(d, s, params) for d, s in zip(drives, segments, strict=True)]

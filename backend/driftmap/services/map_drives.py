@@ -1,11 +1,11 @@
-"""A site's mapping drives for the pipeline, one at a time: load one, run its stage 1, carry the result.
+"""A site's mapping drives for the pipeline: load one, run stage 1 on its segments, carry the results.
 
-A map build's stage 1 (visual odometry, thumbnails, frame statistics of one drive,
-:func:`driftmap.core.mapping.prepare_drive`) is the bulk of its time and independent per drive. This module
-runs it on a stored drive in this process (:func:`prepare_stored_drive`, what a ``map.drive`` job does), in
-worker processes of this machine (:func:`prepare_in_processes`, what ``driftmap map build`` does: the
-odometry is Python-bound, so threads share one core), and turns its result into bytes and back
-(:func:`piece_bytes`, :func:`piece_from_bytes`) for the blob store.
+A map build's stage 1 (visual odometry, thumbnails, frame statistics, :func:`driftmap.core.mapping.prepare_segment`)
+is the bulk of its time and independent per drive segment. A ``map.drive`` job runs one segment of a stored
+drive (:func:`load_mapping_drive` streams just its frames); :func:`prepare_in_processes` runs them all in worker
+processes of this machine (what ``driftmap map build`` does: the odometry is Python-bound, so threads share
+one core); :func:`piece_bytes` and :func:`piece_from_bytes` turn a segment's result into bytes and back for
+the blob store.
 """
 
 from __future__ import annotations
@@ -24,8 +24,15 @@ from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.drive_prep import PreparedDrive
-from driftmap.core.mapping import MappingDrive, MappingParams, prepare_drive
+from driftmap.core.drive_prep import PreparedDrive, PreparedSegment
+from driftmap.core.mapping import (
+    MappingDrive,
+    MappingParams,
+    build_segments,
+    flat_offsets,
+    join_segments,
+    prepare_segment,
+)
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import drive_meta, frame_rows
@@ -36,9 +43,9 @@ from driftmap.store.models import Drive, Grounding, Site
 ProgressFn = Callable[[str, float], None]
 
 
-def _frame_source(blobs: BlobStore, shas: list[str]) -> Callable[[], Iterator[NDArray[np.uint8]]]:
-    def frames() -> Iterator[NDArray[np.uint8]]:
-        for sha in shas:
+def _frame_range(blobs: BlobStore, shas: list[str]) -> Callable[[int, int], Iterator[NDArray[np.uint8]]]:
+    def frames(begin: int, stop: int) -> Iterator[NDArray[np.uint8]]:
+        for sha in shas[begin:stop]:
             yield decode_gray(blobs.get(sha), f"blob {sha}")
 
     return frames
@@ -73,12 +80,14 @@ def load_mapping_drive(session: Session, blobs: BlobStore, drive: Drive) -> Load
         if has_truth
         else None
     )
+    frame_range = _frame_range(blobs, [f.blob_sha256 for f in frames])
     mapping = MappingDrive(
         name=drive.name,
         camera=drive_meta(drive).camera,
         t_s=np.array([f.t_s for f in frames], dtype=np.float64),
-        frames=_frame_source(blobs, [f.blob_sha256 for f in frames]),
+        frames=lambda: frame_range(0, len(frames)),
         groundings=[(position[g.frame_id], g.x_m, g.y_m) for g in marks],
+        frame_range=frame_range,
     )
     ids = np.array([f.id for f in frames], dtype=np.int64)
     return LoadedDrive(drive, mapping, ids, [g.id for g in marks], truth)
@@ -98,19 +107,6 @@ def mapping_drives(session: Session, site: Site) -> list[Drive]:
     if not drives:
         raise NotFoundError(f"site {site.name!r} has no mapping drive to build a map from")
     return drives
-
-
-def prepare_stored_drive(
-    session: Session,
-    blobs: BlobStore,
-    drive: Drive,
-    params: MappingParams,
-    flat: tuple[int, int],
-    report: Callable[[float], None] | None = None,
-) -> PreparedDrive:
-    """Stage 1 of a stored mapping drive (see :func:`driftmap.core.mapping.prepare_drive` for ``flat``)."""
-    loaded = load_mapping_drive(session, blobs, drive)
-    return prepare_drive(loaded.input, params, flat, report)
 
 
 def arrays_bytes(arrays: dict[str, NDArray[Any]]) -> bytes:
@@ -133,21 +129,23 @@ def bytes_arrays(data: bytes, what: str) -> dict[str, NDArray[Any]]:
         raise BadInputError(f"{what} is not a readable .npz: {exc}") from exc
 
 
-def piece_bytes(piece: PreparedDrive) -> bytes:
+def piece_bytes(piece: PreparedSegment) -> bytes:
     """``piece`` as ``.npz`` bytes for the blob store."""
     return arrays_bytes(piece.to_arrays())
 
 
-def piece_from_bytes(data: bytes, params: MappingParams, flat: tuple[int, int]) -> PreparedDrive:
-    """The piece :func:`piece_bytes` wrote, for a build of ``params`` (``flat`` as it was prepared with)."""
-    named = bytes_arrays(data, "a drive's prepared piece")
-    return PreparedDrive.from_arrays(named, params.database, params.images, flat[0], flat[1])
+def piece_from_bytes(data: bytes, params: MappingParams, flat: tuple[int, int]) -> PreparedSegment:
+    """The piece :func:`piece_bytes` wrote, for a build of ``params`` (``flat``: flat index of the segment's
+    first frame, frames of the build)."""
+    named = bytes_arrays(data, "a drive segment's prepared piece")
+    return PreparedSegment.from_arrays(named, params.database, params.images, flat[0], flat[1])
 
 
 def _prepare_in_child(
-    store: tuple[str, str], drive_id: int, params: MappingParams, flat: tuple[int, int]
+    store: tuple[str, str], drive_id: int, params: MappingParams, flat: tuple[int, int], span: tuple[int, int]
 ) -> bytes:
-    """Body of a worker process: open the (database URL, blob root) ``store``, prepare drive ``drive_id``."""
+    """Body of a worker process: open the (database URL, blob root) ``store``, prepare one segment of drive
+    ``drive_id``."""
     db = Database(store[0])
     try:
         with db.session() as session:
@@ -155,44 +153,50 @@ def _prepare_in_child(
             if drive is None:
                 raise NotFoundError(f"drive {drive_id} does not exist (any more)")
             loaded = load_mapping_drive(session, BlobStore(Path(store[1])), drive)
-        return piece_bytes(prepare_drive(loaded.input, params, flat))
+        return piece_bytes(prepare_segment(loaded.input, params, flat, span))
     finally:
         db.dispose()
 
 
 def prepare_in_processes(
     store: tuple[str, Path],
-    drive_ids: Sequence[int],
+    drives: Sequence[tuple[int, MappingDrive]],
     params: MappingParams,
-    flats: Sequence[tuple[int, int]],
     workers: int,
     progress: ProgressFn | None = None,
 ) -> list[PreparedDrive]:
-    """Stage 1 of stored drives in up to ``workers`` fresh processes (spawned: no inherited connections).
+    """Stage 1 of stored drives, segment by segment in up to ``workers`` fresh processes (spawned: no
+    inherited connections), joined per drive here.
 
     Args:
         store: (database URL with its password, blob store root) holding the drives.
-        drive_ids: the drives, in build order.
+        drives: (drive id, the drive as loaded here), in build order.
         params: the build's parameters.
-        flats: per drive, (flat index of its first frame, frames of all drives).
-        workers: processes at most (one per drive at most).
-        progress: called with ("odometry", fraction of drives done).
+        workers: processes at most.
+        progress: called with ("odometry", fraction of segments done).
 
     Returns:
-        The pieces in the order of ``drive_ids``, bit-identical to preparing them in this process.
+        The drives' pieces in order, bit-identical to preparing them in this process.
     """
     report = progress or (lambda _stage, _fraction: None)
     report("odometry", 0.0)
+    inputs = [d for _i, d in drives]
+    flats = flat_offsets(inputs)
+    segments = build_segments(inputs, params)
     context = multiprocessing.get_context("spawn")
     payload = (store[0], str(store[1]))
-    with ProcessPoolExecutor(max(1, min(workers, len(drive_ids))), mp_context=context) as pool:
+    with ProcessPoolExecutor(max(1, min(workers, len(segments))), mp_context=context) as pool:
         futures = {
-            pool.submit(_prepare_in_child, payload, drive_id, params, flat): k
-            for k, (drive_id, flat) in enumerate(zip(drive_ids, flats, strict=True))
+            pool.submit(_prepare_in_child, payload, drives[k][0], params, flats[k], span): n
+            for n, (k, span) in enumerate(segments)
         }
-        out: list[PreparedDrive | None] = [None] * len(drive_ids)
-        for done, future in enumerate(as_completed(futures), start=1):
-            k = futures[future]
-            out[k] = piece_from_bytes(future.result(), params, flats[k])
-            report("odometry", done / len(drive_ids))
-    return [p for p in out if p is not None]
+        done: list[PreparedSegment | None] = [None] * len(segments)
+        for count, future in enumerate(as_completed(futures), start=1):
+            n = futures[future]
+            k, (first, _stop) = segments[n]
+            done[n] = piece_from_bytes(future.result(), params, (flats[k][0] + first, flats[k][1]))
+            report("odometry", count / len(segments))
+    return [
+        join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k and s], params)
+        for k, d in enumerate(inputs)
+    ]

@@ -20,7 +20,6 @@ from driftmap.core.mapping import (
     MappingDrive,
     MappingParams,
     build_map,
-    flat_offsets,
     join_drives,
     solve_map,
 )
@@ -203,18 +202,17 @@ def build_site_map(
 ) -> tuple[MapVersion, MapBuild]:
     """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
 
-    With ``workers`` > 1 (and more than one drive), that many drives are dead-reckoned at once in worker
-    processes that open the same database and blob store (the results are bit-identical to one process).
+    With ``workers`` > 1, that many drive segments are dead-reckoned at once in worker processes that open
+    the same database and blob store (the results are bit-identical to one process).
     """
     loaded = load_site_drives(session, blobs, site)
-    if workers > 1 and len(loaded.drives) > 1:
+    if workers > 1:
         start = time.perf_counter()
         url = session.get_bind().engine.url.render_as_string(hide_password=False)
         pieces = prepare_in_processes(
             (url, blobs.root),
-            [d.id for d in loaded.drives],
+            [(d.id, m) for d, m in zip(loaded.drives, loaded.inputs, strict=True)],
             params,
-            flat_offsets(loaded.inputs),
             workers,
             progress,
         )
