@@ -112,8 +112,6 @@ def sad_one_to_many(
     shifts = _shifts(params.max_shift_x_px, params.max_shift_y_px, height, width)
     w = _check_mask(mask, q.shape)
     m_total = r.shape[0]
-    best = np.full(m_total, np.inf, dtype=np.float32)
-    best_idx = np.zeros(m_total, dtype=np.int64)
     chunk = max(1, min(m_total, params.chunk_bytes // (height * width * 4)))
     rows = np.empty(chunk * height, dtype=np.float32)
     diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
@@ -121,19 +119,21 @@ def sad_one_to_many(
     q_tall = np.tile(q, (chunk, 1))
     w_tall = None if w is None else np.tile(w, (chunk, 1))
     # The denominator depends only on the shift: overlap area, or weighted pixels in the overlap.
-    denom = np.empty(len(shifts), dtype=np.float64)
-    for k, (dx, dy) in enumerate(shifts):
-        qy, qx, _, _ = _overlap(dx, dy, height, width)
-        denom[k] = (qy.stop - qy.start) * (qx.stop - qx.start) if w is None else float(w[qy, qx].sum())
+    overlaps = [_overlap(dx, dy, height, width) for dx, dy in shifts]
+    denom = np.array(
+        [
+            (qy.stop - qy.start) * (qx.stop - qx.start) if w is None else float(w[qy, qx].sum())
+            for qy, qx, _, _ in overlaps
+        ],
+        dtype=np.float64,
+    )
+    scores = np.full((len(shifts), m_total), np.inf, dtype=np.float32)  # per shift, per reference
     for c0 in range(0, m_total, chunk):
         n = min(chunk, m_total - c0)
         r_tall = r[c0 : c0 + n].reshape(n * height, width)
-        best_c = best[c0 : c0 + n]
-        idx_c = best_idx[c0 : c0 + n]
-        for k, (dx, dy) in enumerate(shifts):
+        for k, ((_dx, dy), (qy, qx, _, rx)) in enumerate(zip(shifts, overlaps, strict=True)):
             if denom[k] <= 0:
                 continue
-            qy, qx, _, rx = _overlap(dx, dy, height, width)
             # Tall-image rows k0..k1 of the query pair with rows k0+dy..k1+dy of the references.
             k0, k1 = max(0, -dy), n * height - max(0, dy)
             cols = qx.stop - qx.start
@@ -142,11 +142,10 @@ def sad_one_to_many(
             if w_tall is not None:
                 np.multiply(diff, w_tall[k0:k1, qx], out=diff)
             np.matmul(diff, ones[:cols], out=rows[k0:k1])
-            score = rows[: n * height].reshape(n, height)[:, qy].sum(axis=1)
-            score *= np.float32(1.0 / denom[k])
-            better = score < best_c
-            best_c[better] = score[better]
-            idx_c[better] = k
+            np.sum(rows[: n * height].reshape(n, height)[:, qy], axis=1, out=scores[k, c0 : c0 + n])
+    scores *= (1.0 / np.where(denom > 0, denom, 1.0)).astype(np.float32)[:, None]
+    best_idx = np.argmin(scores, axis=0)  # the first shift of the lowest score, as a running minimum keeps
+    best = scores[best_idx, np.arange(m_total)]
     shift_arr = np.asarray(shifts, dtype=np.int16).reshape(-1, 2)
     return SadResult(d=best, shift_px=shift_arr[best_idx])
 
