@@ -21,7 +21,9 @@ true horizon by ``delta`` pixels, ``H_true(u, v) = H(u, v + delta)``, and scales
 depth-dependent factor (about 17 % on the KITTI clips). Floor motion is rigid, so the distance
 between matched points in the nearest and the farthest slice of the ROI footprint must be the
 same in both frames; each moving step yields the ``delta`` that makes it so, and the median over
-the drive is applied to every step at the end. :func:`shift_horizon` gives the corrected camera
+the drive is applied to every step at the end, except where the camera's pitch demonstrably varies
+along the drive (a ramp, a loaded tray: :mod:`driftmap.core.odometry_pitch` tracks it over ~12 m of
+travel and applies the local value there). :func:`shift_horizon` gives the corrected camera
 for later single steps. Camera height (the overall scale) is not observable this way. The same pass
 self-calibrates the rotation centre (the lever ``y_c`` of the arc below) from the floor's own rotation
 between the near and far slices, when the drive turns enough to determine it
@@ -668,9 +670,10 @@ def _self_calibrate(
     hom: NDArray,
     params: OdometryParams,
 ) -> tuple[float, float]:
-    """The drive's horizon offset (median of the steps' estimates) and rotation centre
-    (:mod:`driftmap.core.odometry_selfcal`); re-solves ``steps`` in place with both. Returns the offset (0
-    when unobservable, steps then untouched) and the lever arm used, metres."""
+    """The drive's horizon offset (median of the steps' estimates; tracked where the pitch demonstrably
+    varies, :mod:`driftmap.core.odometry_pitch`) and rotation centre (:mod:`driftmap.core.odometry_selfcal`);
+    re-solves ``steps`` in place with both. Returns the median offset (0 when unobservable, steps then
+    untouched) and the lever arm used, metres."""
     usable = [not s.stationary and s.confidence >= params.stationary_min_confidence for s in steps]
     found = [
         _horizon_offset(hom, p, params.horizon_max_px) if u else None
@@ -805,8 +808,9 @@ def dead_reckon(
     """Integrate the steps of a frame sequence (:func:`match_frames`, then :func:`reckon`).
 
     With ``params.self_calibrate`` and the homography model, the horizon offset is estimated from
-    the whole sequence (median of the moving, confident steps' estimates; needs at least 3) and
-    every step is re-solved with it before integration.
+    the whole sequence (median of the moving, confident steps' estimates, needs at least 3; tracked
+    along the drive where the pitch demonstrably varies) and every step is re-solved with it before
+    integration.
 
     Args:
         frames: ``(N, H, W)`` uint8 stack or an iterable of ``(H, W)`` uint8 frames in time order.
