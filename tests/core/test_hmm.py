@@ -138,6 +138,35 @@ class TestTransitions:
         np.testing.assert_array_equal(dense > 0, (dense > 0).T)  # back as likely reachable as forward
 
 
+class TestLongSteps:
+    """Direct steps between nodes longer than the reach (uneven spacing at junctions and merges)."""
+
+    @staticmethod
+    def uneven_chain() -> csr_array:
+        xs = np.array([0.0, 5.0, 10.0, 19.0, 24.0])  # a 9 m step between nodes 2 and 3
+        edges = np.stack([np.arange(4), np.arange(1, 5)], axis=1).astype(np.int64)
+        return shortest_paths(5, edges, np.diff(xs), 50.0)
+
+    def test_only_direct_steps_are_found(self) -> None:
+        steps = hmm.long_steps(self.uneven_chain(), 7.5)
+        np.testing.assert_array_equal(steps, [[2, 3]])  # 0-2 (10 m) and 1-3 (14 m) pass through a node
+        assert hmm.long_steps(self.uneven_chain(), 10.0).shape == (0, 2)
+
+    def test_transitions_cross_a_long_step_in_one_frame(self) -> None:
+        adj = self.uneven_chain()
+        start = np.zeros(5)
+        start[2] = 1.0
+        plain = hmm.TransitionModel(adj, 50.0, hmm.DEFAULT)  # A_t = 8 m < 9 m: a wall
+        crossing = hmm.TransitionModel(adj, 50.0, hmm.DEFAULT, steps=hmm.long_steps(adj, 7.5))
+        assert plain.predict(start, 0.1)[3] == 0.0
+        prior = crossing.predict(start, 0.1)
+        assert prior[3] > 0 and prior[4] == 0.0  # the next node, not beyond it
+        pi = crossing.matrix(crossing.reach_m(0.1))
+        assert pi is not None
+        np.testing.assert_allclose(pi.sum(axis=0), 1.0)
+        np.testing.assert_array_equal(pi.toarray() > 0, (pi.toarray() > 0).T)
+
+
 class TestSelectStates:
     def test_top_n_t(self) -> None:
         prior = np.array([0.05, 0.4, 0.1, 0.3, 0.15])
@@ -166,6 +195,11 @@ class TestParams:
     def test_rejects_non_positive(self, field: str) -> None:
         with pytest.raises(BadInputError):
             hmm.HmmParams(**{field: 0})
+
+    @pytest.mark.parametrize("field", ["still_ratio", "confirm_frames"])
+    def test_rejects_negative(self, field: str) -> None:
+        with pytest.raises(BadInputError):
+            hmm.HmmParams(**{field: -1})
 
     def test_presets(self) -> None:
         assert hmm.PAPER.lost_frames == 0 and hmm.DEFAULT.lost_frames > 0

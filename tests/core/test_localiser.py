@@ -12,7 +12,6 @@ from driftmap.core.adjacency import shortest_paths
 from driftmap.core.images import patch_normalise
 from driftmap.core.localiser import Estimate, Localiser, LocaliserMap, LocaliserState, build_localiser_map
 from driftmap.core.topomap import TopoMapParams, build_topomap
-from driftmap.errors import BadInputError
 
 SPACING_M = 5.0
 FRAMES_PER_NODE = 3
@@ -164,42 +163,62 @@ class TestBeyondThePaper:
         assert nodes[0] != 15 and nodes[1] == 15
 
 
-class TestBlindFrames:
-    """Opt-in ``blind_ratio``: a frame that tells no place apart leaves the belief to the motion prior."""
+class TestUnevenSpacing:
+    def test_belief_follows_across_a_step_longer_than_the_reach(self) -> None:
+        tex = textures(8, seed=21)
+        rng = np.random.default_rng(22)
+        xs = np.array([0.0, 5.0, 10.0, 15.0, 24.0, 29.0, 34.0, 39.0])  # 9 m between nodes 3 and 4
+        edges = np.stack([np.arange(7), np.arange(1, 8)], axis=1).astype(np.int64)
+        lmap = LocaliserMap(
+            thumbs=np.stack([view(tex[j], rng) for j in range(8) for _ in range(FRAMES_PER_NODE)]),
+            node_ptr=np.arange(0, FRAMES_PER_NODE * 8 + 1, FRAMES_PER_NODE, dtype=np.int64),
+            centres_m=np.column_stack([xs, np.zeros(8)]),
+            adjacency_m=shortest_paths(8, edges, np.diff(xs), 50.0),
+            max_adjacency_m=50.0,
+        )
+        np.testing.assert_array_equal(lmap.long_steps, [[3, 4]])
+        path = [0, 1, 2, 3, 3, 4, 5, 6, 7]
+        est = run(Localiser(lmap, hmm.HmmParams(n_t=3), start_node=0), tex, path)  # A_t = 8 m < 9 m
+        assert [e.node for e in est] == path
 
-    def test_blind_frame_follows_the_prior_and_is_not_lost(
-        self, corridor40: tuple[F32, LocaliserMap]
-    ) -> None:
-        tex, lmap = corridor40
-        params = hmm.HmmParams(blind_ratio=0.9, lost_frames=3)
-        loc = Localiser(lmap, params, start_node=10)
-        run(loc, tex, [10, 11, 12])
-        before = loc.state()
-        blank = np.zeros(lmap.thumbs.shape[1:], dtype=np.float32)  # a black frame: every node looks alike
-        est = loc.step(blank, 3 * DT_S)
-        expected = loc.transitions.predict(before.belief, DT_S)
-        np.testing.assert_allclose(loc.state().belief, expected / expected.sum())
-        assert not est.lost and loc.state().lost_count == before.lost_count
-        assert abs(est.node - 12) <= 1  # the prior stays around the last place
 
-    def test_blind_frames_never_reinitialise_and_tracking_resumes(
-        self, corridor40: tuple[F32, LocaliserMap]
-    ) -> None:
-        tex, lmap = corridor40
+class TestStillFrames:
+    """A vehicle standing where the view matches the map poorly: the same view again is no new evidence."""
+
+    def walk_then_stand(self, still_ratio: float) -> tuple[Localiser, list[Estimate], list[Estimate]]:
+        tex, lmap = self.tex, self.lmap
+        params = hmm.HmmParams(n_t=40, lost_frames=3, still_ratio=still_ratio)  # every node compared
+        loc = Localiser(lmap, params)  # global start: confirmed only by moving frames
+        walk = run(loc, tex, list(range(2, 16)))
+        looks_far = view(tex[32], np.random.default_rng(30))  # standing at 16, the camera sees a look-alike
+        stand = [loc.step(looks_far, (14 + k) * DT_S) for k in range(8)]
+        return loc, walk, stand
+
+    @pytest.fixture(autouse=True)
+    def _map(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        self.tex, self.lmap = corridor40
+
+    def test_standing_never_reinitialises_a_confirmed_belief(self) -> None:
+        loc, walk, stand = self.walk_then_stand(hmm.DEFAULT.still_ratio)
+        assert [e.node for e in walk[-3:]] == [13, 14, 15]
+        assert all(e.lost and not e.matched for e in stand)  # still reported lost
+        assert loc.state().lost_count == 1  # only the first, changed view counted
+        assert all(abs(e.node - 15) <= 2 for e in stand)
+        after = run(loc, self.tex, [16, 17, 18], seed=31, t0_s=22 * DT_S)
+        assert [e.node for e in after] == [16, 17, 18]
+
+    def test_without_still_frames_the_belief_is_thrown_away(self) -> None:
+        _loc, _walk, stand = self.walk_then_stand(0.0)
+        assert stand[-1].node == 32 and stand[-1].matched  # re-initialised: confidently at the look-alike
+
+    def test_a_new_global_start_is_not_held(self) -> None:
+        lmap = self.lmap
+        loc = Localiser(lmap, hmm.HmmParams(n_t=5, lost_frames=3))
         blank = np.zeros(lmap.thumbs.shape[1:], dtype=np.float32)
-        rng = np.random.default_rng(8)
-        frames = [view(tex[j], rng) for j in (10, 11, 12)] + [blank] * 6 + [view(tex[13], rng)]
-        out = {}
-        for ratio in (0.0, 0.9):
-            loc = Localiser(lmap, hmm.HmmParams(blind_ratio=ratio, lost_frames=3), start_node=10)
-            out[ratio] = [loc.step(f, k * DT_S) for k, f in enumerate(frames)]
-        assert sum(e.lost for e in out[0.0][3:9]) >= 3  # default: black frames count as lost
-        assert not any(e.lost for e in out[0.9])
-        assert out[0.9][-1].node == 13 and out[0.9][-1].matched
-
-    def test_negative_ratio_is_refused(self) -> None:
-        with pytest.raises(BadInputError):
-            hmm.HmmParams(blind_ratio=-0.1)
+        for k in range(3):
+            loc.step(blank, k * DT_S)  # nothing confirmed yet: lost frames count even when still
+        assert loc.state().moving <= 1
+        np.testing.assert_allclose(loc.state().belief, 1.0 / lmap.n_nodes)  # re-initialised
 
 
 class TestState:
@@ -216,6 +235,14 @@ class TestState:
         strip = [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes) for e in a]
         assert strip == [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes) for e in b]
         np.testing.assert_array_equal(loc.state().belief, twin.state().belief)
+
+    def test_state_stored_before_still_frames_still_loads(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        _tex, lmap = corridor40
+        arrays = Localiser(lmap, start_node=3).state().to_arrays()
+        assert {"moving", "last_query"} <= set(arrays)
+        old = {k: v for k, v in arrays.items() if k not in ("moving", "last_query")}
+        state = LocaliserState.from_arrays(old)
+        assert state.moving == 0 and state.last_query.shape == (0, 0)
 
 
 class TestBuildLocaliserMap:

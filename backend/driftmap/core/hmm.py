@@ -41,6 +41,7 @@ __all__ = [
     "compare_nodes",
     "hmm_update",
     "initial_belief",
+    "long_steps",
     "observation",
     "select_states",
 ]
@@ -68,10 +69,12 @@ class HmmParams:
     lost_distinct_ratio: float = 0.95  # lost when d(b(i)) / median d of the compared nodes is above this
     lost_elsewhere_ratio: float = 1.0  # lost when d(b(i)) / least d of compared far nodes is above this
     lost_frames: int = 20  # this many lost frames in a row (2 s at 10 fps) re-initialise globally; 0: never
-    # opt-in (0: off): a "blind" frame, whose least d of the compared nodes is above blind_ratio x their median
-    # d, tells no place apart; the belief then follows the motion prior only and the frame neither counts as
-    # lost nor resets the count (see driftmap.core.localiser)
-    blind_ratio: float = 0.0
+    # a frame whose view changed less than still_ratio x its least d to the map since the last frame is "still"
+    # (the vehicle stands): it repeats the evidence of the last frame, so once the belief has followed
+    # confirm_frames moving frames since its last global start, still lost frames do not count towards
+    # re-initialising it (a vehicle stopped where the map's views match poorly is not elsewhere); 0: off
+    still_ratio: float = 0.5
+    confirm_frames: int = 10
 
     def __post_init__(self) -> None:
         for name in ("max_speed_mps", "min_a_t_m", "a_t_quantum_m", "epsilon", "lost_distinct_ratio"):
@@ -85,7 +88,8 @@ class HmmParams:
             raise BadInputError(f"must be >= 1, got {self.n_t}", field="n_t")
         for f in fields(self):
             if (
-                f.name in ("n_probe", "lost_frames", "lost_confidence", "x_thresh", "blind_ratio")
+                f.name
+                in ("n_probe", "lost_frames", "lost_confidence", "x_thresh", "still_ratio", "confirm_frames")
                 and getattr(self, f.name) < 0
             ):
                 raise BadInputError(f"must be >= 0, got {getattr(self, f.name)}", field=f.name)
@@ -247,6 +251,36 @@ def initial_belief(
     return np.asarray(x / x.sum(), dtype=np.float64)
 
 
+def long_steps(adjacency_m: csr_array, from_m: float) -> I64:
+    """The direct steps between two nodes of the map at least ``from_m`` long: (K, 2) int64 pairs x < y.
+
+    A pair (x, y) is a direct step when no third node z lies on a shortest path between them
+    (A(x, z) + A(z, y) > A(x, y)): a vehicle driving from x to y meets no node in between. Node spacing is
+    uneven at junctions and merges, so a few direct steps are longer than the minimum reach A_t; a transition
+    matrix without them would never let the belief follow a vehicle across (:class:`TransitionModel`).
+
+    Args:
+        adjacency_m: (M, M) sparse symmetric shortest-path lengths A, metres.
+        from_m: only steps at least this long are returned, metres.
+    """
+    adj = csr_array(adjacency_m)
+    adj.sort_indices()
+    coo = adj.tocoo()
+    cand = np.flatnonzero((coo.row < coo.col) & (coo.data >= from_m))
+    out = []
+    for x, y, a_xy in zip(
+        coo.row[cand].tolist(), coo.col[cand].tolist(), coo.data[cand].tolist(), strict=True
+    ):
+        rx, ry = slice(adj.indptr[x], adj.indptr[x + 1]), slice(adj.indptr[y], adj.indptr[y + 1])
+        common, ix, iy = np.intersect1d(
+            adj.indices[rx], adj.indices[ry], assume_unique=True, return_indices=True
+        )
+        between = (common != x) & (common != y)
+        if not np.any((adj.data[rx][ix] + adj.data[ry][iy])[between] <= a_xy * (1.0 + 1e-9)):
+            out.append((x, y))
+    return np.asarray(out, dtype=np.int64).reshape(-1, 2)
+
+
 class TransitionModel:
     """Transition matrices pi of eq. 9-10 per frame gap, cached by quantised A_t.
 
@@ -255,13 +289,24 @@ class TransitionModel:
         max_adjacency_m: longest path stored in ``adjacency_m``, metres; a longer reach is treated as
             "anywhere" (uniform prior).
         params: speed, A_t floor and quantum.
+        steps: (K, 2) int64 direct steps between nodes longer than ``params.min_a_t_m`` (:func:`long_steps`):
+            each is reachable in one frame whatever A_t; None: none.
     """
 
-    def __init__(self, adjacency_m: csr_array, max_adjacency_m: float, params: HmmParams) -> None:
+    def __init__(
+        self, adjacency_m: csr_array, max_adjacency_m: float, params: HmmParams, steps: I64 | None = None
+    ) -> None:
         self.adjacency_m = adjacency_m
         self.max_adjacency_m = float(max_adjacency_m)
         self.params = params
         self._cache: dict[float, csr_array] = {}
+        if steps is not None and steps.size:
+            # a direct step longer than the reach still takes one frame: count it as just within the floor
+            adj = csr_array(adjacency_m, copy=True)
+            inside = params.min_a_t_m * (1.0 - 1e-6)
+            adj[steps[:, 0], steps[:, 1]] = np.minimum(adj[steps[:, 0], steps[:, 1]], inside)
+            adj[steps[:, 1], steps[:, 0]] = np.minimum(adj[steps[:, 1], steps[:, 0]], inside)
+            self.adjacency_m = adj
 
     def reach_m(self, gap_s: float) -> float:
         """A_t in metres for a timestamp gap (seconds), floored, rounded up to the quantum."""

@@ -12,7 +12,16 @@ rotating probe nodes) more than two frame reaches (2 A_t) of path away from b(i)
 ``lost_distinct_ratio`` times the median d of the compared nodes. The test is relative to other places of
 the same map, so it holds in mines where every tunnel looks much alike (d of the right place only a few per
 cent below an unrelated one's). After ``lost_frames`` lost frames in a row the belief becomes uniform, so the next frame searches the whole
-map. With ``single_image=True`` there is no filter: every node is compared and b(i) = argmin d.
+map. A vehicle that stands where the map's views match poorly looks lost frame after frame, but it shows
+the same view again and again: a "still" frame (its view changed less than ``still_ratio`` times its least d
+to the map since the previous frame) adds no evidence of being elsewhere, so once the belief has followed
+``confirm_frames`` moving frames since its last global start, still lost frames leave the count where it was
+(they are still reported lost). With ``single_image=True`` there is no filter: every node is compared and
+b(i) = argmin d.
+
+Transitions (eq. 9-10) also let the belief take every direct step between two nodes in one frame, however
+long (:func:`driftmap.core.hmm.long_steps`): node spacing is uneven at junctions and merges, and a step
+longer than the reach A_t would otherwise be a wall the belief can never cross.
 
 SESAME (paper 001, eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
 from the raw frame and only salient query pixels count in every node comparison, normalised by their number
@@ -23,7 +32,8 @@ holistic SAD, so it still gets scores.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -82,6 +92,14 @@ class LocaliserMap:
     def n_nodes(self) -> int:
         """Number of nodes M."""
         return int(self.centres_m.shape[0])
+
+    @cached_property
+    def long_steps(self) -> I64:
+        """(K, 2) int64 direct steps between nodes longer than the default minimum reach (computed once).
+
+        See :func:`driftmap.core.hmm.long_steps`; the transition model lets the belief take each in one frame.
+        """
+        return hmm.long_steps(self.adjacency_m, hmm.DEFAULT.min_a_t_m)
 
 
 def build_localiser_map(
@@ -150,12 +168,16 @@ class LocaliserState:
         last_t_s: timestamp of the last frame, seconds; NaN before the first.
         lost_count: lost frames in a row so far.
         steps: frames processed (drives the probe rotation).
+        moving: frames with a changed view since the last global start (uniform belief).
+        last_query: (h, w) float32 thumbnail of the last frame; (0, 0) before the first.
     """
 
     belief: F64
     last_t_s: float
     lost_count: int
     steps: int
+    moving: int = 0
+    last_query: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 0), dtype=np.float32))
 
     def to_arrays(self) -> dict[str, NDArray[np.generic]]:
         """Named arrays (scalars as 0-d) for the store."""
@@ -164,17 +186,21 @@ class LocaliserState:
             "last_t_s": np.asarray(self.last_t_s, dtype=np.float64),
             "lost_count": np.asarray(self.lost_count, dtype=np.int64),
             "steps": np.asarray(self.steps, dtype=np.int64),
+            "moving": np.asarray(self.moving, dtype=np.int64),
+            "last_query": np.asarray(self.last_query, dtype=np.float32),
         }
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, NDArray[np.generic]]) -> LocaliserState:
-        """Rebuild a state from :meth:`to_arrays` output."""
+        """Rebuild a state from :meth:`to_arrays` output (a state stored before ``moving`` starts afresh)."""
         try:
             return cls(
                 belief=np.array(arrays["belief"], dtype=np.float64),
                 last_t_s=float(arrays["last_t_s"]),
                 lost_count=int(arrays["lost_count"]),
                 steps=int(arrays["steps"]),
+                moving=int(arrays.get("moving", 0)),
+                last_query=np.array(arrays.get("last_query", np.zeros((0, 0))), dtype=np.float32),
             )
         except KeyError as exc:
             raise BadInputError("stored localiser state is missing an array", field=str(exc.args[0])) from exc
@@ -212,7 +238,9 @@ class Localiser:
         self.image_params = lmap.image_params if image_params is None else image_params
         self.single_image = single_image
         self.sesame = sesame
-        self.transitions = hmm.TransitionModel(lmap.adjacency_m, lmap.max_adjacency_m, params)
+        self.transitions = hmm.TransitionModel(
+            lmap.adjacency_m, lmap.max_adjacency_m, params, steps=lmap.long_steps
+        )
         self._all = np.arange(lmap.n_nodes, dtype=np.int64)
         self._state = LocaliserState(hmm.initial_belief(lmap.n_nodes), float("nan"), 0, 0)
         self.reset(start_node, start_radius_m)
@@ -220,12 +248,17 @@ class Localiser:
     def reset(self, start_node: int | None = None, start_radius_m: float = 0.0) -> None:
         """Start again: peaked at ``start_node`` (within ``start_radius_m`` metres) or global when None."""
         belief = hmm.initial_belief(self.map.n_nodes, start_node, self.map.centres_m, start_radius_m)
-        self._state = LocaliserState(belief, float("nan"), 0, 0)
+        confirmed = (
+            0 if start_node is None else self.params.confirm_frames
+        )  # a known start needs no confirming
+        self._state = LocaliserState(belief, float("nan"), 0, 0, confirmed)
 
     def state(self) -> LocaliserState:
         """The current state (a copy)."""
         s = self._state
-        return LocaliserState(s.belief.copy(), s.last_t_s, s.lost_count, s.steps)
+        return LocaliserState(
+            s.belief.copy(), s.last_t_s, s.lost_count, s.steps, s.moving, s.last_query.copy()
+        )
 
     def restore(self, state: LocaliserState) -> None:
         """Continue from a saved state of a localiser on the same map."""
@@ -233,7 +266,14 @@ class Localiser:
             raise BadInputError(
                 f"belief must be ({self.map.n_nodes},), got {state.belief.shape}", field="belief"
             )
-        self._state = LocaliserState(state.belief.copy(), state.last_t_s, state.lost_count, state.steps)
+        self._state = LocaliserState(
+            state.belief.copy(),
+            state.last_t_s,
+            state.lost_count,
+            state.steps,
+            state.moving,
+            state.last_query.copy(),
+        )
 
     def thumbnail(self, frame: NDArray[np.generic]) -> NDArray[np.float32]:
         """(H, W) float32 query thumbnail: a floating frame of the map's thumbnail shape is taken as is."""
@@ -294,13 +334,8 @@ class Localiser:
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
-        blind = p.blind_ratio > 0 and self._is_blind(d_all, p.blind_ratio)
-        if blind:  # the frame tells no place apart: the motion prior alone
-            total = float(prior.sum())
-            belief = prior / total if total > 0 else hmm.initial_belief(lm.n_nodes)
-        else:
-            gamma = hmm.observation(d_all[: nodes.size], p.p_t, p.epsilon)
-            belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
+        gamma = hmm.observation(d_all[: nodes.size], p.p_t, p.epsilon)
+        belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
         best = int(np.argmax(belief))
         score = float(belief[best])
         compared = np.r_[nodes, probes]
@@ -311,11 +346,15 @@ class Localiser:
         elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here, far_m)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
         lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
-        lost = lost and not blind  # no evidence of being elsewhere either
-        lost_count = s.lost_count if blind else (s.lost_count + 1 if lost else 0)
+        still = self._is_still(query, s.last_query, float(np.min(d_all, initial=np.inf)))
+        moving = s.moving + (0 if still else 1)
+        if lost and still and moving >= p.confirm_frames:
+            lost_count = s.lost_count  # the same view again: no new evidence of being elsewhere
+        else:
+            lost_count = s.lost_count + 1 if lost else 0
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
-            belief, lost_count = hmm.initial_belief(lm.n_nodes), 0  # re-initialise globally
-        self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1)
+            belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
+        self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1, moving, query.copy())
         return self._estimate(best, score, lost, int(d_all.size), t0)
 
     def _elsewhere_ratio(
@@ -331,13 +370,14 @@ class Localiser:
         d_far = float(d[far].min())
         return d_here / d_far if d_far > 0 else float("inf")
 
-    @classmethod
-    def _is_blind(cls, d: NDArray[np.floating], ratio: float) -> bool:
-        """True when the least finite d is above ``ratio`` x the median d (or none is finite): no place stands out."""
-        finite = d[np.isfinite(d)]
-        if finite.size == 0:
-            return True
-        return 1.0 - cls._distinctness(finite, float(finite.min())) > ratio
+    def _is_still(self, query: NDArray[np.float32], last: NDArray[np.float32], d_least: float) -> bool:
+        """True when the view barely changed since the last frame: mean |query - last| below ``still_ratio``
+        x the least d of this frame to the map (the vehicle stands; a moving camera changes its view about as
+        much as it differs from the best reference)."""
+        ratio = self.params.still_ratio
+        if ratio <= 0 or last.shape != query.shape or not np.isfinite(d_least):
+            return False
+        return float(np.mean(np.abs(query - last))) < ratio * d_least
 
     @staticmethod
     def _distinctness(d: NDArray[np.floating], d_best: float) -> float:
