@@ -251,34 +251,37 @@ def initial_belief(
     return np.asarray(x / x.sum(), dtype=np.float64)
 
 
-def long_steps(adjacency_m: csr_array, from_m: float) -> I64:
+def long_steps(adjacency_m: csr_array, from_m: float, nearest: int = 12) -> I64:
     """The direct steps between two nodes of the map at least ``from_m`` long: (K, 2) int64 pairs x < y.
 
     A pair (x, y) is a direct step when no third node z lies on a shortest path between them
     (A(x, z) + A(z, y) > A(x, y)): a vehicle driving from x to y meets no node in between. Node spacing is
     uneven at junctions and merges, so a few direct steps are longer than the minimum reach A_t; a transition
     matrix without them would never let the belief follow a vehicle across (:class:`TransitionModel`).
+    Only each node's ``nearest`` nodes by path are examined (a direct step leads to one of a node's nearest
+    nodes in its direction; a junction has a handful of directions), which bounds the work on dense maps.
 
     Args:
         adjacency_m: (M, M) sparse symmetric shortest-path lengths A, metres.
         from_m: only steps at least this long are returned, metres.
+        nearest: the nodes examined from each node.
     """
     adj = csr_array(adjacency_m)
     adj.sort_indices()
-    coo = adj.tocoo()
-    cand = np.flatnonzero((coo.row < coo.col) & (coo.data >= from_m))
-    out = []
-    for x, y, a_xy in zip(
-        coo.row[cand].tolist(), coo.col[cand].tolist(), coo.data[cand].tolist(), strict=True
-    ):
-        rx, ry = slice(adj.indptr[x], adj.indptr[x + 1]), slice(adj.indptr[y], adj.indptr[y + 1])
-        common, ix, iy = np.intersect1d(
-            adj.indices[rx], adj.indices[ry], assume_unique=True, return_indices=True
-        )
-        between = (common != x) & (common != y)
-        if not np.any((adj.data[rx][ix] + adj.data[ry][iy])[between] <= a_xy * (1.0 + 1e-9)):
-            out.append((x, y))
-    return np.asarray(out, dtype=np.int64).reshape(-1, 2)
+    out: set[tuple[int, int]] = set()
+    for x in range(adj.shape[0]):
+        rx = slice(adj.indptr[x], adj.indptr[x + 1])
+        cols, dist = adj.indices[rx], adj.data[rx]
+        order = np.argsort(dist, kind="stable")[:nearest]
+        for y, a_xy in zip(cols[order].tolist(), dist[order].tolist(), strict=True):
+            if y == x or a_xy < from_m or (min(x, y), max(x, y)) in out:
+                continue
+            ry = slice(adj.indptr[y], adj.indptr[y + 1])
+            common, ix, iy = np.intersect1d(cols, adj.indices[ry], assume_unique=True, return_indices=True)
+            between = (common != x) & (common != y)
+            if not np.any((dist[ix] + adj.data[ry][iy])[between] <= a_xy * (1.0 + 1e-9)):
+                out.add((min(x, y), max(x, y)))
+    return np.asarray(sorted(out), dtype=np.int64).reshape(-1, 2)
 
 
 class TransitionModel:
