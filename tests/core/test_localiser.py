@@ -163,6 +163,24 @@ class TestBeyondThePaper:
         assert nodes[0] != 15 and nodes[1] == 15
 
 
+class TestConfidence:
+    def test_a_frame_that_shows_its_place_is_confident_a_blank_one_is_not(
+        self, corridor40: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor40
+        loc = Localiser(lmap, start_node=10)
+        seen = run(loc, tex, [10, 11, 12])[-1]
+        assert 0.2 < seen.distinct <= 1.0
+        assert seen.confidence == pytest.approx(seen.score * seen.distinct)
+        blank = loc.step(np.zeros(lmap.thumbs.shape[1:], dtype=np.float32), 3 * DT_S)
+        assert blank.distinct < 0.05 and blank.confidence < 0.05 * blank.score + 1e-12
+
+    def test_single_image_confidence_is_its_score(self, corridor3: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor3
+        est = run(Localiser(lmap, single_image=True), tex, [1])[0]
+        assert est.distinct == pytest.approx(est.score) and est.confidence == pytest.approx(est.score**2)
+
+
 class TestUnevenSpacing:
     def test_belief_follows_across_a_step_longer_than_the_reach(self) -> None:
         tex = textures(8, seed=21)

@@ -147,6 +147,8 @@ class Estimate:
         lost: this frame counted as lost (the filter re-initialises after ``lost_frames`` in a row).
         evaluated_nodes: number of nodes compared with the query this frame.
         ms: wall time of the step, milliseconds.
+        distinct: how much better this frame matches b(i) than a typical compared node,
+            ``1 - d(i, b(i)) / median d`` clipped to [0, 1] (single-image mode: ``score``).
     """
 
     node: int
@@ -157,6 +159,17 @@ class Estimate:
     lost: bool
     evaluated_nodes: int
     ms: float
+    distinct: float = 0.0
+
+    @property
+    def confidence(self) -> float:
+        """``score x distinct`` in [0, 1]: the belief is on b(i) *and* this frame looks like b(i).
+
+        The posterior X_i(b(i)) alone can be high because the motion prior keeps it there while the view
+        matches b(i) no better than anywhere else (a vehicle leaving a poorly mapped area towards a
+        look-alike); ranking frames by this product keeps those below frames that show their place.
+        """
+        return self.score * self.distinct
 
 
 @dataclass(frozen=True, eq=False)
@@ -327,7 +340,7 @@ class Localiser:
             best = int(np.argmin(d))
             score = self._distinctness(d, float(d[best]))
             self._state = LocaliserState(s.belief, t_s, 0, s.steps + 1)
-            return self._estimate(best, score, False, lm.n_nodes, t0)
+            return self._estimate(best, score, False, lm.n_nodes, t0, score)
 
         gap_s = t_s - s.last_t_s if np.isfinite(s.last_t_s) else 0.0
         prior = s.belief if not np.isfinite(s.last_t_s) else self.transitions.predict(s.belief, gap_s)
@@ -355,7 +368,7 @@ class Localiser:
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
         self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1, moving, query.copy())
-        return self._estimate(best, score, lost, int(d_all.size), t0)
+        return self._estimate(best, score, lost, int(d_all.size), t0, 1.0 - typical)
 
     def _elsewhere_ratio(
         self, compared: I64, d: NDArray[np.floating], best: int, d_here: float, far_m: float
@@ -388,7 +401,9 @@ class Localiser:
         med = float(np.median(finite))
         return 1.0 - d_best / med if med > 0 else 0.0
 
-    def _estimate(self, node: int, score: float, lost: bool, evaluated: int, t0: float) -> Estimate:
+    def _estimate(
+        self, node: int, score: float, lost: bool, evaluated: int, t0: float, distinct: float
+    ) -> Estimate:
         x_m, y_m = self.map.centres_m[node]
         return Estimate(
             node=node,
@@ -399,4 +414,5 @@ class Localiser:
             lost=lost,
             evaluated_nodes=evaluated,
             ms=(time.perf_counter() - t0) * 1e3,
+            distinct=min(max(distinct, 0.0), 1.0),
         )
