@@ -59,6 +59,7 @@ class TestReport:
             )
             assert 0.0 <= float(row["auc"]) <= 1.0
             assert 0.0 <= float(row["recall_at_p100"]) <= float(row["auc"]) + 1e-9  # AP >= recall at P = 1
+            assert 0.0 <= float(row["recall_at_p100_confidence"]) <= 1.0
         for name in ("HMM+SAD", "HMM+SESAME"):
             assert float(rows[("clean", name)]["auc"]) >= MIN_HMM_AUC
             error = float(rows[("clean", name)]["matched_error_m"])
