@@ -23,7 +23,8 @@ from driftmap.core.mapping import (
     prepare_drives,
     prepare_segment,
 )
-from driftmap.core.odometry import _apply, _horizon_offset, _masks, _setup, _warp
+from driftmap.core.odometry import _horizon_offset
+from driftmap.core.odometry_grid import apply_homography, grid_masks, match_grid, warp_to_grid
 from driftmap.core.params import ODOMETRY_DEFAULT
 from driftmap.core.place_database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
 from driftmap.core.registration import _gradient
@@ -53,15 +54,17 @@ def test_gradient_is_numpys_bit_for_bit(shape: tuple[int, int]) -> None:
 
 def test_packed_mask_warp_equals_one_warp_per_mask() -> None:
     params = replace(ODOMETRY_DEFAULT, model="linear", linear_patches=(4, 3))  # 12 regions: two packed warps
-    setup = _setup(CAM, params)
+    setup = match_grid(CAM, params)
     m_rot = setup.px_from_grid @ np.array([[0.99, -0.14, 3.0], [0.14, 0.99, -2.0], [0.0, 0.0, 1.0]])
-    regions, valid = _masks(CAM, setup, m_rot, 2)
+    regions, valid = grid_masks(CAM, setup, m_rot, 2)
     assert len(regions) == 12
     full = np.ones((CAM.height_px, CAM.width_px), np.uint8)
     for got, mask in zip(regions, setup.region_px, strict=True):
-        assert np.array_equal(got, _warp(mask, setup, m_rot, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT))
+        assert np.array_equal(got, warp_to_grid(mask, setup, m_rot, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT))
     ref_valid = cv2.erode(
-        _warp(full, setup, m_rot, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT), np.ones((3, 3)), iterations=2
+        warp_to_grid(full, setup, m_rot, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT),
+        np.ones((3, 3)),
+        iterations=2,
     )
     assert np.array_equal(valid, ref_valid)
     assert 0 < valid.sum() < valid.size
@@ -150,7 +153,7 @@ def _horizon_offset_all_81(
         shifted = pts + np.array([0.0, delta])
         if np.any(shifted @ hom[2, :2] + hom[2, 2] <= 0):
             return math.nan
-        f = _apply(hom, shifted)
+        f = apply_homography(hom, shifted)
         return float(np.linalg.norm(f[0] - f[1]) - np.linalg.norm(f[2] - f[3]))
 
     grid = np.linspace(-max_px, max_px, 81)
