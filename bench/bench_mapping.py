@@ -56,6 +56,7 @@ from driftmap.core.mapping import (
 from driftmap.formats.drive_folder import DriveFolder, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
 from driftmap.jobs.loop_tasks import QUERIES_PER_TASK
+from driftmap.services.map_drives import single_threaded_worker
 from driftmap.sim import simulate_site
 
 OUT = Path(__file__).resolve().parent / "out"
@@ -126,7 +127,9 @@ def build_in_processes(site: Path, params: MappingParams, workers: int) -> MapBu
     segments = build_segments(drives, params)
     start = time.perf_counter()
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(min(workers, len(segments)), mp_context=context) as pool:
+    with ProcessPoolExecutor(
+        min(workers, len(segments)), mp_context=context, initializer=single_threaded_worker
+    ) as pool:
         futures = [pool.submit(_prepare_folder, paths[k], params, flats[k], span) for k, span in segments]
         done = [
             PreparedSegment.from_arrays(

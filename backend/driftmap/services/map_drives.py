@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy import select
@@ -158,6 +159,15 @@ def _prepare_in_child(
         db.dispose()
 
 
+def single_threaded_worker() -> None:
+    """Initializer of a pool whose processes fill the cores already: OpenCV on one thread each.
+
+    OpenCV's default pool takes every core; with two odometry processes on two cores each spends ~45 %
+    more CPU per frame on its second thread (28-29 vs 17-21 ms here) for no gain in wall time.
+    """
+    cv2.setNumThreads(1)
+
+
 def prepare_in_processes(
     store: tuple[str, Path],
     drives: Sequence[tuple[int, MappingDrive]],
@@ -185,7 +195,8 @@ def prepare_in_processes(
     segments = build_segments(inputs, params)
     context = multiprocessing.get_context("spawn")
     payload = (store[0], str(store[1]))
-    with ProcessPoolExecutor(max(1, min(workers, len(segments))), mp_context=context) as pool:
+    processes = max(1, min(workers, len(segments)))
+    with ProcessPoolExecutor(processes, mp_context=context, initializer=single_threaded_worker) as pool:
         futures = {
             pool.submit(_prepare_in_child, payload, drives[k][0], params, flats[k], span): n
             for n, (k, span) in enumerate(segments)
