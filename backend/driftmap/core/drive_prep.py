@@ -155,6 +155,7 @@ class PreparedSegment:
             "pair_counts": counts,
             "ms_per_step": self.matched.ms_per_step,
             "frames": np.array(self.matched.frames),
+            "horizon_px": self.matched.horizon_px,
             "thumbs": self.thumbs,
             "seconds": np.array(self.seconds),
         }
@@ -193,6 +194,7 @@ class PreparedSegment:
             ],
             np.asarray(arrays["ms_per_step"], dtype=np.float64),
             int(arrays["frames"]),
+            np.asarray(arrays["horizon_px"], dtype=np.float64),
         )
         return cls(int(arrays["first"]), matched, thumbs, stats, float(arrays["seconds"]))
 
@@ -267,6 +269,7 @@ def join_segments(
         [pair for s in segments for pair in s.matched.pairs],
         np.concatenate([s.matched.ms_per_step for s in segments]),
         n_frames,
+        np.concatenate([s.matched.horizon_px for s in segments]),
     )
     reckoning = reckon(matched, camera, odometry, start_wT)
     steps = reckoning.steps

@@ -467,23 +467,34 @@ def compose(wTa: NDArray | tuple[float, ...], aTb: NDArray | tuple[float, ...]) 
     )
 
 
+def _usable(step: OdometryStep, params: OdometryParams) -> bool:
+    """Whether a step's matches take part in the self-calibration (moving, confident)."""
+    return not step.stationary and step.confidence >= params.stationary_min_confidence
+
+
+def _step_horizon(
+    step: OdometryStep, pairs: list[Pair], hom: NDArray | None, params: OdometryParams
+) -> float:
+    """The horizon offset one step's near/far match implies, pixels (NaN: unusable or unobservable)."""
+    if hom is None or not params.self_calibrate or not _usable(step, params):
+        return math.nan
+    found = _horizon_offset(hom, pairs, params.horizon_max_px)
+    return math.nan if found is None else found
+
+
 def _self_calibrate(
     steps: list[OdometryStep],
     pairs: list[list[Pair]],
+    estimates: NDArray[np.float64],
     camera: CameraModel,
     hom: NDArray,
     params: OdometryParams,
 ) -> tuple[float, float]:
-    """The drive's horizon offset (median of the steps' estimates; tracked where the pitch demonstrably
-    varies, :mod:`driftmap.core.odometry_pitch`) and rotation centre (:mod:`driftmap.core.odometry_selfcal`);
-    re-solves ``steps`` in place with both. Returns the median offset (0 when unobservable, steps then
-    untouched) and the lever arm used, metres."""
-    usable = [not s.stationary and s.confidence >= params.stationary_min_confidence for s in steps]
-    found = [
-        _horizon_offset(hom, p, params.horizon_max_px) if u else None
-        for u, p in zip(usable, pairs, strict=True)
-    ]
-    estimates = np.array([math.nan if f is None else f for f in found], dtype=np.float64)
+    """The drive's horizon offset (median of the steps' ``estimates``, :func:`_step_horizon`; tracked where
+    the pitch demonstrably varies, :mod:`driftmap.core.odometry_pitch`) and rotation centre
+    (:mod:`driftmap.core.odometry_selfcal`); re-solves ``steps`` in place with both. Returns the median offset
+    (0 when unobservable, steps then untouched) and the lever arm used, metres."""
+    usable = [_usable(s, params) for s in steps]
     tracked = horizon_floor(hom, pairs, estimates, params.pitch_window_m, params.pitch_gate_z)
     if tracked is None:  # fewer than 3 estimates
         return 0.0, camera.y_c_m
@@ -517,12 +528,16 @@ class MatchedSteps:
             model and self-calibration, [ROI centre] without it, none with the linear model).
         ms_per_step: ``(S,)`` float64 wall-clock milliseconds per step (frame preparation included).
         frames: frames given (warm-up included).
+        horizon_px: ``(S,)`` float64 horizon offset each step's near/far match implies, pixels (NaN where
+            the step is unusable or it is unobservable); the self-calibration's per-step input, computed
+            where the step is (in parallel), not at the join.
     """
 
     steps: list[OdometryStep]
     pairs: list[list[Pair]]
     ms_per_step: NDArray[np.float64]
     frames: int
+    horizon_px: NDArray[np.float64]
 
 
 def match_frames(
@@ -549,8 +564,10 @@ def match_frames(
         ValueError: a frame of the wrong shape.
     """
     setup = match_grid(camera, params)
+    hom = camera.homography() if setup.model == "homography" else None
     steps: list[OdometryStep] = []
     pairs: list[list[Pair]] = []
+    horizons: list[float] = []
     times: list[float] = []
     prev: GridFrame | None = None
     n_frames = 0
@@ -562,10 +579,12 @@ def match_frames(
             step, pair = _match(prev, curr, camera, setup, params, steps[-1].shift_px if steps else None)
             steps.append(step)
             pairs.append(pair)
+            horizons.append(_step_horizon(step, pair, hom, params))
             times.append(1e3 * (time.perf_counter() - t0))
         prev = curr
+    w = warm_up
     return MatchedSteps(
-        steps[warm_up:], pairs[warm_up:], np.asarray(times[warm_up:], dtype=np.float64), n_frames
+        steps[w:], pairs[w:], np.asarray(times[w:], dtype=np.float64), n_frames, np.asarray(horizons[w:])
     )
 
 
@@ -596,7 +615,7 @@ def reckon(
     offset, lever = 0.0, camera.y_c_m
     hom = camera.homography()
     if params.self_calibrate and steps and steps[0].model == "homography" and hom is not None:
-        offset, lever = _self_calibrate(steps, matched.pairs, camera, hom, params)
+        offset, lever = _self_calibrate(steps, matched.pairs, matched.horizon_px, camera, hom, params)
     poses = [start]
     for s in steps:
         poses.append(compose(poses[-1], s.prev_T_curr))
@@ -628,7 +647,7 @@ def dead_reckon(
     Raises:
         ValueError: a frame of the wrong shape or a bad start pose.
     """
-    empty = reckon(MatchedSteps([], [], np.zeros(0), 0), camera, params, start_wT)  # checks the start pose
+    empty = reckon(MatchedSteps([], [], np.zeros(0), 0, np.zeros(0)), camera, params, start_wT)  # start pose
     matched = match_frames(frames, camera, params)
     if matched.frames == 0:
         return dataclasses.replace(empty, wTi=np.zeros((0, 3)))
