@@ -34,9 +34,7 @@ import numpy as np
 
 from bench_loops import load_site
 from driftmap.core.drive_prep import PreparedSegment
-from driftmap.core.loop_scores import LoopSearch, QueryScores, plan_search, score_queries, split_queries
-from driftmap.core.loops import LOOPS_DEFAULT, LoopClosure, decide_loops, detect_loops
-from driftmap.core.map_prepare import loop_inputs
+from driftmap.core.loops import LOOPS_DEFAULT, detect_loops
 from driftmap.core.mapping import (
     FAST,
     PAPER,
@@ -55,7 +53,6 @@ from driftmap.core.mapping import (
 )
 from driftmap.formats.drive_folder import DriveFolder, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
-from driftmap.jobs.loop_tasks import QUERIES_PER_TASK
 from driftmap.services.map_drives import single_threaded_worker
 from driftmap.sim import simulate_site
 
@@ -112,15 +109,10 @@ def _prepare_folder(
     return prepare_segment(folder_drive(path), params, flat, span).to_arrays()
 
 
-def _score_block(search: LoopSearch, params: MappingParams, q0: int, q1: int) -> QueryScores:
-    """One block of the loop-closure search, in a worker process (a map.loops subtask's work)."""
-    return score_queries(search, params.loops, q0, q1)
-
-
 def build_in_processes(site: Path, params: MappingParams, workers: int) -> MapBuild:
-    """The build as the map.build job runs it, with ``workers`` spawned processes as its workers: every drive
-    segment's stage 1, joined per drive here; then the loop-closure search planned here, its blocks of
-    queries scored in the processes (as map.loops subtasks of 1,024 queries) and decided here."""
+    """The build as ``driftmap map build --workers`` runs it: every drive segment's stage 1 in one of
+    ``workers`` spawned processes (one OpenCV thread each), joined per drive here, then the loop-closure
+    search, pose graph and topological map in this process."""
     paths = mapping_folders(site)
     drives = [folder_drive(p) for p in paths]
     flats = flat_offsets(drives)
@@ -137,21 +129,11 @@ def build_in_processes(site: Path, params: MappingParams, workers: int) -> MapBu
             )
             for fut, (k, span) in zip(futures, segments, strict=True)
         ]
-        pieces = [
-            join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k], params)
-            for k, d in enumerate(drives)
-        ]
-        odometry_s = time.perf_counter() - start
-        start = time.perf_counter()
-        found: list[LoopClosure] = []
-        _keyframes, key_thumbs, key_times = loop_inputs(pieces, drives, params)
-        search = plan_search(key_thumbs, params.loops, key_times)
-        if search is not None:
-            ranges = split_queries(search, params.loops, QUERIES_PER_TASK)
-            blocks = [pool.submit(_score_block, search, params, q0, q1) for q0, q1 in ranges]
-            found = decide_loops(search, [b.result() for b in blocks], params.loops).closures
-    closures = (found, time.perf_counter() - start)
-    prepared = join_drives(pieces, drives, params, None, odometry_s, closures)
+    pieces = [
+        join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k], params)
+        for k, d in enumerate(drives)
+    ]
+    prepared = join_drives(pieces, drives, params, None, time.perf_counter() - start)
     return solve_map(prepared, drives, params)
 
 
