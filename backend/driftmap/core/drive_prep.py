@@ -12,6 +12,7 @@ wherever the segments were computed.
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -293,11 +294,9 @@ def join_segments(
 def _merged(passes: Sequence[FrameStatsPass]) -> FrameStatsPass:
     """One drive's frame-statistics pass from its consecutive segments' (chunk lists concatenated: segments
     start on chunk boundaries, so the chunks are those of one pass over the drive)."""
-    first, last = passes[0], passes[-1]
-    merged = FrameStatsPass(0, 1, first.params, first.image_params)
-    merged.stride = first.stride
+    merged = copy.copy(passes[0])  # parameters and sampling stride; the closed passes hold no batch
     for name in _STATS_LISTS:
         setattr(merged, name, [chunk for p in passes for chunk in getattr(p, name)])
     merged.frames = sum(p.frames for p in passes)
-    merged.seen = last.seen
+    merged.seen = passes[-1].seen
     return merged
