@@ -139,7 +139,8 @@ class PreparedDrives:
 
 def drive_segments(n_frames: int, max_frames: int) -> list[tuple[int, int]]:
     """``(first, stop)`` frame spans cutting a drive of ``n_frames`` into as few segments of at most
-    ``max_frames`` as possible, of near-equal length, each but the last a multiple of ``STATS_CHUNK``."""
+    ``max_frames`` as possible; all but the last have one length, the smallest multiple of ``STATS_CHUNK``
+    that keeps their number (3,282 frames, at most 512: six of 512 and one of 210)."""
     count = max(1, -(-n_frames // max_frames))
     size = max(1, -(-n_frames // (count * STATS_CHUNK))) * STATS_CHUNK
     return [(first, min(first + size, n_frames)) for first in range(0, max(n_frames, 1), size)]
