@@ -1,9 +1,10 @@
 """Stages 1-3 of a map build (paper 000, III-A): per-drive odometry, keyframes, loop-closure search.
 
 The inputs of a build (:class:`MappingDrive`, :class:`MappingParams` and its presets) live here too.
-Stage 1 is independent per drive (:func:`prepare_drive`); :func:`prepare_drives` runs it in threads of this
-process, and :func:`join_drives` takes pieces computed anywhere (worker processes, job workers) and runs
-stages 2-3 on them, with results bit-identical to the one-process build.
+Stage 1 is independent per drive segment (:func:`prepare_segment`, joined per drive by :func:`join_segments`);
+:func:`prepare_drives` runs it in threads of this process, and :func:`join_drives` takes pieces computed
+anywhere (worker processes, job workers) and runs stages 2-3 on them, with results bit-identical to the
+one-process build.
 """
 
 from __future__ import annotations
@@ -195,33 +196,8 @@ def join_segments(
     )
 
 
-def prepare_drive(
-    drive: MappingDrive,
-    params: MappingParams,
-    flat: tuple[int, int],
-    report: Callable[[float], None] | None = None,
-) -> PreparedDrive:
-    """Stage 1 of one drive, segment after segment in this thread (as a fanned-out build computes it).
-
-    Args:
-        drive: the mapping drive.
-        params: pipeline parameters (odometry, images, database).
-        flat: (flat index of the drive's first frame, frames of all drives of the build).
-        report: called with the fraction of the drive's frames processed.
-    """
-    n, pieces = max(drive.n_frames, 1), []
-    for first, stop in drive_segments(drive.n_frames, params.segment_frames):
-
-        def part(fraction: float, first: int = first, stop: int = stop) -> None:
-            if report is not None:
-                report((first + fraction * (stop - first)) / n)
-
-        pieces.append(prepare_segment(drive, params, flat, (first, stop), part))
-    return join_segments(drive, pieces, params)
-
-
 def flat_offsets(drives: Sequence[MappingDrive]) -> list[tuple[int, int]]:
-    """Per drive, (flat index of its first frame, frames of all drives): the ``flat`` of :func:`prepare_drive`."""
+    """Per drive, (flat index of its first frame, frames of all drives): the ``flat`` of :func:`prepare_segment`."""
     counts = [int(d.t_s.shape[0]) for d in drives]
     offsets = np.r_[0, np.cumsum(counts)].astype(int)
     return [(int(offsets[k]), int(offsets[-1])) for k in range(len(drives))]
@@ -276,7 +252,8 @@ def join_drives(
     """Stages 2-3 on the drives' stage-1 pieces (computed anywhere): frame statistics, keyframes, loops.
 
     Args:
-        pieces: per drive, in drive order, :func:`prepare_drive` of it with the same ``params``.
+        pieces: per drive, in drive order, :func:`join_segments` of its segments prepared with the same
+            ``params``.
         drives: the mapping drives.
         params: pipeline parameters.
         progress: called with (stage name, fraction 0..1 of that stage).

@@ -588,6 +588,14 @@ def match_frames(
     )
 
 
+def _start_pose(start_wT: tuple[float, float, float]) -> NDArray[np.float64]:
+    """``start_wT`` as a ``(3,)`` array. Raises ValueError unless it is three finite numbers."""
+    start = np.asarray(start_wT, dtype=np.float64)
+    if start.shape != (3,) or not np.all(np.isfinite(start)):
+        raise ValueError(f"start_wT must be finite (x_m, y_m, yaw_rad), got {start_wT}")
+    return start
+
+
 def reckon(
     matched: MatchedSteps,
     camera: CameraModel,
@@ -608,9 +616,7 @@ def reckon(
     Raises:
         ValueError: a bad start pose.
     """
-    start = np.asarray(start_wT, dtype=np.float64)
-    if start.shape != (3,) or not np.all(np.isfinite(start)):
-        raise ValueError(f"start_wT must be finite (x_m, y_m, yaw_rad), got {start_wT}")
+    start = _start_pose(start_wT)
     steps = list(matched.steps)
     offset, lever = 0.0, camera.y_c_m
     hom = camera.homography()
@@ -647,8 +653,8 @@ def dead_reckon(
     Raises:
         ValueError: a frame of the wrong shape or a bad start pose.
     """
-    empty = reckon(MatchedSteps([], [], np.zeros(0), 0, np.zeros(0)), camera, params, start_wT)  # start pose
+    _start_pose(start_wT)  # a bad start fails before any frame is matched
     matched = match_frames(frames, camera, params)
     if matched.frames == 0:
-        return dataclasses.replace(empty, wTi=np.zeros((0, 3)))
+        return DeadReckoning(np.zeros((0, 3)), [], np.zeros(0), 0.0, camera.y_c_m)
     return reckon(matched, camera, params, start_wT)
