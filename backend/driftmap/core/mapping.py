@@ -199,6 +199,7 @@ def solve_map(
         "calibrated_drives": sum(b != NO_BIAS for b in biases),
         "max_scale_error": max(abs(b.scale - 1.0) for b in biases),
         "max_heading_rate_deg_per_100m": max(abs(np.degrees(b.yaw_rate_rad_per_m)) * 100.0 for b in biases),
+        "max_turn_gain_error": max(abs(b.turn_gain - 1.0) for b in biases),
         **database_stats,
         **timings,
     }
