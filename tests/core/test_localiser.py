@@ -194,9 +194,16 @@ class TestUnevenSpacing:
             adjacency_m=shortest_paths(8, edges, np.diff(xs), 50.0),
             max_adjacency_m=50.0,
         )
-        np.testing.assert_array_equal(lmap.long_steps, [[3, 4]])
+        np.testing.assert_array_equal(lmap.long_steps(hmm.DEFAULT.min_a_t_m), [[3, 4]])
         path = [0, 1, 2, 3, 3, 4, 5, 6, 7]
         est = run(Localiser(lmap, hmm.HmmParams(n_t=3), start_node=0), tex, path)  # A_t = 8 m < 9 m
+        assert [e.node for e in est] == path
+        # A filter that may reach 10 m a frame needs no long step; one limited to 4 m takes every 5 m
+        # spacing as a long step too, and follows the same drive.
+        assert lmap.long_steps(10.0).shape == (0, 2)
+        short = hmm.HmmParams(n_t=3, min_a_t_m=4.0, max_speed_mps=0.5)
+        assert Localiser(lmap, short).transitions.reach_m(0.1) < 5.0
+        est = run(Localiser(lmap, short, start_node=0), tex, path)
         assert [e.node for e in est] == path
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -93,13 +92,17 @@ class LocaliserMap:
         """Number of nodes M."""
         return int(self.centres_m.shape[0])
 
-    @cached_property
-    def long_steps(self) -> I64:
-        """(K, 2) int64 direct steps between nodes longer than the default minimum reach (computed once).
+    def long_steps(self, from_m: float) -> I64:
+        """(K, 2) int64 direct steps between nodes at least ``from_m`` long (computed once per length).
 
         See :func:`driftmap.core.hmm.long_steps`; the transition model lets the belief take each in one frame.
+        ``from_m`` is the filter's minimum reach (``HmmParams.min_a_t_m``), so localisers with other
+        parameters on one shared map each get their own steps.
         """
-        return hmm.long_steps(self.adjacency_m, hmm.DEFAULT.min_a_t_m)
+        cache: dict[float, I64] = self.__dict__.setdefault("_long_steps", {})
+        if from_m not in cache:
+            cache[from_m] = hmm.long_steps(self.adjacency_m, from_m)
+        return cache[from_m]
 
 
 def build_localiser_map(
@@ -252,7 +255,7 @@ class Localiser:
         self.single_image = single_image
         self.sesame = sesame
         self.transitions = hmm.TransitionModel(
-            lmap.adjacency_m, lmap.max_adjacency_m, params, steps=lmap.long_steps
+            lmap.adjacency_m, lmap.max_adjacency_m, params, steps=lmap.long_steps(params.min_a_t_m)
         )
         self._all = np.arange(lmap.n_nodes, dtype=np.int64)
         self._state = LocaliserState(hmm.initial_belief(lmap.n_nodes), float("nan"), 0, 0)
