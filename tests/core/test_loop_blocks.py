@@ -14,10 +14,11 @@ import pytest
 from numpy.typing import NDArray
 from tests.core.test_loops import make_strip, views
 
-from driftmap.core.descriptors import coarse_candidates, query_blocks, sad_pairs
+from driftmap.core.descriptors import coarse_candidates, query_blocks
 from driftmap.core.images import patch_normalise
 from driftmap.core.loop_scores import LoopSearch, QueryScores, plan_search, score_queries, split_queries
 from driftmap.core.loops import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams, decide_loops, detect_loops
+from driftmap.core.pair_scores import sad_pairs
 
 N_VIEWS = 300
 F32 = NDArray[np.float32]

@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from driftmap.core.descriptors import _sequence_filter, _top_k_rows, sad_pairs
+from driftmap.core.descriptors import _sequence_filter, _top_k_rows
 from driftmap.core.images import patch_normalise
 from driftmap.core.loops import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams, LoopResult, detect_loops
+from driftmap.core.pair_scores import sad_pairs
 from driftmap.core.params import SadParams
 from driftmap.core.sad import sad_one_to_many
 

@@ -27,14 +27,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.descriptors import (
-    DiagonalScorer,
-    PairCache,
-    coarse_candidates,
-    describe,
-    query_blocks,
-    thumbnails,
-)
+from driftmap.core.descriptors import coarse_candidates, describe, query_blocks, thumbnails
+from driftmap.core.pair_scores import DiagonalScorer, PairCache
 
 if TYPE_CHECKING:
     from driftmap.core.loops import LoopParams
