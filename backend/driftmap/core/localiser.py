@@ -72,6 +72,7 @@ class LocaliserMap:
     adjacency_m: csr_array
     max_adjacency_m: float
     image_params: ImageParams = IMAGES_DEFAULT
+    _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         m = self.centres_m.shape[0]
@@ -99,10 +100,9 @@ class LocaliserMap:
         ``from_m`` is the filter's minimum reach (``HmmParams.min_a_t_m``), so localisers with other
         parameters on one shared map each get their own steps.
         """
-        cache: dict[float, I64] = self.__dict__.setdefault("_long_steps", {})
-        if from_m not in cache:
-            cache[from_m] = hmm.long_steps(self.adjacency_m, from_m)
-        return cache[from_m]
+        if from_m not in self._long_steps:
+            self._long_steps[from_m] = hmm.long_steps(self.adjacency_m, from_m)
+        return self._long_steps[from_m]
 
 
 def build_localiser_map(

@@ -75,10 +75,6 @@ def _windows(forward_m: F64, window_m: float) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in itertools.pairwise(bounds) if b > a]
 
 
-def _wrapped(angle: F64) -> F64:
-    return np.arctan2(np.sin(angle), np.cos(angle))
-
-
 def _bounded(scale: float, rate: float, turn_gain: float) -> OdometryBias:
     return OdometryBias(
         float(np.clip(scale, 1.0 - MAX_SCALE_ERROR, 1.0 + MAX_SCALE_ERROR)),
@@ -112,23 +108,17 @@ def estimate_bias(iTj: F64, wTi: F64, window_m: float = 15.0) -> OdometryBias:
         return NO_BIAS
     turned = np.array([np.sum(iTj[a:b, 2]) for a, b in windows])
     # The optimised turn of each window, unwrapped next to the odometry's (a window may turn past 180 deg).
-    optimised = turned + _wrapped(np.array([wTi[b, 2] - wTi[a, 2] for a, b in windows]) - turned)
+    optimised = turned + alignment.wrap_angle(np.array([wTi[b, 2] - wTi[a, 2] for a, b in windows]) - turned)
     design = np.vstack([np.column_stack([turned, -x]), [TURN_PRIOR_RAD, 0.0]])
     (turn_gain, rate), *_ = np.linalg.lstsq(design, np.r_[optimised, TURN_PRIOR_RAD], rcond=None)
-    # The scale compares straight-line displacements, so the odometry's turns are corrected first.
-    turns_fixed = apply_bias(iTj, OdometryBias(1.0, float(rate), float(turn_gain)))
-    length_odo = np.array([np.hypot(*_displacement(turns_fixed[a:b])) for a, b in windows])
+    # The scale compares straight-line displacements (chords, whatever the start heading), so the odometry's
+    # turns are corrected first.
+    reckoned = alignment.dead_reckon(apply_bias(iTj, OdometryBias(1.0, float(rate), float(turn_gain))))
+    length_odo = np.array([np.hypot(*(reckoned[b, :2] - reckoned[a, :2])) for a, b in windows])
     length_opt = np.array([np.hypot(*(wTi[b, :2] - wTi[a, :2])) for a, b in windows])
     moved = length_odo > 0.5 * window_m
     scale = float(np.sum(length_opt[moved]) / np.sum(length_odo[moved])) if moved.any() else 1.0
     return _bounded(scale, float(rate), float(turn_gain))
-
-
-def _displacement(steps: F64) -> F64:
-    """(2,) position of the end of (K, 3) chained steps in the frame of their start."""
-    heading = np.concatenate([[0.0], np.cumsum(steps[:-1, 2])])
-    c, s = np.cos(heading), np.sin(heading)
-    return np.array([np.sum(c * steps[:, 0] - s * steps[:, 1]), np.sum(s * steps[:, 0] + c * steps[:, 1])])
 
 
 def apply_bias(iTj: F64, bias: OdometryBias) -> F64:
