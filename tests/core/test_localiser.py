@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -164,7 +166,7 @@ class TestBeyondThePaper:
 
 
 class TestConfidence:
-    def test_a_frame_that_shows_its_place_is_confident_a_blank_one_is_not(
+    def test_a_track_that_shows_its_place_is_confident_a_run_of_blank_frames_is_not(
         self, corridor40: tuple[F32, LocaliserMap]
     ) -> None:
         tex, lmap = corridor40
@@ -172,8 +174,34 @@ class TestConfidence:
         seen = run(loc, tex, [10, 11, 12])[-1]
         assert 0.2 < seen.distinct <= 1.0
         assert seen.confidence == pytest.approx(seen.score * seen.distinct)
-        blank = loc.step(np.zeros(lmap.thumbs.shape[1:], dtype=np.float32), 3 * DT_S)
-        assert blank.distinct < 0.05 and blank.confidence < 0.05 * blank.score + 1e-12
+        blank = np.zeros(lmap.thumbs.shape[1:], dtype=np.float32)  # matches every node alike
+        first = loc.step(blank, 3 * DT_S)
+        # One frame that shows nothing (its b(i) stays on the track) only pulls the track's distinctness
+        # down by its weight ...
+        assert abs(first.node - seen.node) <= 1
+        assert first.distinct == pytest.approx((1.0 - hmm.DEFAULT.distinct_memory) * seen.distinct, abs=0.02)
+        # ... a run of them takes it (and the confidence) towards zero.
+        last = [loc.step(blank, k * DT_S) for k in range(4, 18)][-1]
+        assert not loc.state().node < 0  # no global restart yet
+        assert last.distinct < 0.05 and last.confidence < 0.05 * last.score + 1e-12
+
+    def test_distinctness_starts_afresh_after_a_jump(self, corridor40: tuple[F32, LocaliserMap]) -> None:
+        tex, lmap = corridor40
+        loc = Localiser(lmap, start_node=10)
+        run(loc, tex, [10, 11, 12])
+        state = loc.state()
+        frame = view(tex[13], np.random.default_rng(9))
+        alone = Localiser(lmap)
+        alone.restore(replace(state, node=-1, distinct=1.0))  # after a global start: this frame's alone
+        own = alone.step(frame, 3 * DT_S).distinct
+        assert own < 1.0
+        outcomes = {}
+        for last_node in (12, 35):  # 1 node back: the same track; 23 nodes away: a jump
+            loc.restore(replace(state, node=last_node, distinct=1.0))
+            outcomes[last_node] = loc.step(frame, 3 * DT_S).distinct
+        a = hmm.DEFAULT.distinct_memory
+        assert outcomes[12] == pytest.approx((1.0 - a) + a * own)
+        assert outcomes[35] == pytest.approx(own)
 
     def test_single_image_confidence_is_its_score(self, corridor3: tuple[F32, LocaliserMap]) -> None:
         tex, lmap = corridor3
@@ -257,17 +285,18 @@ class TestState:
         path = [7, 8, 9, 30, 31]
         a = run(loc, tex, path, seed=11, t0_s=2.0)
         b = run(twin, tex, path, seed=11, t0_s=2.0)
-        strip = [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes) for e in a]
-        assert strip == [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes) for e in b]
+        strip = [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes, e.distinct) for e in a]
+        assert strip == [(e.node, e.score, e.matched, e.lost, e.evaluated_nodes, e.distinct) for e in b]
         np.testing.assert_array_equal(loc.state().belief, twin.state().belief)
 
     def test_state_stored_before_still_frames_still_loads(self, corridor40: tuple[F32, LocaliserMap]) -> None:
         _tex, lmap = corridor40
         arrays = Localiser(lmap, start_node=3).state().to_arrays()
-        assert {"moving", "last_query"} <= set(arrays)
-        old = {k: v for k, v in arrays.items() if k not in ("moving", "last_query")}
-        state = LocaliserState.from_arrays(old)
+        newer = ("moving", "last_query", "node", "distinct")
+        assert set(newer) <= set(arrays)
+        state = LocaliserState.from_arrays({k: v for k, v in arrays.items() if k not in newer})
         assert state.moving == 0 and state.last_query.shape == (0, 0)
+        assert state.node == -1 and state.distinct == 0.0
 
 
 class TestBuildLocaliserMap:

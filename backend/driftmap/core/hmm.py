@@ -75,6 +75,8 @@ class HmmParams:
     # re-initialising it (a vehicle stopped where the map's views match poorly is not elsewhere); 0: off
     still_ratio: float = 0.5
     confirm_frames: int = 10
+    # weight of the newest frame in the track's running distinctness (Estimate.distinct); 1: this frame only
+    distinct_memory: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("max_speed_mps", "min_a_t_m", "a_t_quantum_m", "epsilon", "lost_distinct_ratio"):
@@ -86,6 +88,8 @@ class HmmParams:
             raise BadInputError(f"must be below 1, got {self.epsilon}", field="epsilon")
         if self.n_t < 1:
             raise BadInputError(f"must be >= 1, got {self.n_t}", field="n_t")
+        if not 0.0 < self.distinct_memory <= 1.0:
+            raise BadInputError(f"must be in (0, 1], got {self.distinct_memory}", field="distinct_memory")
         for f in fields(self):
             if (
                 f.name

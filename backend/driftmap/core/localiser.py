@@ -32,7 +32,7 @@ holistic SAD, so it still gets scores.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -150,8 +150,10 @@ class Estimate:
         lost: this frame counted as lost (the filter re-initialises after ``lost_frames`` in a row).
         evaluated_nodes: number of nodes compared with the query this frame.
         ms: wall time of the step, milliseconds.
-        distinct: how much better this frame matches b(i) than a typical compared node,
-            ``1 - d(i, b(i)) / median d`` clipped to [0, 1] (single-image mode: ``score``).
+        distinct: how much better the track's frames match their b than a typical compared node: this
+            frame's ``1 - d(i, b(i)) / median d`` clipped to [0, 1], averaged exponentially (weight
+            ``HmmParams.distinct_memory``) over the frames since b last jumped further than two frame
+            reaches or the belief started globally (single-image mode: ``score``).
     """
 
     node: int
@@ -166,11 +168,13 @@ class Estimate:
 
     @property
     def confidence(self) -> float:
-        """``score x distinct`` in [0, 1]: the belief is on b(i) *and* this frame looks like b(i).
+        """``score x distinct`` in [0, 1]: the belief is on b(i) *and* the track's views look like it.
 
         The posterior X_i(b(i)) alone can be high because the motion prior keeps it there while the view
         matches b(i) no better than anywhere else (a vehicle leaving a poorly mapped area towards a
-        look-alike); ranking frames by this product keeps those below frames that show their place.
+        look-alike); ranking frames by this product keeps those below frames that show their place. The
+        distinctness is averaged along the track because a single frame's is noisy (a right frame's is
+        often as low as a look-alike's), while a look-alike stays barely better frame after frame.
         """
         return self.score * self.distinct
 
@@ -186,6 +190,8 @@ class LocaliserState:
         steps: frames processed (drives the probe rotation).
         moving: frames with a changed view since the last global start (uniform belief).
         last_query: (h, w) float32 thumbnail of the last frame; (0, 0) before the first.
+        node: b(i) of the last frame; -1 before the first and after a global start.
+        distinct: the track's running distinctness at the last frame (:attr:`Estimate.distinct`).
     """
 
     belief: F64
@@ -194,6 +200,8 @@ class LocaliserState:
     steps: int
     moving: int = 0
     last_query: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 0), dtype=np.float32))
+    node: int = -1
+    distinct: float = 0.0
 
     def to_arrays(self) -> dict[str, NDArray[np.generic]]:
         """Named arrays (scalars as 0-d) for the store."""
@@ -204,11 +212,14 @@ class LocaliserState:
             "steps": np.asarray(self.steps, dtype=np.int64),
             "moving": np.asarray(self.moving, dtype=np.int64),
             "last_query": np.asarray(self.last_query, dtype=np.float32),
+            "node": np.asarray(self.node, dtype=np.int64),
+            "distinct": np.asarray(self.distinct, dtype=np.float64),
         }
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, NDArray[np.generic]]) -> LocaliserState:
-        """Rebuild a state from :meth:`to_arrays` output (a state stored before ``moving`` starts afresh)."""
+        """Rebuild a state from :meth:`to_arrays` output (a state stored before ``moving``, ``node`` or
+        ``distinct`` existed starts those afresh)."""
         try:
             return cls(
                 belief=np.array(arrays["belief"], dtype=np.float64),
@@ -217,6 +228,8 @@ class LocaliserState:
                 steps=int(arrays["steps"]),
                 moving=int(arrays.get("moving", 0)),
                 last_query=np.array(arrays.get("last_query", np.zeros((0, 0))), dtype=np.float32),
+                node=int(arrays.get("node", -1)),
+                distinct=float(arrays.get("distinct", 0.0)),
             )
         except KeyError as exc:
             raise BadInputError("stored localiser state is missing an array", field=str(exc.args[0])) from exc
@@ -272,9 +285,7 @@ class Localiser:
     def state(self) -> LocaliserState:
         """The current state (a copy)."""
         s = self._state
-        return LocaliserState(
-            s.belief.copy(), s.last_t_s, s.lost_count, s.steps, s.moving, s.last_query.copy()
-        )
+        return replace(s, belief=s.belief.copy(), last_query=s.last_query.copy())
 
     def restore(self, state: LocaliserState) -> None:
         """Continue from a saved state of a localiser on the same map."""
@@ -282,14 +293,7 @@ class Localiser:
             raise BadInputError(
                 f"belief must be ({self.map.n_nodes},), got {state.belief.shape}", field="belief"
             )
-        self._state = LocaliserState(
-            state.belief.copy(),
-            state.last_t_s,
-            state.lost_count,
-            state.steps,
-            state.moving,
-            state.last_query.copy(),
-        )
+        self._state = replace(state, belief=state.belief.copy(), last_query=state.last_query.copy())
 
     def thumbnail(self, frame: NDArray[np.generic]) -> NDArray[np.float32]:
         """(H, W) float32 query thumbnail: a floating frame of the map's thumbnail shape is taken as is."""
@@ -368,10 +372,30 @@ class Localiser:
             lost_count = s.lost_count  # the same view again: no new evidence of being elsewhere
         else:
             lost_count = s.lost_count + 1 if lost else 0
+        distinct = self._track_distinct(s, best, min(max(1.0 - typical, 0.0), 1.0), far_m)
+        node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
-        self._state = LocaliserState(belief, t_s, lost_count, s.steps + 1, moving, query.copy())
-        return self._estimate(best, score, lost, int(d_all.size), t0, 1.0 - typical)
+            node = -1
+        self._state = LocaliserState(
+            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct
+        )
+        return self._estimate(best, score, lost, int(d_all.size), t0, distinct)
+
+    def _track_distinct(self, s: LocaliserState, best: int, distinct: float, far_m: float) -> float:
+        """The running distinctness of the track that ends at ``best``: this frame's ``distinct`` averaged
+        exponentially (weight ``distinct_memory``) with the last frame's running value when b(i) stayed
+        within ``far_m`` metres of path of the last b(i); this frame's alone after a jump or a global start."""
+        if s.node < 0:
+            return distinct
+        if best != s.node:
+            adj = self.map.adjacency_m
+            row = slice(adj.indptr[best], adj.indptr[best + 1])
+            hop = adj.data[row][adj.indices[row] == s.node]
+            if hop.size == 0 or hop[0] > far_m:
+                return distinct
+        a = self.params.distinct_memory
+        return (1.0 - a) * s.distinct + a * distinct
 
     def _elsewhere_ratio(
         self, compared: I64, d: NDArray[np.floating], best: int, d_here: float, far_m: float

@@ -12,7 +12,7 @@ A frame's estimate is right when its node centre lies within ``tolerance_m`` of 
 each method's score gives the precision-recall curve (:mod:`driftmap.core.metrics`). The match rule is
 the one the localiser applies (eq. 12 and driftmap's lost detection): a frame the filter counts as lost is
 never matched, at any threshold. The table gives the curve's area, the recall at 100 % precision (also when
-frames are ranked by the estimate's ``confidence``, the posterior times the frame's distinctness), the share
+frames are ranked by the estimate's ``confidence``, the posterior times the track's distinctness), the share
 of frames the localiser marks matched at its configured X_thresh and their mean distance error (node centre
 to truth, metres).
 """
@@ -69,7 +69,7 @@ class MethodResult:
 
     Attributes:
         scores: (N,) confidence of each frame's estimate; NaN for a lost frame (never matched).
-        confidence: (N,) the estimate's ``confidence`` (X_i(b(i)) x the frame's distinctness at b(i),
+        confidence: (N,) the estimate's ``confidence`` (X_i(b(i)) x the track's distinctness at b(i),
             :attr:`driftmap.core.localiser.Estimate.confidence`); NaN for a lost frame.
         error_m: (N,) distance from the estimated node centre to the true floor point, metres.
         matched: (N,) the localiser's own match flag at its configured X_thresh.
