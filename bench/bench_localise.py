@@ -32,7 +32,8 @@ from numpy.typing import NDArray  # noqa: E402
 from driftmap.core import hmm  # noqa: E402
 from driftmap.core.adjacency import shortest_paths  # noqa: E402
 from driftmap.core.images import patch_normalise  # noqa: E402
-from driftmap.core.localiser import Localiser, LocaliserMap  # noqa: E402
+from driftmap.core.localiser import Localiser  # noqa: E402
+from driftmap.core.localiser_map import LocaliserMap  # noqa: E402
 from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT  # noqa: E402
 
 COLS, ROWS = 50, 40  # grid nodes: 2,000

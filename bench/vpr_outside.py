@@ -35,7 +35,8 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_array
 
 from driftmap.core import hmm, metrics
-from driftmap.core.localiser import Localiser, LocaliserMap
+from driftmap.core.localiser import Localiser
+from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.vpr import PRESETS, Matches, VprMethod, VprParams, prepare_images
 from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams, recognise_places
 from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs

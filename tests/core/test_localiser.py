@@ -12,7 +12,8 @@ from numpy.typing import NDArray
 from driftmap.core import hmm
 from driftmap.core.adjacency import shortest_paths
 from driftmap.core.images import patch_normalise
-from driftmap.core.localiser import Estimate, Localiser, LocaliserMap, LocaliserState, build_localiser_map
+from driftmap.core.localiser import Estimate, Localiser, LocaliserState
+from driftmap.core.localiser_map import LocaliserMap, build_localiser_map
 from driftmap.core.topomap import TopoMapParams, build_topomap
 
 SPACING_M = 5.0

@@ -10,7 +10,8 @@ import pytest
 
 from driftmap.core.adjacency import shortest_paths
 from driftmap.core.images import preprocess
-from driftmap.core.localiser import Localiser, LocaliserMap
+from driftmap.core.localiser import Localiser
+from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.params import IMAGES_DEFAULT, SadParams
 from driftmap.core.place_database import (
     DATABASE_OFF,

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from driftmap.core import hmm
-from driftmap.core.localiser import Localiser, LocaliserMap
+from driftmap.core.localiser import Localiser
+from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.metrics import PrCurve, pr_curve
 from driftmap.core.saliency import SesameParams
 from driftmap.errors import BadInputError

@@ -26,7 +26,8 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
-from driftmap.core.localiser import Localiser, LocaliserMap, LocaliserState
+from driftmap.core.localiser import Localiser, LocaliserState
+from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.obscured import ObscuredState, frame_measures, judge_obscured
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.services.localisation import load_version_localiser_map, make_localiser

@@ -1,7 +1,7 @@
 """Localisation against a stored map version: load the localiser's map, run recorded frames through it.
 
 The batch CLI (``driftmap localise``), the evaluation report and the live server share these functions:
-:func:`load_localiser_map` turns a stored map version into a :class:`~driftmap.core.localiser.LocaliserMap`
+:func:`load_localiser_map` turns a stored map version into a :class:`~driftmap.core.localiser_map.LocaliserMap`
 (reference thumbnails of every node's chosen frames, node centres, sparse adjacency), :func:`make_localiser`
 configures a :class:`~driftmap.core.localiser.Localiser` (SESAME masks and the temporal filter switchable)
 and :func:`localise_frames` runs a sequence of frames through it.
@@ -26,7 +26,8 @@ from sqlalchemy.orm import Session
 
 from driftmap.core import hmm
 from driftmap.core.images import preprocess
-from driftmap.core.localiser import Estimate, Localiser, LocaliserMap
+from driftmap.core.localiser import Estimate, Localiser
+from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.params import IMAGES_DEFAULT, ImageParams
 from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
 from driftmap.core.saliency import SesameParams

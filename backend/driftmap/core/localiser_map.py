@@ -1,0 +1,109 @@
+"""The map a localiser runs on (paper 000 III-B): each node's reference thumbnails, centre and adjacency.
+
+:class:`LocaliserMap` is what :class:`driftmap.core.localiser.Localiser` reads of a stored map;
+:func:`build_localiser_map` makes one from a :class:`~driftmap.core.topomap.TopoMap` and the thumbnails of its
+frames. It is immutable and shared: several localisers (one per vehicle) can run on one map, each with its own
+:class:`~driftmap.core.hmm.HmmParams`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_array
+
+from driftmap.core import hmm
+from driftmap.core.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.topomap import TopoMap
+from driftmap.errors import BadInputError
+
+__all__ = ["LocaliserMap", "build_localiser_map"]
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+
+@dataclass(frozen=True, eq=False)
+class LocaliserMap:
+    """What the localiser needs of a stored map.
+
+    Attributes:
+        thumbs: (S, H, W) float32 pre-processed reference thumbnails, node j's in ``node_ptr[j]:node_ptr[j+1]``.
+        node_ptr: (M + 1,) int64 offsets of each node's thumbnails.
+        centres_m: (M, 2) float64 node centres, survey frame, metres.
+        adjacency_m: (M, M) float64 symmetric sparse shortest-path lengths A(x, y), metres.
+        max_adjacency_m: longest path stored in ``adjacency_m``, metres.
+        image_params: the pre-processing that made ``thumbs``; query frames get the same.
+    """
+
+    thumbs: NDArray[np.float32]
+    node_ptr: I64
+    centres_m: F64
+    adjacency_m: csr_array
+    max_adjacency_m: float
+    image_params: ImageParams = IMAGES_DEFAULT
+    _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        m = self.centres_m.shape[0]
+        if self.thumbs.ndim != 3 or self.thumbs.dtype != np.float32:
+            raise BadInputError(f"thumbs must be (S, H, W) float32, got {self.thumbs.shape}", field="thumbs")
+        if self.centres_m.shape != (m, 2) or m == 0:
+            raise BadInputError(
+                f"centres_m must be (M, 2), M > 0, got {self.centres_m.shape}", field="centres_m"
+            )
+        if self.node_ptr.shape != (m + 1,):
+            raise BadInputError(f"node_ptr must be ({m + 1},), got {self.node_ptr.shape}", field="node_ptr")
+        hmm.check_node_ptr(self.node_ptr, self.thumbs.shape[0])
+        if self.adjacency_m.shape != (m, m):
+            raise BadInputError(f"adjacency_m must be ({m}, {m})", field="adjacency_m")
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes M."""
+        return int(self.centres_m.shape[0])
+
+    def long_steps(self, from_m: float) -> I64:
+        """(K, 2) int64 direct steps between nodes at least ``from_m`` long (computed once per length).
+
+        See :func:`driftmap.core.hmm.long_steps`; the transition model lets the belief take each in one frame.
+        ``from_m`` is the filter's minimum reach (``HmmParams.min_a_t_m``), so localisers with other
+        parameters on one shared map each get their own steps.
+        """
+        if from_m not in self._long_steps:
+            self._long_steps[from_m] = hmm.long_steps(self.adjacency_m, from_m)
+        return self._long_steps[from_m]
+
+
+def build_localiser_map(
+    topomap: TopoMap,
+    thumbs_by_flat_frame_index: NDArray[np.float32],
+    image_params: ImageParams = IMAGES_DEFAULT,
+) -> LocaliserMap:
+    """The localiser's map from a :class:`TopoMap` and the thumbnails of its frames.
+
+    Args:
+        topomap: the stored map; each node's chosen frames become its references.
+        thumbs_by_flat_frame_index: (F, H, W) float32 pre-processed thumbnails indexed by the map's flat
+            frame index (every frame of every chain; only the chosen ones are read).
+        image_params: the pre-processing that made the thumbnails.
+
+    Returns:
+        The :class:`LocaliserMap`.
+    """
+    thumbs = np.asarray(thumbs_by_flat_frame_index, dtype=np.float32)
+    if thumbs.ndim != 3 or thumbs.shape[0] != topomap.frame_ids.shape[0]:
+        raise BadInputError(
+            f"need ({topomap.frame_ids.shape[0]}, H, W) thumbnails, got {thumbs.shape}",
+            field="thumbs_by_flat_frame_index",
+        )
+    return LocaliserMap(
+        thumbs=np.ascontiguousarray(thumbs[topomap.chosen]),
+        node_ptr=np.asarray(topomap.chosen_ptr, dtype=np.int64),
+        centres_m=np.asarray(topomap.centres_m, dtype=np.float64),
+        adjacency_m=topomap.adjacency_m,
+        max_adjacency_m=float(topomap.params.max_adjacency_m),
+        image_params=image_params,
+    )
