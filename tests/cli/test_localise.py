@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from tests.drive_factory import write_test_drive
 from tests.localisation_site import SITE, loc_drive_dir, tiny_map_settings
 
 runner = CliRunner()
+MAX_NODE_OFFSET_M = 5.0  # a floor point is within this of its nearest node's centre on the tiny map
 
 
 @pytest.fixture
@@ -54,6 +56,36 @@ class TestLocalise:
         rows = read_localisation_csv(out)
         assert len(rows) == len(read_drive_folder(drive).frames)
         assert all(0.0 <= r.score <= 1.0 for r in rows)
+
+    def test_known_start(self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path) -> None:
+        drive = loc_drive_dir(tiny_site_dir)
+        first = read_drive_folder(drive).frames[0]
+        assert first.x_m is not None and first.y_m is not None
+        out = tmp_path / "est.csv"
+        start = f"{first.x_m:.2f},{first.y_m:.2f}"
+        result = runner.invoke(app, ["localise", SITE, str(drive), "--out", str(out), "--start", start])
+        assert result.exit_code == 0, result.output
+        row = read_localisation_csv(out)[0]
+        assert math.hypot(row.x_m - first.x_m, row.y_m - first.y_m) < MAX_NODE_OFFSET_M  # its start's node
+
+    @pytest.mark.parametrize(
+        ("start", "says"),
+        [
+            ("12.5", "expected 'X,Y'"),
+            ("a,b", "expected 'X,Y'"),
+            ("nan,3", "finite"),
+            ("1e7,1e7", "from the map's nearest node"),
+        ],
+    )
+    def test_bad_start_is_refused_before_anything_is_written(
+        self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path, start: str, says: str
+    ) -> None:
+        out = tmp_path / "est.csv"
+        args = ["localise", SITE, str(loc_drive_dir(tiny_site_dir)), "--out", str(out), "--start", start]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 2
+        assert says in result.output and "start" in result.output
+        assert not out.exists()
 
     def test_bad_drive_folder_names_the_file(self, tiny_env: Path, tmp_path: Path) -> None:
         drive = tmp_path / "broken"

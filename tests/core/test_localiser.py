@@ -15,6 +15,7 @@ from driftmap.core.images import patch_normalise
 from driftmap.core.localiser import Estimate, Localiser, LocaliserState
 from driftmap.core.localiser_map import LocaliserMap, build_localiser_map
 from driftmap.core.topomap import TopoMapParams, build_topomap
+from driftmap.errors import BadInputError
 
 SPACING_M = 5.0
 FRAMES_PER_NODE = 3
@@ -301,6 +302,12 @@ class TestState:
 
 
 class TestBuildLocaliserMap:
+    def test_nearest_node(self, corridor3: tuple[F32, LocaliserMap]) -> None:
+        _tex, lmap = corridor3
+        assert [lmap.nearest_node(x, 1.0) for x in (-3.0, 0.5 * SPACING_M + 0.1, 99.0)] == [0, 1, 2]
+        with pytest.raises(BadInputError, match="finite"):
+            lmap.nearest_node(float("nan"), 0.0)
+
     def test_takes_each_nodes_chosen_frames(self) -> None:
         xs = np.arange(0.0, 30.0, 0.5)
         poses = np.column_stack([xs, np.zeros_like(xs), np.zeros_like(xs)])

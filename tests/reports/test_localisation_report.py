@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
@@ -65,6 +66,28 @@ class TestReport:
             error = float(rows[("clean", name)]["matched_error_m"])
             assert math.isfinite(error) and error <= MAX_MATCHED_ERROR_M
         assert "HMM+SESAME" in report.table()
+
+    def test_known_start_puts_the_first_estimate_at_the_start(
+        self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path
+    ) -> None:
+        storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
+        try:
+            with storage.db.session() as session:
+                site = site_service.get_site(session, SITE)
+                lmap = loc_service.load_localiser_map(session, storage.blobs, site)
+                drives = loc_service.load_localisation_drives(session, storage.blobs, site)
+        finally:
+            storage.close()
+        report = run_localisation_report(
+            lmap, drives, SESAME_DEFAULT, single_image_stride=10_000, known_start=True
+        )
+        truth = drives[0].truth_xy_m
+        assert truth is not None
+        start = lmap.centres_m[lmap.nearest_node(*truth[0])]
+        for name in ("HMM+SAD", "HMM+SESAME"):
+            first_error_m = report.results[("clean", name)].error_m[0]
+            assert first_error_m == pytest.approx(float(np.hypot(*(start - truth[0]))), abs=1e-9)
+        assert "known start" in report.table()
 
     def test_needs_drives_and_positive_tolerance(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path

@@ -38,10 +38,22 @@ def localise(
     temporal: Annotated[
         bool, typer.Option("--temporal/--no-temporal", help="HMM temporal filter (paper 000 III-B).")
     ] = True,
+    start: Annotated[
+        str | None,
+        typer.Option(
+            "--start",
+            help="The vehicle's known start 'X,Y' (survey frame, metres); default: unknown (global start).",
+        ),
+    ] = None,
+    start_radius_m: Annotated[
+        float,
+        typer.Option("--start-radius-m", min=0.0, help="Spread the known start over this radius, metres."),
+    ] = 0.0,
 ) -> None:
     """Localise every frame of a recorded drive against the site's map: best node, position, confidence."""
     storage = open_storage()
     with user_errors():
+        start_xy_m = _survey_point(start, "--start") if start is not None else None
         folder = read_drive_folder(drive_dir)
         with storage.db.session() as session:
             record = site_service.get_site(session, site)
@@ -51,7 +63,13 @@ def localise(
             )
             sesame_params = loc_service.sesame_params_of(version) if sesame else None
             number = version.version
-        localiser = loc_service.make_localiser(lmap, sesame=sesame_params, temporal=temporal)
+        localiser = loc_service.make_localiser(
+            lmap,
+            sesame=sesame_params,
+            temporal=temporal,
+            start_xy_m=start_xy_m,
+            start_radius_m=start_radius_m,
+        )
         frames = (
             decode_gray(data, str(file))
             for file, (_row, data) in zip(folder.frame_files, iter_frame_images(folder), strict=True)
@@ -66,6 +84,18 @@ def localise(
         f"wrote {len(rows)} estimates against map version {number} to {out}: "
         f"{matched} matched ({100 * matched / max(len(rows), 1):.0f}%), {ms:.1f} ms per frame (median)"
     )
+
+
+def _survey_point(text: str, option: str) -> tuple[float, float]:
+    """'X,Y' in survey metres as two finite floats, or a :class:`BadInputError` naming ``option``."""
+    parts = text.split(",")
+    try:
+        x_m, y_m = (float(p) for p in parts)
+    except ValueError:
+        raise BadInputError(f"expected 'X,Y' in survey metres, got {text!r}", field=option) from None
+    if not (np.isfinite(x_m) and np.isfinite(y_m)):
+        raise BadInputError(f"expected finite coordinates, got {text!r}", field=option)
+    return x_m, y_m
 
 
 def report_localisation(
@@ -90,6 +120,13 @@ def report_localisation(
             "--drive", help="Only drives whose names match this glob (repeatable), e.g. 'loc-0[12]*'."
         ),
     ] = None,
+    known_start: Annotated[
+        bool,
+        typer.Option(
+            "--known-start",
+            help="Start the HMM at each drive's true first position, as paper 000 does (default: global start).",
+        ),
+    ] = False,
 ) -> None:
     """Precision-recall of SAD, SAD+SESAME, HMM+SAD and HMM+SESAME over the site's localisation drives."""
     storage = open_storage()
@@ -117,6 +154,7 @@ def report_localisation(
                 out_dir=folder,
                 single_image_stride=single_image_stride,
                 holistic_map=holistic,
+                known_start=known_start,
                 progress=report,
             )
     console.print(result.table())

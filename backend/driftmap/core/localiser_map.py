@@ -65,6 +65,12 @@ class LocaliserMap:
         """Number of nodes M."""
         return int(self.centres_m.shape[0])
 
+    def nearest_node(self, x_m: float, y_m: float) -> int:
+        """The node whose centre is nearest the survey point (x_m, y_m), metres."""
+        if not (np.isfinite(x_m) and np.isfinite(y_m)):
+            raise BadInputError(f"need a finite survey point, got ({x_m}, {y_m})", field="start")
+        return int(np.argmin(np.hypot(self.centres_m[:, 0] - x_m, self.centres_m[:, 1] - y_m)))
+
     def long_steps(self, from_m: float) -> I64:
         """(K, 2) int64 direct steps between nodes at least ``from_m`` long (computed once per length).
 

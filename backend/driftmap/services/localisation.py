@@ -53,6 +53,10 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+#: a known start further than this from every node is a mistake (wrong site or coordinates), metres
+START_MAX_OFF_MAP_M = 50.0
+
 ProgressFn = Callable[[str, float], None]
 
 
@@ -159,9 +163,32 @@ def make_localiser(
     sesame: SesameParams | None = SESAME_DEFAULT,
     temporal: bool = True,
     params: hmm.HmmParams = hmm.DEFAULT,
+    start_xy_m: tuple[float, float] | None = None,
+    start_radius_m: float = 0.0,
 ) -> Localiser:
-    """A :class:`Localiser` on ``lmap``: SESAME masks unless ``sesame`` is None, HMM filter unless not temporal."""
-    return Localiser(lmap, params, single_image=not temporal, sesame=sesame)
+    """A :class:`Localiser` on ``lmap``: SESAME masks unless ``sesame`` is None, HMM filter unless not temporal.
+
+    ``start_xy_m`` is the vehicle's known start (survey frame, metres): the belief starts at the nearest node
+    and the nodes within ``start_radius_m`` of it (paper 000's X_0); None starts it global (uniform).
+    """
+    start = None
+    if start_xy_m is not None:
+        start = lmap.nearest_node(*start_xy_m)
+        off_m = float(np.hypot(*(lmap.centres_m[start] - np.asarray(start_xy_m))))
+        if off_m > START_MAX_OFF_MAP_M:
+            raise BadInputError(
+                f"the start ({start_xy_m[0]:.1f}, {start_xy_m[1]:.1f}) is {off_m:.0f} m from the map's nearest "
+                f"node (at most {START_MAX_OFF_MAP_M:g} m)",
+                field="start",
+            )
+    return Localiser(
+        lmap,
+        params,
+        single_image=not temporal,
+        sesame=sesame,
+        start_node=start,
+        start_radius_m=start_radius_m,
+    )
 
 
 def localise_frames(
