@@ -49,6 +49,7 @@ __all__ = [
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
+_FLAT_TOLERANCE = 1e-9  # relative spread below which a belief counts as flat (global)
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,17 @@ def observation(d: F32 | F64, p_t: float, epsilon: float) -> F64:
     return out
 
 
+def is_global(belief: F64) -> bool:
+    """True when (M,) ``belief`` is flat: no node more likely than another (a global start or re-start).
+
+    The transition of eq. 9 must leave such a belief as it is: its columns are normalised, not its rows, so
+    pi X of a flat X favours nodes with many neighbours within A_t (up to 2x on the simulated sites), and
+    :func:`select_states` would then compare only the N_t best-linked nodes instead of the whole map.
+    """
+    top = float(belief.max())
+    return top - float(belief.min()) <= top * _FLAT_TOLERANCE
+
+
 def select_states(prior: F64, n_t: int) -> I64:
     """The states to evaluate (eq. 8): the ``n_t`` largest priors and every node tied with the maximum.
 
@@ -205,7 +217,7 @@ def select_states(prior: F64, n_t: int) -> I64:
     if n_t >= m:
         return np.arange(m, dtype=np.int64)
     top = np.argpartition(prior, m - n_t)[m - n_t :]
-    flat_top = np.flatnonzero(prior >= prior.max() * (1.0 - 1e-9))
+    flat_top = np.flatnonzero(prior >= prior.max() * (1.0 - _FLAT_TOLERANCE))
     return np.union1d(top, flat_top).astype(np.int64)
 
 

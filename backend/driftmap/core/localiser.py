@@ -265,7 +265,10 @@ class Localiser:
             return self._estimate(best, score, False, lm.n_nodes, t0, score)
 
         gap_s = t_s - s.last_t_s if np.isfinite(s.last_t_s) else 0.0
-        prior = s.belief if not np.isfinite(s.last_t_s) else self.transitions.predict(s.belief, gap_s)
+        if not np.isfinite(s.last_t_s) or hmm.is_global(s.belief):
+            prior = s.belief  # a global belief searches the whole map (pi would favour well-linked nodes)
+        else:
+            prior = self.transitions.predict(s.belief, gap_s)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
