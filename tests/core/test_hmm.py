@@ -174,6 +174,7 @@ class TestSelectStates:
 
     def test_flat_belief_evaluates_everything(self) -> None:
         np.testing.assert_array_equal(hmm.select_states(np.full(50, 0.02), 5), np.arange(50))
+        assert hmm.is_global(np.full(50, 0.02)) and not hmm.is_global(np.r_[np.full(49, 0.02), 0.0201])
 
 
 class TestUpdate:

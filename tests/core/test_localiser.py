@@ -135,6 +135,28 @@ class TestBeyondThePaper:
         assert [e.node for e in after[-3:]] == [35, 36, 37]
         assert not any(e.lost for e in after[-3:])
 
+    def test_a_global_restart_compares_the_whole_map(self) -> None:
+        # Nodes 0-9 lie 2 m apart, 10-29 6 m apart: pi of a flat belief (eq. 9, columns normalised) favours
+        # the dense ones, which have more neighbours within A_t.
+        xs = np.r_[np.arange(10) * 2.0, 18.0 + np.arange(1, 21) * 6.0]
+        n = xs.size
+        tex = textures(n, seed=31)
+        rng = np.random.default_rng(32)
+        edges = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
+        lmap = LocaliserMap(
+            thumbs=np.stack([view(tex[j], rng) for j in range(n) for _ in range(FRAMES_PER_NODE)]),
+            node_ptr=np.arange(0, FRAMES_PER_NODE * n + 1, FRAMES_PER_NODE, dtype=np.int64),
+            centres_m=np.column_stack([xs, np.zeros(n)]),
+            adjacency_m=shortest_paths(n, edges, np.diff(xs), 50.0),
+            max_adjacency_m=50.0,
+        )
+        loc = Localiser(lmap, hmm.HmmParams(n_t=5, n_probe=0))
+        flat = hmm.initial_belief(n)
+        assert not hmm.is_global(loc.transitions.predict(flat, DT_S))  # what the old code compared
+        loc.restore(LocaliserState(flat, 7.0, 0, 50))  # just re-initialised: a flat belief, a known last time
+        est = loc.step(view(tex[25], np.random.default_rng(33)), 7.0 + DT_S)
+        assert est.evaluated_nodes == n and est.node == 25
+
     def test_paper_preset_never_reinitialises(self, corridor40: tuple[F32, LocaliserMap]) -> None:
         tex, lmap = corridor40
         loc = Localiser(lmap, hmm.HmmParams(n_t=5, n_probe=0, lost_frames=0), start_node=0)
