@@ -8,12 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
 from driftmap.errors import BadInputError
 from driftmap.reports.localisation_report import METHODS, condition_of, run_localisation_report
 from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
+from driftmap.services.localisation import RecordedDrive
 from driftmap.store.storage import Storage
 from tests.localisation_site import SITE, tiny_map_settings
 
@@ -21,6 +23,20 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 MIN_HMM_AUC = 0.7  # HMM methods on the tiny site's clean drive
 MAX_MATCHED_ERROR_M = 5.0  # mean node-centre error of the HMM's matched frames, metres
 SINGLE_IMAGE_STRIDE = 4  # single-image methods compare the whole map: every 4th frame keeps the test fast
+
+
+def _latest_map_and_drives(
+    tmp_path_factory: pytest.TempPathFactory, site_dir: Path
+) -> tuple[LocaliserMap, list[RecordedDrive]]:
+    """The tiny site's latest localiser map and its localisation drives."""
+    storage = Storage.open(tiny_map_settings(tmp_path_factory, site_dir))
+    try:
+        with storage.db.session() as session:
+            site = site_service.get_site(session, SITE)
+            lmap = loc_service.load_localiser_map(session, storage.blobs, site)
+            return lmap, loc_service.load_localisation_drives(session, storage.blobs, site)
+    finally:
+        storage.close()
 
 
 class TestConditionOf:
@@ -70,14 +86,7 @@ class TestReport:
     def test_known_start_puts_the_first_estimate_at_the_start(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path
     ) -> None:
-        storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
-        try:
-            with storage.db.session() as session:
-                site = site_service.get_site(session, SITE)
-                lmap = loc_service.load_localiser_map(session, storage.blobs, site)
-                drives = loc_service.load_localisation_drives(session, storage.blobs, site)
-        finally:
-            storage.close()
+        lmap, drives = _latest_map_and_drives(tmp_path_factory, tiny_site_dir)
         report = run_localisation_report(
             lmap, drives, SESAME_DEFAULT, single_image_stride=10_000, known_start=True
         )
@@ -92,14 +101,7 @@ class TestReport:
     def test_needs_drives_and_positive_tolerance(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path
     ) -> None:
-        storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
-        try:
-            with storage.db.session() as session:
-                site = site_service.get_site(session, SITE)
-                lmap = loc_service.load_localiser_map(session, storage.blobs, site)
-                drives = loc_service.load_localisation_drives(session, storage.blobs, site)
-        finally:
-            storage.close()
+        lmap, drives = _latest_map_and_drives(tmp_path_factory, tiny_site_dir)
         with pytest.raises(BadInputError, match="no localisation drive"):
             run_localisation_report(lmap, [], SESAME_DEFAULT)
         with pytest.raises(BadInputError, match="positive"):

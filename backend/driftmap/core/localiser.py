@@ -280,8 +280,8 @@ class Localiser:
         at_best = d_all[compared == best]
         d_here = float(at_best[0]) if at_best.size else float(np.min(d_all, initial=np.inf))
         typical = 1.0 - self._distinctness(d_all, d_here)
-        far_m = 2.0 * self.transitions.reach_m(gap_s)
-        elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here, far_m)
+        near = self._near(best, 2.0 * self.transitions.reach_m(gap_s))
+        elsewhere = self._elsewhere_ratio(compared, d_all, best, d_here, near)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
         lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
         still = self._is_still(query, s.last_query, float(np.min(d_all, initial=np.inf)))
@@ -290,7 +290,7 @@ class Localiser:
             lost_count = s.lost_count  # the same view again: no new evidence of being elsewhere
         else:
             lost_count = s.lost_count + 1 if lost else 0
-        distinct = self._track_distinct(s, best, min(max(1.0 - typical, 0.0), 1.0), far_m)
+        distinct = self._track_distinct(s, best, min(max(1.0 - typical, 0.0), 1.0), near)
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
@@ -300,28 +300,25 @@ class Localiser:
         )
         return self._estimate(best, score, lost, int(d_all.size), t0, distinct)
 
-    def _track_distinct(self, s: LocaliserState, best: int, distinct: float, far_m: float) -> float:
+    def _near(self, best: int, far_m: float) -> I64:
+        """(k,) int64 the nodes within ``far_m`` metres of path of ``best`` (two frame reaches: the same place)."""
+        adj = self.map.adjacency_m
+        row = slice(adj.indptr[best], adj.indptr[best + 1])
+        return np.asarray(adj.indices[row][adj.data[row] <= far_m], dtype=np.int64)
+
+    def _track_distinct(self, s: LocaliserState, best: int, distinct: float, near: I64) -> float:
         """The running distinctness of the track that ends at ``best``: this frame's ``distinct`` averaged
-        exponentially (weight ``distinct_memory``) with the last frame's running value when b(i) stayed
-        within ``far_m`` metres of path of the last b(i); this frame's alone after a jump or a global start."""
-        if s.node < 0:
+        exponentially (weight ``distinct_memory``) with the last frame's running value when the last b(i) is
+        ``best`` or one of its ``near`` nodes; this frame's alone after a jump or a global start."""
+        if s.node < 0 or (best != s.node and s.node not in near):
             return distinct
-        if best != s.node:
-            adj = self.map.adjacency_m
-            row = slice(adj.indptr[best], adj.indptr[best + 1])
-            hop = adj.data[row][adj.indices[row] == s.node]
-            if hop.size == 0 or hop[0] > far_m:
-                return distinct
         a = self.params.distinct_memory
         return (1.0 - a) * s.distinct + a * distinct
 
     def _elsewhere_ratio(
-        self, compared: I64, d: NDArray[np.floating], best: int, d_here: float, far_m: float
+        self, compared: I64, d: NDArray[np.floating], best: int, d_here: float, near: I64
     ) -> float:
-        """d(b(i)) / least d of the compared nodes more than ``far_m`` metres of path from b(i); 0 if none."""
-        adj = self.map.adjacency_m
-        row = slice(adj.indptr[best], adj.indptr[best + 1])
-        near = adj.indices[row][adj.data[row] <= far_m]
+        """d(b(i)) / least d of the compared nodes that are neither ``best`` nor ``near`` it; 0 if none."""
         far = ~np.isin(compared, near) & (compared != best) & np.isfinite(d)
         if not far.any() or not np.isfinite(d_here):
             return 0.0 if not far.any() else float("inf")
