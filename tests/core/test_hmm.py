@@ -184,6 +184,10 @@ class TestUpdate:
         expect = np.array([0.5, 0.15, 0.02])
         np.testing.assert_allclose(post, expect / expect.sum())
 
+    def test_a_hypothesis_takes_its_share(self) -> None:
+        x = hmm.add_hypothesis(np.array([0.0, 0.6, 0.4, 0.0]), 3, 0.5)
+        np.testing.assert_allclose(x, [0.0, 0.3, 0.2, 0.5])
+
     def test_initial_beliefs(self) -> None:
         np.testing.assert_allclose(hmm.initial_belief(4), 0.25)
         centres = np.column_stack([np.arange(5) * SPACING_M, np.zeros(5)])
@@ -192,16 +196,19 @@ class TestUpdate:
 
 
 class TestParams:
-    @pytest.mark.parametrize("field", ["max_speed_mps", "epsilon", "n_t"])
+    @pytest.mark.parametrize(
+        "field", ["max_speed_mps", "epsilon", "n_t", "lost_report_frames", "relocate_share"]
+    )
     def test_rejects_non_positive(self, field: str) -> None:
         with pytest.raises(BadInputError):
             hmm.HmmParams(**{field: 0})
 
-    @pytest.mark.parametrize("field", ["still_ratio", "confirm_frames"])
+    @pytest.mark.parametrize("field", ["still_ratio", "confirm_frames", "relocate_ratio"])
     def test_rejects_negative(self, field: str) -> None:
         with pytest.raises(BadInputError):
             hmm.HmmParams(**{field: -1})
 
     def test_presets(self) -> None:
         assert hmm.PAPER.lost_frames == 0 and hmm.DEFAULT.lost_frames > 0
+        assert hmm.PAPER.relocate_ratio == 0 and hmm.DEFAULT.relocate_ratio > 1
         assert hmm.DEFAULT.max_speed_mps == 7.0

@@ -21,7 +21,7 @@ Eq. 8 as printed reads "gamma = (d_max - k)/(d_max - d_min) if that is < p_t"; t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,6 +52,17 @@ I64 = NDArray[np.int64]
 _FLAT_TOLERANCE = 1e-9  # relative spread below which a belief counts as flat (global)
 
 
+_NON_NEGATIVE = (
+    "n_probe",
+    "lost_frames",
+    "lost_confidence",
+    "x_thresh",
+    "still_ratio",
+    "confirm_frames",
+    "relocate_ratio",
+)
+
+
 @dataclass(frozen=True)
 class HmmParams:
     """Parameters of the HMM temporal filter (paper 000 eq. 5-12) and of lost detection (driftmap's own)."""
@@ -70,6 +81,10 @@ class HmmParams:
     lost_distinct_ratio: float = 0.95  # lost when d(b(i)) / median d of the compared nodes is above this
     lost_elsewhere_ratio: float = 1.0  # lost when d(b(i)) / least d of compared far nodes is above this
     lost_frames: int = 20  # this many lost frames in a row (2 s at 10 fps) re-initialise globally; 0: never
+    # a frame is reported lost (Estimate.lost, never matched) once this many lost frames in a row are counted:
+    # a right track fails the test on single frames (look-alikes beat one view in about 1 frame in 6), and
+    # a lost flag on each of them would make the control room's "lost" status flicker; 1: every lost frame
+    lost_report_frames: int = 3
     # a frame whose view changed less than still_ratio x its least d to the map since the last frame is "still"
     # (the vehicle stands): it repeats the evidence of the last frame, so once the belief has followed
     # confirm_frames moving frames since its last global start, still lost frames do not count towards
@@ -78,6 +93,13 @@ class HmmParams:
     confirm_frames: int = 10
     # weight of the newest frame in the track's running distinctness (Estimate.distinct); 1: this frame only
     distinct_memory: float = 0.2
+    # relocation: a compared node more than two frame reaches from b(i) whose d is this many times below
+    # d(b(i)) (d(b) / d(far) >= relocate_ratio) gets relocate_share of the belief, a second hypothesis that
+    # the next frames confirm or drop: a belief stuck on a look-alike, whose lost frames keep being
+    # interrupted by a passing one, still finds the place when it is probed (no right frame of the simulated
+    # sites reached 1.15); 0: off
+    relocate_ratio: float = 1.25
+    relocate_share: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("max_speed_mps", "min_a_t_m", "a_t_quantum_m", "epsilon", "lost_distinct_ratio"):
@@ -89,20 +111,20 @@ class HmmParams:
             raise BadInputError(f"must be below 1, got {self.epsilon}", field="epsilon")
         if self.n_t < 1:
             raise BadInputError(f"must be >= 1, got {self.n_t}", field="n_t")
+        if self.lost_report_frames < 1:
+            raise BadInputError(f"must be >= 1, got {self.lost_report_frames}", field="lost_report_frames")
+        if not 0.0 < self.relocate_share < 1.0:
+            raise BadInputError(f"must be in (0, 1), got {self.relocate_share}", field="relocate_share")
         if not 0.0 < self.distinct_memory <= 1.0:
             raise BadInputError(f"must be in (0, 1], got {self.distinct_memory}", field="distinct_memory")
-        for f in fields(self):
-            if (
-                f.name
-                in ("n_probe", "lost_frames", "lost_confidence", "x_thresh", "still_ratio", "confirm_frames")
-                and getattr(self, f.name) < 0
-            ):
-                raise BadInputError(f"must be >= 0, got {getattr(self, f.name)}", field=f.name)
+        for name in _NON_NEGATIVE:
+            if getattr(self, name) < 0:
+                raise BadInputError(f"must be >= 0, got {getattr(self, name)}", field=name)
 
 
 #: As close to the paper as it says: no probes and no lost detection (it assumes a known start).
-PAPER = HmmParams(n_probe=0, lost_frames=0, lost_confidence=0.0)
-#: driftmap's filter: the paper plus probes and global re-initialisation when lost.
+PAPER = HmmParams(n_probe=0, lost_frames=0, lost_confidence=0.0, relocate_ratio=0.0)
+#: driftmap's filter: the paper plus probes, relocation and global re-initialisation when lost.
 DEFAULT = HmmParams()
 
 
@@ -239,6 +261,14 @@ def hmm_update(prior: F64, nodes: I64, gamma: F64, epsilon: float) -> F64:
     if not total > 0 or not math.isfinite(total):
         return np.full(prior.size, 1.0 / prior.size)
     return np.asarray(post / total, dtype=np.float64)
+
+
+def add_hypothesis(belief: F64, node: int, share: float) -> F64:
+    """(M,) ``(1 - share) x belief`` with ``share`` added at ``node``: a second place for the next frames to
+    confirm or drop (the sum stays 1)."""
+    out = (1.0 - share) * np.asarray(belief, dtype=np.float64)
+    out[node] += share
+    return out
 
 
 def initial_belief(
