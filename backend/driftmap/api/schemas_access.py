@@ -107,7 +107,9 @@ class FrameEstimate(CameraCheck):
     confidence: float | None = None
     """The HMM belief of the chosen node, 0-1."""
     matched: bool | None = None
+    """Eq. 12 place match: the confidence is at least X_thresh and the localiser is not lost."""
     lost: bool | None = None
+    """The localiser's lost test failed on this frame and the ones before it (3 in a row by default)."""
     map_version: int | None = None
     seq: int | None = None
     """Sequence number of the stored position (for ``/api/live?since=``)."""
