@@ -21,6 +21,11 @@ frames since its last global start, still lost frames leave the count where it w
 if it had reached ``lost_report_frames``). With ``single_image=True`` there is no filter: every node is
 compared and b(i) = argmin d.
 
+Relocation (beyond the paper): a compared far node (as above) whose d is at least ``relocate_ratio`` times
+below d(i, b(i)) gets ``relocate_share`` of the belief after the update, a second hypothesis that the next
+frames confirm or drop. A belief stuck on a look-alike can fail the lost test on most frames and still never
+reach ``lost_frames`` in a row; when a probe shows the true place clearly better, this moves it.
+
 Transitions (eq. 9-10) also let the belief take every direct step between two nodes in one frame, however
 long (:func:`driftmap.core.hmm.long_steps`): node spacing is uneven at junctions and merges, and a step
 longer than the reach A_t would otherwise be a wall the belief can never cross.
