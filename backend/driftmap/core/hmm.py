@@ -97,7 +97,7 @@ class HmmParams:
     # d(b(i)) (d(b) / d(far) >= relocate_ratio) gets relocate_share of the belief, a second hypothesis that
     # the next frames confirm or drop: a belief stuck on a look-alike, whose lost frames keep being
     # interrupted by a passing one, still finds the place when it is probed (no right frame of the simulated
-    # sites reached 1.15); 0: off
+    # sites went above 1.16); 0: off
     relocate_ratio: float = 1.25
     relocate_share: float = 0.5
 
