@@ -242,16 +242,35 @@ class TestConfidence:
         state = loc.state()
         frame = view(tex[13], np.random.default_rng(9))
         alone = Localiser(lmap)
-        alone.restore(replace(state, node=-1, distinct=1.0))  # after a global start: this frame's alone
+        alone.restore(replace(state, node=-1, distinct=1.0))  # after a global start: a new track, from 0
         own = alone.step(frame, 3 * DT_S).distinct
-        assert own < 1.0
+        a = hmm.DEFAULT.distinct_memory
+        assert 0.0 < own < a
         outcomes = {}
         for last_node in (12, 35):  # 1 node back: the same track; 23 nodes away: a jump
             loc.restore(replace(state, node=last_node, distinct=1.0))
             outcomes[last_node] = loc.step(frame, 3 * DT_S).distinct
-        a = hmm.DEFAULT.distinct_memory
-        assert outcomes[12] == pytest.approx((1.0 - a) + a * own)
+        assert outcomes[12] == pytest.approx((1.0 - a) + own)
         assert outcomes[35] == pytest.approx(own)
+
+    def test_a_view_that_matches_a_far_place_as_well_is_not_distinct(
+        self, corridor40: tuple[F32, LocaliserMap]
+    ) -> None:
+        tex, lmap = corridor40
+        rng = np.random.default_rng(31)
+        thumbs = lmap.thumbs.copy()
+        for j in (10, 11, 12):  # nodes 30-32, 100 m on, look like nodes 10-12
+            twin_of_j = slice((j + 20) * FRAMES_PER_NODE, (j + 21) * FRAMES_PER_NODE)
+            thumbs[twin_of_j] = np.stack([view(tex[j], rng) for _ in range(FRAMES_PER_NODE)])
+        twin = replace(lmap, thumbs=thumbs)
+        params = hmm.HmmParams(n_t=40)  # every node compared
+        plain = run(Localiser(lmap, params, start_node=10), tex, [10, 11, 12])[-1]
+        ambiguous = run(Localiser(twin, params, start_node=10), tex, [10, 11, 12])[-1]
+        # The filter stays on its track either way (a known start), and the views match their nodes just
+        # as well; only the far twin stretch makes them ambiguous.
+        assert plain.node == ambiguous.node == 12
+        assert plain.distinct > 0.2
+        assert ambiguous.distinct < 0.5 * plain.distinct
 
     def test_single_image_confidence_is_its_score(self, corridor3: tuple[F32, LocaliserMap]) -> None:
         tex, lmap = corridor3

@@ -73,10 +73,12 @@ class Estimate:
             ``lost_report_frames`` counted in a row (it re-initialises after ``lost_frames``).
         evaluated_nodes: number of nodes compared with the query this frame.
         ms: wall time of the step, milliseconds.
-        distinct: how much better the track's frames match their b than a typical compared node: this
-            frame's ``1 - d(i, b(i)) / median d`` clipped to [0, 1], averaged exponentially (weight
-            ``HmmParams.distinct_memory``) over the frames since b last jumped further than two frame
-            reaches or the belief started globally (single-image mode: ``score``).
+        distinct: how much better the track's frames match their b than anywhere else: this frame's
+            ``1 - d(i, b(i)) / d_other`` clipped to [0, 1], with d_other the least d of the compared far nodes
+            (the lost test's; the median d of the compared nodes when it is lower or no far node was
+            compared), averaged exponentially (weight ``HmmParams.distinct_memory``, starting from 0) over
+            the frames since b last jumped further than two frame reaches or the belief started globally
+            (single-image mode: ``score``).
     """
 
     node: int
@@ -96,8 +98,11 @@ class Estimate:
         The posterior X_i(b(i)) alone can be high because the motion prior keeps it there while the view
         matches b(i) no better than anywhere else (a vehicle leaving a poorly mapped area towards a
         look-alike); ranking frames by this product keeps those below frames that show their place. The
-        distinctness is averaged along the track because a single frame's is noisy (a right frame's is
-        often as low as a look-alike's), while a look-alike stays barely better frame after frame.
+        distinctness is measured against the best-matching far node, not only a typical one: a view that
+        matches another part of the mine as well is ambiguous however well it matches b(i). It is averaged
+        along the track because a single frame's is noisy (a right frame's is often as low as a
+        look-alike's), while a look-alike stays barely better frame after frame; a track that has just
+        begun (a jump, a global start) has no history yet and starts from 0.
         """
         return self.score * self.distinct
 
@@ -290,7 +295,8 @@ class Localiser:
         typical = 1.0 - self._distinctness(d_all, d_here)
         near = self._near(best, 2.0 * self.transitions.reach_m(gap_s))
         elsewhere, far_best = self._elsewhere(compared, d_all, best, d_here, near)
-        distinct = self._track_distinct(s, best, min(max(1.0 - typical, 0.0), 1.0), near)
+        frame_distinct = min(max(1.0 - max(typical, elsewhere), 0.0), 1.0)
+        distinct = self._track_distinct(s, best, frame_distinct, near)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
         lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
         still = self._is_still(query, s.last_query, float(np.min(d_all, initial=np.inf)))
@@ -320,11 +326,11 @@ class Localiser:
     def _track_distinct(self, s: LocaliserState, best: int, distinct: float, near: I64) -> float:
         """The running distinctness of the track that ends at ``best``: this frame's ``distinct`` averaged
         exponentially (weight ``distinct_memory``) with the last frame's running value when the last b(i) is
-        ``best`` or one of its ``near`` nodes; this frame's alone after a jump or a global start."""
-        if s.node < 0 or (best != s.node and s.node not in near):
-            return distinct
+        ``best`` or one of its ``near`` nodes; with 0 after a jump or a global start (a new track earns its
+        confidence frame by frame)."""
         a = self.params.distinct_memory
-        return (1.0 - a) * s.distinct + a * distinct
+        same_track = s.node >= 0 and (best == s.node or s.node in near)
+        return (1.0 - a) * (s.distinct if same_track else 0.0) + a * distinct
 
     @staticmethod
     def _elsewhere(
