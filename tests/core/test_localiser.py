@@ -143,9 +143,17 @@ class TestBeyondThePaper:
         params = hmm.HmmParams(n_t=5, lost_frames=0, relocate_ratio=relocate_ratio)  # never restarts
         loc = Localiser(lmap, params, start_node=0)
         run(loc, tex, list(range(10)))
-        after = run(loc, tex, list(range(30, 40)), t0_s=10 * DT_S)  # teleported 100 m away
+        rng = np.random.default_rng(2)
+        after, peaks = [], []
+        for k, j in enumerate(range(30, 40)):  # teleported 100 m away
+            after.append(loc.step(view(tex[j], rng), (10 + k) * DT_S))
+            peaks.append(int(np.argmax(loc.state().belief)))
         if relocate_ratio:  # a probe sees the place: it becomes a hypothesis, and the next frames confirm it
             assert [e.node for e in after[-5:]] == [35, 36, 37, 38, 39]
+            # the frame that takes it up already reports it: the estimate is the belief the frame leaves
+            assert [e.node for e in after] == peaks
+            first = next(k for k, e in enumerate(after) if e.node >= 30)
+            assert after[first].node == 30 + first and after[first].score >= params.relocate_share
         else:
             assert all(e.node < 20 for e in after)  # without it the belief stays where it was
 

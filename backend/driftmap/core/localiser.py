@@ -23,8 +23,10 @@ compared and b(i) = argmin d.
 
 Relocation (beyond the paper): a compared far node (as above) whose d is at least ``relocate_ratio`` times
 below d(i, b(i)) gets ``relocate_share`` of the belief after the update, a second hypothesis that the next
-frames confirm or drop. A belief stuck on a look-alike can fail the lost test on most frames and still never
-reach ``lost_frames`` in a row; when a probe shows the true place clearly better, this moves it.
+frames confirm or drop. It is then the belief's peak, and the frame reports it (eq. 11 on the belief the
+frame leaves, so the estimate and the stored state agree; the lost test and distinctness are those of the new
+b(i)). A belief stuck on a look-alike can fail the lost test on most frames and still never reach
+``lost_frames`` in a row; when a probe shows the true place clearly better, this moves it.
 
 Transitions (eq. 9-10) also let the belief take every direct step between two nodes in one frame, however
 long (:func:`driftmap.core.hmm.long_steps`): node spacing is uneven at junctions and merges, and a step
@@ -287,14 +289,15 @@ class Localiser:
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
         gamma = hmm.observation(d_all[: nodes.size], p.p_t, p.epsilon)
         belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
-        best = int(np.argmax(belief))
-        score = float(belief[best])
         compared = np.r_[nodes, probes]
-        at_best = d_all[compared == best]
-        d_here = float(at_best[0]) if at_best.size else float(np.min(d_all, initial=np.inf))
-        typical = 1.0 - self._distinctness(d_all, d_here)
-        near = self._near(best, 2.0 * self.transitions.reach_m(gap_s))
-        elsewhere, far_best = self._elsewhere(compared, d_all, best, d_here, near)
+        far_m = 2.0 * self.transitions.reach_m(gap_s)
+        best = int(np.argmax(belief))
+        typical, near, elsewhere, far_best = self._judge(best, compared, d_all, far_m)
+        if p.relocate_ratio > 0 and elsewhere >= p.relocate_ratio:
+            belief = hmm.add_hypothesis(belief, far_best, p.relocate_share)  # the next frames decide
+            best = far_best  # now the belief's peak: eq. 11 on the belief this frame leaves
+            typical, near, elsewhere, far_best = self._judge(best, compared, d_all, far_m)
+        score = float(belief[best])
         frame_distinct = min(max(1.0 - max(typical, elsewhere), 0.0), 1.0)
         distinct = self._track_distinct(s, best, frame_distinct, near)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
@@ -305,8 +308,6 @@ class Localiser:
             lost_count = s.lost_count  # the same view again: no new evidence of being elsewhere
         else:
             lost_count = s.lost_count + 1 if lost else 0
-        if p.relocate_ratio > 0 and elsewhere >= p.relocate_ratio:
-            belief = hmm.add_hypothesis(belief, far_best, p.relocate_share)  # the next frames decide
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
@@ -316,6 +317,17 @@ class Localiser:
             belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct
         )
         return self._estimate(best, score, reported_lost, int(d_all.size), t0, distinct)
+
+    def _judge(
+        self, best: int, compared: I64, d_all: NDArray[np.floating], far_m: float
+    ) -> tuple[float, I64, float, int]:
+        """How ``best`` compares with the other compared nodes: (d(b) / median d, the nodes within ``far_m``
+        metres of path of it, :meth:`_elsewhere`'s ratio and far node)."""
+        at_best = d_all[compared == best]
+        d_here = float(at_best[0]) if at_best.size else float(np.min(d_all, initial=np.inf))
+        near = self._near(best, far_m)
+        elsewhere, far_best = self._elsewhere(compared, d_all, best, d_here, near)
+        return 1.0 - self._distinctness(d_all, d_here), near, elsewhere, far_best
 
     def _near(self, best: int, far_m: float) -> I64:
         """(k,) int64 the nodes within ``far_m`` metres of path of ``best`` (two frame reaches: the same place)."""
