@@ -49,6 +49,13 @@ def localise(
         float,
         typer.Option("--start-radius-m", min=0.0, help="Spread the known start over this radius, metres."),
     ] = 0.0,
+    odometry: Annotated[
+        bool,
+        typer.Option(
+            "--odometry/--no-odometry",
+            help="Ground-plane odometry of the drive's camera moves the belief and the position.",
+        ),
+    ] = True,
 ) -> None:
     """Localise every frame of a recorded drive against the site's map: best node, position, confidence."""
     storage = open_storage()
@@ -69,6 +76,7 @@ def localise(
             temporal=temporal,
             start_xy_m=start_xy_m,
             start_radius_m=start_radius_m,
+            camera=folder.meta.camera if odometry else None,
         )
         frames = (
             decode_gray(data, str(file))

@@ -37,6 +37,7 @@ __all__ = [
     "PAPER",
     "HmmParams",
     "TransitionModel",
+    "calibrated",
     "check_node_ptr",
     "compare_nodes",
     "hmm_update",
@@ -100,6 +101,15 @@ class HmmParams:
     # sites went above 1.16); 0: off
     relocate_ratio: float = 1.25
     relocate_share: float = 0.5
+    # odometry-gated transitions: with a usable odometry step the belief takes one transition of the
+    # minimum reach per this many metres actually driven (and stays put in between), instead of one per
+    # frame at max speed (eq. 9-10): a stopped vehicle's belief does not spread, a moving one's spreads
+    # with the distance driven
+    odometry_hop_m: float = 3.5
+    # the reported confidence is the calibration of score x distinct: piecewise linear through these
+    # (raw, probability right) knots, raw ascending from 0 to 1 (LocaliserMap-independent)
+    calibration: tuple[tuple[float, float], ...] = ((0.0, 0.0), (1.0, 1.0))
+    confidence_threshold: float = 0.5  # matched: the calibrated confidence is at least this (not lost)
 
     def __post_init__(self) -> None:
         for name in ("max_speed_mps", "min_a_t_m", "a_t_quantum_m", "epsilon", "lost_distinct_ratio"):
@@ -117,6 +127,27 @@ class HmmParams:
             raise BadInputError(f"must be in (0, 1), got {self.relocate_share}", field="relocate_share")
         if not 0.0 < self.distinct_memory <= 1.0:
             raise BadInputError(f"must be in (0, 1], got {self.distinct_memory}", field="distinct_memory")
+        if not self.odometry_hop_m > 0:
+            raise BadInputError(f"must be positive, got {self.odometry_hop_m}", field="odometry_hop_m")
+        if not 0.0 <= self.confidence_threshold <= 1.0:
+            raise BadInputError(
+                f"must be in [0, 1], got {self.confidence_threshold}", field="confidence_threshold"
+            )
+        knots = np.asarray(self.calibration, dtype=np.float64)
+        if (
+            knots.ndim != 2
+            or knots.shape[1] != 2
+            or knots.shape[0] < 2
+            or np.any(np.diff(knots[:, 0]) <= 0)
+            or np.any(np.diff(knots[:, 1]) < 0)
+            or knots[0, 0] != 0.0
+            or knots[-1, 0] != 1.0
+            or np.any((knots[:, 1] < 0) | (knots[:, 1] > 1))
+        ):
+            raise BadInputError(
+                "must be (raw, probability) knots from raw 0 to 1, both non-decreasing, in [0, 1]",
+                field="calibration",
+            )
         for name in _NON_NEGATIVE:
             if getattr(self, name) < 0:
                 raise BadInputError(f"must be >= 0, got {getattr(self, name)}", field=name)
@@ -126,6 +157,13 @@ class HmmParams:
 PAPER = HmmParams(n_probe=0, lost_frames=0, lost_confidence=0.0, relocate_ratio=0.0)
 #: driftmap's filter: the paper plus probes, relocation and global re-initialisation when lost.
 DEFAULT = HmmParams()
+
+
+def calibrated(raw: float, knots: tuple[tuple[float, float], ...]) -> float:
+    """The probability that a frame of raw confidence ``raw`` (in [0, 1]) is right: piecewise linear
+    through ``knots`` (:attr:`HmmParams.calibration`)."""
+    k = np.asarray(knots, dtype=np.float64)
+    return float(np.interp(min(max(raw, 0.0), 1.0), k[:, 0], k[:, 1]))
 
 
 def check_node_ptr(node_ptr: I64, n_frames: int) -> None:

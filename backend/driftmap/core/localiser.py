@@ -40,15 +40,21 @@ holistic SAD, so it still gets scores.
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core import hmm
+from driftmap.core import hmm, localiser_track
+from driftmap.core.camera import CameraModel
 from driftmap.core.images import preprocess
 from driftmap.core.localiser_map import LocaliserMap
+from driftmap.core.localiser_motion import OdometryFeed
+from driftmap.core.localiser_state import Estimate, LocaliserState
+from driftmap.core.localiser_track import TRACK_DEFAULT, TrackParams, TrackState
+from driftmap.core.odometry_step import OdometryStep
 from driftmap.core.params import SAD_DEFAULT, ImageParams, SadParams
 from driftmap.core.saliency import SesameParams, sesame_masks
 from driftmap.errors import BadInputError
@@ -59,110 +65,6 @@ F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 _PROBE_STRIDE = 7919  # a prime: probe k of frame s is node (s * n_probe + k) * stride mod M
 _MIN_SALIENT_FRACTION = 0.02  # a query mask with fewer salient pixels than this is replaced by no mask
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """The place estimate of one frame.
-
-    Attributes:
-        node: b(i), the best node (eq. 11).
-        x_m: its centre's x, survey frame, metres.
-        y_m: its centre's y, survey frame, metres.
-        score: X_i(b(i)) in [0, 1]; single-image mode: 1 - d_best / median d over the map.
-        matched: eq. 12, ``score >= x_thresh``, and the frame is not lost.
-        lost: the filter is lost: this frame and the ones before it failed the lost test, at least
-            ``lost_report_frames`` counted in a row (it re-initialises after ``lost_frames``).
-        evaluated_nodes: number of nodes compared with the query this frame.
-        ms: wall time of the step, milliseconds.
-        distinct: how much better the track's frames match their b than anywhere else: this frame's
-            ``1 - d(i, b(i)) / d_other`` clipped to [0, 1], with d_other the least d of the compared far nodes
-            (the lost test's; the median d of the compared nodes when it is lower or no far node was
-            compared), averaged exponentially (weight ``HmmParams.distinct_memory``, starting from 0) over
-            the frames since b last jumped further than two frame reaches or the belief started globally
-            (single-image mode: ``score``).
-    """
-
-    node: int
-    x_m: float
-    y_m: float
-    score: float
-    matched: bool
-    lost: bool
-    evaluated_nodes: int
-    ms: float
-    distinct: float = 0.0
-
-    @property
-    def confidence(self) -> float:
-        """``score x distinct`` in [0, 1]: the belief is on b(i) *and* the track's views look like it.
-
-        The posterior X_i(b(i)) alone can be high because the motion prior keeps it there while the view
-        matches b(i) no better than anywhere else (a vehicle leaving a poorly mapped area towards a
-        look-alike); ranking frames by this product keeps those below frames that show their place. The
-        distinctness is measured against the best-matching far node, not only a typical one: a view that
-        matches another part of the mine as well is ambiguous however well it matches b(i). It is averaged
-        along the track because a single frame's is noisy (a right frame's is often as low as a
-        look-alike's), while a look-alike stays barely better frame after frame; a track that has just
-        begun (a jump, a global start) has no history yet and starts from 0.
-        """
-        return self.score * self.distinct
-
-
-@dataclass(frozen=True, eq=False)
-class LocaliserState:
-    """The localiser's belief between frames, small enough for a shared store.
-
-    Attributes:
-        belief: (M,) float64 X_{i-1}, sums to 1.
-        last_t_s: timestamp of the last frame, seconds; NaN before the first.
-        lost_count: lost frames in a row so far.
-        steps: frames processed (drives the probe rotation).
-        moving: frames with a changed view since the last global start (uniform belief).
-        last_query: (h, w) float32 thumbnail of the last frame; (0, 0) before the first.
-        node: b(i) of the last frame; -1 before the first and after a global start.
-        distinct: the track's running distinctness at the last frame (:attr:`Estimate.distinct`).
-    """
-
-    belief: F64
-    last_t_s: float
-    lost_count: int
-    steps: int
-    moving: int = 0
-    last_query: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 0), dtype=np.float32))
-    node: int = -1
-    distinct: float = 0.0
-
-    def to_arrays(self) -> dict[str, NDArray[np.generic]]:
-        """Named arrays (scalars as 0-d) for the store."""
-        return {
-            "belief": np.asarray(self.belief, dtype=np.float64),
-            "last_t_s": np.asarray(self.last_t_s, dtype=np.float64),
-            "lost_count": np.asarray(self.lost_count, dtype=np.int64),
-            "steps": np.asarray(self.steps, dtype=np.int64),
-            "moving": np.asarray(self.moving, dtype=np.int64),
-            "last_query": np.asarray(self.last_query, dtype=np.float32),
-            "node": np.asarray(self.node, dtype=np.int64),
-            "distinct": np.asarray(self.distinct, dtype=np.float64),
-        }
-
-    @classmethod
-    def from_arrays(cls, arrays: dict[str, NDArray[np.generic]]) -> LocaliserState:
-        """Rebuild a state from :meth:`to_arrays` output (a state stored before ``moving``, ``node`` or
-        ``distinct`` existed starts those afresh)."""
-        try:
-            return cls(
-                belief=np.array(arrays["belief"], dtype=np.float64),
-                last_t_s=float(arrays["last_t_s"]),
-                lost_count=int(arrays["lost_count"]),
-                steps=int(arrays["steps"]),
-                moving=int(arrays.get("moving", 0)),
-                last_query=np.array(arrays.get("last_query", np.zeros((0, 0))), dtype=np.float32),
-                node=int(arrays.get("node", -1)),
-                distinct=float(arrays.get("distinct", 0.0)),
-            )
-        except KeyError as exc:
-            raise BadInputError("stored localiser state is missing an array", field=str(exc.args[0])) from exc
 
 
 class Localiser:
@@ -177,6 +79,12 @@ class Localiser:
         sesame: SESAME mask parameters (paper 001 eq. 6); None compares whole images (holistic SAD).
         start_node: known start node; None starts with a global (uniform) belief.
         start_radius_m: spread the start over nodes within this of the start node, metres.
+        camera: the vehicle's calibrated camera: its ground-plane odometry moves the belief by the distance
+            driven and dead-reckons the continuous position (:mod:`driftmap.core.localiser_motion`); None
+            localises by appearance alone (every estimate says ``odometry=False``).
+        track_params: the continuous position track's noise model (:mod:`driftmap.core.localiser_track`).
+        start_xy_m: the known start's survey point, metres (the track starts there); None: ``start_node``'s
+            centre.
     """
 
     def __init__(
@@ -190,8 +98,13 @@ class Localiser:
         sesame: SesameParams | None = None,
         start_node: int | None = None,
         start_radius_m: float = 0.0,
+        camera: CameraModel | None = None,
+        track_params: TrackParams = TRACK_DEFAULT,
+        start_xy_m: tuple[float, float] | None = None,
     ) -> None:
         self.map = lmap
+        self.track_params = track_params
+        self.odometry = None if camera is None or single_image else OdometryFeed(camera)
         self.params = params
         self.sad_params = sad_params
         self.image_params = lmap.image_params if image_params is None else image_params
@@ -202,20 +115,39 @@ class Localiser:
         )
         self._all = np.arange(lmap.n_nodes, dtype=np.int64)
         self._state = LocaliserState(hmm.initial_belief(lmap.n_nodes), float("nan"), 0, 0)
-        self.reset(start_node, start_radius_m)
+        self.reset(start_node, start_radius_m, start_xy_m)
 
-    def reset(self, start_node: int | None = None, start_radius_m: float = 0.0) -> None:
-        """Start again: peaked at ``start_node`` (within ``start_radius_m`` metres) or global when None."""
+    def reset(
+        self,
+        start_node: int | None = None,
+        start_radius_m: float = 0.0,
+        start_xy_m: tuple[float, float] | None = None,
+    ) -> None:
+        """Start again: peaked at ``start_node`` (within ``start_radius_m`` metres) or global when None; the
+        continuous track starts at ``start_xy_m`` (default: the start node's centre), sd the radius."""
         belief = hmm.initial_belief(self.map.n_nodes, start_node, self.map.centres_m, start_radius_m)
         confirmed = (
             0 if start_node is None else self.params.confirm_frames
         )  # a known start needs no confirming
-        self._state = LocaliserState(belief, float("nan"), 0, 0, confirmed)
+        track = TrackState.empty()
+        if start_node is not None:
+            xy = start_xy_m if start_xy_m is not None else tuple(self.map.centres_m[start_node])
+            sd = max(start_radius_m, self.track_params.fix_sigma_m)
+            track = TrackState.at((float(xy[0]), float(xy[1])), sd)
+        # a known start is trusted as a distinct track until the views say otherwise (the running
+        # distinctness forgets it within a few frames); a global start earns its confidence frame by frame
+        node, distinct = (-1, 0.0) if start_node is None else (start_node, 1.0)
+        self._state = LocaliserState(
+            belief, float("nan"), 0, 0, confirmed, node=node, distinct=distinct, track=track
+        )
+        if self.odometry is not None:
+            self.odometry.restore(np.zeros((0, 0), dtype=np.uint8), float("nan"))
 
     def state(self) -> LocaliserState:
         """The current state (a copy)."""
         s = self._state
-        return replace(s, belief=s.belief.copy(), last_query=s.last_query.copy())
+        last = np.zeros((0, 0), dtype=np.uint8) if self.odometry is None else self.odometry.previous_frame()
+        return replace(s, belief=s.belief.copy(), last_query=s.last_query.copy(), last_frame=last.copy())
 
     def restore(self, state: LocaliserState) -> None:
         """Continue from a saved state of a localiser on the same map."""
@@ -224,6 +156,8 @@ class Localiser:
                 f"belief must be ({self.map.n_nodes},), got {state.belief.shape}", field="belief"
             )
         self._state = replace(state, belief=state.belief.copy(), last_query=state.last_query.copy())
+        if self.odometry is not None:
+            self.odometry.restore(state.last_frame, state.last_t_s)
 
     def thumbnail(self, frame: NDArray[np.generic]) -> NDArray[np.float32]:
         """(H, W) float32 query thumbnail: a floating frame of the map's thumbnail shape is taken as is."""
@@ -277,13 +211,14 @@ class Localiser:
             best = int(np.argmin(d))
             score = self._distinctness(d, float(d[best]))
             self._state = LocaliserState(s.belief, t_s, 0, s.steps + 1)
-            return self._estimate(best, score, False, lm.n_nodes, t0, score)
+            x_m, y_m = lm.centres_m[best]
+            return self._estimate(
+                best, score, False, lm.n_nodes, t0, score, (x_m, y_m, math.nan), None, False, True
+            )
 
         gap_s = t_s - s.last_t_s if np.isfinite(s.last_t_s) else 0.0
-        if not np.isfinite(s.last_t_s) or hmm.is_global(s.belief):
-            prior = s.belief  # a global belief searches the whole map (pi would favour well-linked nodes)
-        else:
-            prior = self.transitions.predict(s.belief, gap_s)
+        motion = None if self.odometry is None else self.odometry.step(frame, t_s)
+        prior, travel_m = self._predict(s, gap_s, motion)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
@@ -309,14 +244,68 @@ class Localiser:
         else:
             lost_count = s.lost_count + 1 if lost else 0
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
+        confidence = 0.0 if reported_lost else hmm.calibrated(score * distinct, p.calibration)
+        track, moving_now = self._follow(s.track, motion, gap_s, best, confidence, still)
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
-            node = -1
+            node, travel_m = -1, 0.0
         self._state = LocaliserState(
-            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct
+            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct, travel_m, track
         )
-        return self._estimate(best, score, reported_lost, int(d_all.size), t0, distinct)
+        return self._estimate(
+            best,
+            score,
+            reported_lost,
+            int(d_all.size),
+            t0,
+            distinct,
+            track.wT,
+            track,
+            motion is not None,
+            moving_now,
+        )
+
+    def _predict(self, s: LocaliserState, gap_s: float, motion: OdometryStep | None) -> tuple[F64, float]:
+        """The prior ``pi X_{i-1}`` of this frame and the odometry travel still to apply, metres.
+
+        A global belief stays as it is (pi of a flat belief would favour well-linked nodes). With a usable
+        odometry step the belief takes one minimum-reach transition per ``odometry_hop_m`` metres driven (the
+        step's length plus its sd) and stays put in between; without one, eq. 9-10's reach of max speed x the
+        frame gap applies.
+        """
+        if not np.isfinite(s.last_t_s) or hmm.is_global(s.belief):
+            return s.belief, 0.0
+        if motion is None:
+            return self.transitions.predict(s.belief, gap_s), 0.0
+        travel_m = s.travel_m + abs(motion.dx_m) + motion.sigma_xy_m
+        if travel_m < self.params.odometry_hop_m:
+            return s.belief, travel_m
+        return self.transitions.predict(s.belief, 0.0), travel_m - self.params.odometry_hop_m
+
+    def _follow(
+        self,
+        track: TrackState,
+        motion: OdometryStep | None,
+        gap_s: float,
+        best: int,
+        confidence: float,
+        still: bool,
+    ) -> tuple[TrackState, bool]:
+        """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre when the frame
+        is confident, kept on the mapped tunnels around it (:mod:`driftmap.core.localiser_track`); and whether
+        the vehicle moves (odometry speed, else a changed view)."""
+        tp, lm = self.track_params, self.map
+        track = localiser_track.predict(track, motion, gap_s, tp)
+        if confidence >= tp.fix_min_confidence or not track.has_position:
+            track = localiser_track.correct(track, lm.centres_m[best], tp)
+        if motion is not None:
+            moving = math.isfinite(track.speed_mps) and abs(track.speed_mps) > tp.moving_mps
+        else:
+            moving = not still
+        around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
+        edges = lm.edges_near(np.r_[around, self._near(around, tp.snap_radius_m)])
+        return localiser_track.snap(track, lm.centres_m, edges, moving, tp), moving
 
     def _judge(
         self, best: int, compared: I64, d_all: NDArray[np.floating], far_m: float
@@ -377,17 +366,34 @@ class Localiser:
         return 1.0 - d_best / med if med > 0 else 0.0
 
     def _estimate(
-        self, node: int, score: float, lost: bool, evaluated: int, t0: float, distinct: float
+        self,
+        node: int,
+        score: float,
+        lost: bool,
+        evaluated: int,
+        t0: float,
+        distinct: float,
+        wT: F64 | tuple[float, float, float],
+        track: TrackState | None,
+        odometry: bool,
+        moving: bool,
     ) -> Estimate:
-        x_m, y_m = self.map.centres_m[node]
+        distinct = min(max(distinct, 0.0), 1.0)
+        confidence = 0.0 if lost else hmm.calibrated(score * distinct, self.params.calibration)
+        speed = track.speed_mps if track is not None and odometry else math.nan
         return Estimate(
             node=node,
-            x_m=float(x_m),
-            y_m=float(y_m),
+            x_m=float(wT[0]),
+            y_m=float(wT[1]),
             score=score,
-            matched=score >= self.params.x_thresh and not lost,
+            matched=confidence >= self.params.confidence_threshold and not lost,
             lost=lost,
             evaluated_nodes=evaluated,
             ms=(time.perf_counter() - t0) * 1e3,
-            distinct=min(max(distinct, 0.0), 1.0),
+            distinct=distinct,
+            confidence=confidence,
+            yaw_rad=float(wT[2]),
+            speed_mps=float(speed),
+            moving=bool(moving),
+            odometry=odometry,
         )

@@ -36,6 +36,8 @@ class LocaliserMap:
         adjacency_m: (M, M) float64 symmetric sparse shortest-path lengths A(x, y), metres.
         max_adjacency_m: longest path stored in ``adjacency_m``, metres.
         image_params: the pre-processing that made ``thumbs``; query frames get the same.
+        edges: (E, 2) int64 node pairs driven between directly (the tunnels as segments between centres);
+            the continuous track follows them (:func:`driftmap.core.localiser_track.snap`); (0, 2): none.
     """
 
     thumbs: NDArray[np.float32]
@@ -44,6 +46,7 @@ class LocaliserMap:
     adjacency_m: csr_array
     max_adjacency_m: float
     image_params: ImageParams = IMAGES_DEFAULT
+    edges: I64 = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -59,6 +62,16 @@ class LocaliserMap:
         hmm.check_node_ptr(self.node_ptr, self.thumbs.shape[0])
         if self.adjacency_m.shape != (m, m):
             raise BadInputError(f"adjacency_m must be ({m}, {m})", field="adjacency_m")
+        edges = np.asarray(self.edges)
+        if edges.ndim != 2 or edges.shape[1] != 2 or (edges.size and (edges.min() < 0 or edges.max() >= m)):
+            raise BadInputError(f"edges must be (E, 2) node indices below {m}", field="edges")
+
+    def edges_near(self, nodes: I64) -> I64:
+        """(K, 2) int64 the edges with an end among ``nodes``."""
+        if self.edges.size == 0:
+            return self.edges
+        keep = np.isin(self.edges, nodes).any(axis=1)
+        return np.asarray(self.edges[keep], dtype=np.int64)
 
     @property
     def n_nodes(self) -> int:
@@ -112,4 +125,5 @@ def build_localiser_map(
         adjacency_m=topomap.adjacency_m,
         max_adjacency_m=float(topomap.params.max_adjacency_m),
         image_params=image_params,
+        edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
     )

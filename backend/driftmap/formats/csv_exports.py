@@ -17,8 +17,10 @@ from driftmap.formats.records import GroundingRow
 from driftmap.formats.tables import (
     decode_text,
     format_float,
+    format_optional_float,
     parse_float,
     parse_int,
+    parse_optional_float,
     parse_text,
     read_table,
     table_text,
@@ -151,10 +153,14 @@ def read_poses_csv(path: Path) -> list[PoseRow]:
 
 @dataclass(frozen=True)
 class LocalisationRow:
-    """One row of a localisation export: the best map node for a query frame.
+    """One row of a localisation export: the position estimate of a query frame.
 
-    ``node`` is the best node id b(i), ``x_m, y_m`` its metric position (metres, survey frame), ``score``
-    X_i(b(i)) (higher = more confident) and ``matched`` whether score >= the configured X_thresh.
+    ``node`` is the best node id b(i); ``x_m, y_m`` the vehicle's position (metres, survey frame; the
+    continuous track along the mapped tunnels); ``score`` the confidence that the position is right, a
+    calibrated probability in [0, 1]; ``matched`` whether it reached the configured threshold (and the
+    localiser was not lost); ``yaw_rad`` the heading (radians counter-clockwise from +x) and ``speed_mps``
+    the signed odometry speed, None when unknown; ``odometry`` whether the camera's odometry was used;
+    ``x_paper`` the paper's X_i(b(i)) (eq. 11), None when not given.
     """
 
     frame: int
@@ -163,13 +169,22 @@ class LocalisationRow:
     y_m: float
     score: float
     matched: bool
+    yaw_rad: float | None = None
+    speed_mps: float | None = None
+    odometry: bool = False
+    x_paper: float | None = None
 
 
-LOCALISATION_HEADER: tuple[str, ...] = ("frame", "node", "x", "y", "score", "matched")
+LOCALISATION_HEADER: tuple[str, ...] = (
+    "frame", "node", "x", "y", "score", "matched", "yaw", "speed", "odometry", "x_paper"
+)  # fmt: skip
+#: the header before heading, speed, odometry and the paper's X were added; still read
+LOCALISATION_HEADER_V1: tuple[str, ...] = ("frame", "node", "x", "y", "score", "matched")
 
 
 def localisation_text(rows: Iterable[LocalisationRow]) -> str:
-    """Localisation CSV text, header ``frame,node,x,y,score,matched``; matched is 1 or 0."""
+    """Localisation CSV text, header :data:`LOCALISATION_HEADER`; matched and odometry are 1 or 0, an unknown
+    yaw, speed or x_paper an empty cell."""
     return table_text(
         LOCALISATION_HEADER,
         (
@@ -180,6 +195,10 @@ def localisation_text(rows: Iterable[LocalisationRow]) -> str:
                 format_float(r.y_m, field="y"),
                 format_float(r.score, field="score"),
                 "1" if r.matched else "0",
+                format_optional_float(r.yaw_rad, field="yaw"),
+                format_optional_float(r.speed_mps, field="speed"),
+                "1" if r.odometry else "0",
+                format_optional_float(r.x_paper, field="x_paper"),
             ]
             for r in rows
         ),
@@ -193,7 +212,7 @@ def write_localisation_csv(path: Path, rows: Iterable[LocalisationRow]) -> None:
 
 def parse_localisation_csv(text: str, file: str | Path) -> list[LocalisationRow]:
     """Parse localisation CSV text; each frame may appear once, ``matched`` must be 0 or 1."""
-    _, table = read_table(text, file, [LOCALISATION_HEADER])
+    header, table = read_table(text, file, [LOCALISATION_HEADER, LOCALISATION_HEADER_V1])
     out: list[LocalisationRow] = []
     seen: set[int] = set()
     for row in table:
@@ -204,11 +223,30 @@ def parse_localisation_csv(text: str, file: str | Path) -> list[LocalisationRow]
         seen.add(frame)
         node = parse_int(cells["node"], file=file, line=line, field="node")
         x, y, score = (parse_float(cells[k], file=file, line=line, field=k) for k in ("x", "y", "score"))
-        if cells["matched"] not in ("0", "1"):
-            raise BadInputError(
-                f"must be 0 or 1, found {cells['matched'][:20]!r}", file=file, line=line, field="matched"
+        for flag in ("matched", "odometry") if header == LOCALISATION_HEADER else ("matched",):
+            if cells[flag] not in ("0", "1"):
+                raise BadInputError(
+                    f"must be 0 or 1, found {cells[flag][:20]!r}", file=file, line=line, field=flag
+                )
+        extra: dict[str, float | None] = {
+            k: parse_optional_float(cells[k], file=file, line=line, field=k) if k in cells else None
+            for k in ("yaw", "speed", "x_paper")
+        }
+        odometry = cells.get("odometry") == "1"
+        out.append(
+            LocalisationRow(
+                frame,
+                node,
+                x,
+                y,
+                score,
+                cells["matched"] == "1",
+                extra["yaw"],
+                extra["speed"],
+                odometry,
+                extra["x_paper"],
             )
-        out.append(LocalisationRow(frame, node, x, y, score, cells["matched"] == "1"))
+        )
     return out
 
 

@@ -151,8 +151,14 @@ def drive_localise(ctx: JobContext) -> None:
         lmap = loc_service.load_version_localiser_map(session, storage.blobs, version)
         sesame = loc_service.sesame_params_of(version) if args.get("sesame", True) else None
         frames = drive_service.frame_rows(session, drive)
+        camera = drive_service.drive_meta(drive).camera
         number = version.version
-    localiser = loc_service.make_localiser(lmap, sesame=sesame, temporal=bool(args.get("temporal", True)))
+    localiser = loc_service.make_localiser(
+        lmap,
+        sesame=sesame,
+        temporal=bool(args.get("temporal", True)),
+        camera=camera if args.get("odometry", True) else None,
+    )
     images = (decode_gray(storage.blobs.get(f.blob_sha256), f"frame {f.index}") for f in frames)
     estimates = loc_service.localise_frames(localiser, images, [f.t_s for f in frames], ctx.report)
     rows = loc_service.estimate_rows([f.index for f in frames], estimates)

@@ -25,6 +25,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from driftmap.core import hmm
+from driftmap.core.camera import CameraModel
 from driftmap.core.images import preprocess
 from driftmap.core.localiser import Estimate, Localiser
 from driftmap.core.localiser_map import LocaliserMap
@@ -33,6 +34,7 @@ from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
 from driftmap.core.saliency import SesameParams
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import LocalisationRow
+from driftmap.formats.drive_json import parse_camera_block
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import frame_rows
 from driftmap.services.maps import LOCALISER_DB_KEY, get_map_version, load_topomap
@@ -138,6 +140,7 @@ def load_version_localiser_map(
         adjacency_m=topomap.adjacency_m,
         max_adjacency_m=float(topomap.params.max_adjacency_m),
         image_params=image_params,
+        edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
     )
 
 
@@ -165,11 +168,14 @@ def make_localiser(
     params: hmm.HmmParams = hmm.DEFAULT,
     start_xy_m: tuple[float, float] | None = None,
     start_radius_m: float = 0.0,
+    camera: CameraModel | None = None,
 ) -> Localiser:
     """A :class:`Localiser` on ``lmap``: SESAME masks unless ``sesame`` is None, HMM filter unless not temporal.
 
     ``start_xy_m`` is the vehicle's known start (survey frame, metres): the belief starts at the nearest node
-    and the nodes within ``start_radius_m`` of it (paper 000's X_0); None starts it global (uniform).
+    and the nodes within ``start_radius_m`` of it (paper 000's X_0), the continuous track at the point; None
+    starts it global (uniform). ``camera`` is the vehicle's calibrated camera: its ground-plane odometry
+    moves the belief and the track (None: appearance alone).
     """
     start = None
     if start_xy_m is not None:
@@ -188,6 +194,8 @@ def make_localiser(
         sesame=sesame,
         start_node=start,
         start_radius_m=start_radius_m,
+        start_xy_m=start_xy_m,
+        camera=camera,
     )
 
 
@@ -225,9 +233,24 @@ def localise_frames(
 
 
 def estimate_rows(frame_numbers: Sequence[int], estimates: Sequence[Estimate]) -> list[LocalisationRow]:
-    """The localisation CSV rows (formats.md ``frame,node,x,y,score,matched``) of a run."""
+    """The localisation CSV rows (formats.md) of a run: ``score`` is the reported (calibrated) confidence."""
+
+    def known(value: float) -> float | None:
+        return value if np.isfinite(value) else None
+
     return [
-        LocalisationRow(int(f), e.node, e.x_m, e.y_m, e.score, e.matched)
+        LocalisationRow(
+            int(f),
+            e.node,
+            e.x_m,
+            e.y_m,
+            e.confidence,
+            e.matched,
+            known(e.yaw_rad),
+            known(e.speed_mps),
+            e.odometry,
+            e.score,
+        )
         for f, e in zip(frame_numbers, estimates, strict=True)
     ]
 
@@ -242,6 +265,7 @@ class RecordedDrive:
         t_s: (N,) float64 timestamps, seconds.
         truth_xy_m: (N, 2) float64 true floor points (survey frame, metres) when every frame has one, else None.
         frames: returns a fresh iterator over the N grey (H, W) uint8 frames in time order.
+        camera: the drive's calibrated camera (its odometry runs in the localiser).
     """
 
     name: str
@@ -249,6 +273,7 @@ class RecordedDrive:
     t_s: NDArray[np.float64]
     truth_xy_m: NDArray[np.float64] | None
     frames: Callable[[], Iterator[NDArray[np.uint8]]]
+    camera: CameraModel | None = None
 
 
 def load_localisation_drives(session: Session, blobs: BlobStore, site: Site) -> list[RecordedDrive]:
@@ -274,6 +299,7 @@ def load_localisation_drives(session: Session, blobs: BlobStore, site: Site) -> 
                 t_s=np.array([f.t_s for f in rows], dtype=np.float64),
                 truth_xy_m=truth,
                 frames=frames,
+                camera=parse_camera_block(drive.camera, "", f"drive {drive.name!r}"),
             )
         )
     return out

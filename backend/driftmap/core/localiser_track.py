@@ -1,0 +1,209 @@
+"""A localising vehicle's continuous position and heading along the mapped tunnels (beyond paper 000).
+
+The HMM (:mod:`driftmap.core.hmm`) answers *which place*: a node every N metres. Between and beyond node
+centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_rad)`` in the survey frame
+(x east, y north, yaw counter-clockwise from +x: the way the vehicle faces) with a position variance:
+
+* **predict** (:func:`predict`): with a usable odometry step (eq. 1-2, :mod:`driftmap.core.localiser_motion`)
+  the pose is composed with the step's ``prev_T_curr`` (rear-axle arc) and the variance grows with the step's
+  ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
+  ``free_speed_mps`` x the gap (a random walk), and heading is held.
+* **correct** (:func:`correct`): a confident place fix, the centre of the HMM's b(i), pulls the position with
+  the Kalman gain ``var / (var + fix_sigma_m^2)`` (a node centre is within half a node spacing of the vehicle,
+  ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). A fix further than ``gate_m`` plus three
+  standard deviations from the track re-anchors it there (a relocation, a restart) and the heading becomes
+  unknown again.
+* **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
+  between directly driven node centres) around b(i), so positions and trails stay in the tunnels; the
+  heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
+* **heading** from the fixes: when the heading is unknown it is the direction from the anchor to the
+  current position once ``heading_after_m`` has been driven (plus pi when the odometry says reversing).
+
+Speed comes from the odometry steps (signed metres over the frame gap, exponentially averaged); without
+odometry it is unknown (NaN).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core.odometry import compose
+from driftmap.core.odometry_step import OdometryStep
+
+__all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "correct", "predict", "snap"]
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class TrackParams:
+    """The continuous track's noise model and gates."""
+
+    fix_sigma_m: float = 2.0  # standard deviation of a place fix (b(i)'s centre) about the vehicle, metres
+    step_sigma_frac: float = 0.03  # odometry position sd per metre driven, on top of the step's own sigma
+    free_speed_mps: float = 3.0  # without odometry: position sd grows by this x the frame gap
+    gate_m: float = 10.0  # a fix further than this + 3 sd from the track re-anchors it, metres
+    heading_after_m: float = 3.0  # an unknown heading is taken from the track after this much travel, metres
+    heading_pull: float = 0.15  # per moving frame, the share of the gap to the edge direction closed
+    speed_memory: float = 0.3  # weight of the newest step in the running speed
+    moving_mps: float = 0.15  # a vehicle faster than this (odometry) is moving, m/s
+    fix_min_confidence: float = 0.3  # b(i)'s centre corrects the track when the frame's confidence is this
+    snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
+
+    def __post_init__(self) -> None:
+        for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "heading_after_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"TrackParams.{name} must be positive, got {getattr(self, name)}")
+        for name in ("heading_pull", "speed_memory"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise ValueError(f"TrackParams.{name} must be in (0, 1], got {getattr(self, name)}")
+
+
+TRACK_DEFAULT = TrackParams()
+
+
+@dataclass(frozen=True, eq=False)
+class TrackState:
+    """The continuous track between frames.
+
+    Attributes:
+        wT: (3,) float64 ``[x_m, y_m, yaw_rad]`` survey frame; x, y NaN before the first fix, yaw NaN while
+            unknown.
+        var_m2: position variance (isotropic), square metres.
+        speed_mps: signed running speed from odometry (negative: reversing); NaN when not measured.
+        travel_m: signed odometry travel since the track was anchored, metres.
+        anchor_m: (2,) float64 position where the track was anchored (heading from the fixes), metres.
+    """
+
+    wT: F64
+    var_m2: float
+    speed_mps: float
+    travel_m: float
+    anchor_m: F64
+
+    @classmethod
+    def empty(cls) -> TrackState:
+        """No track yet."""
+        nan2 = np.full(2, np.nan)
+        return cls(np.full(3, np.nan), math.inf, math.nan, 0.0, nan2)
+
+    @classmethod
+    def at(cls, xy_m: tuple[float, float], sigma_m: float) -> TrackState:
+        """A track anchored at the survey point ``xy_m`` with sd ``sigma_m`` metres, heading unknown."""
+        xy = np.asarray(xy_m, dtype=np.float64)
+        return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, xy.copy())
+
+    @property
+    def has_position(self) -> bool:
+        return bool(np.isfinite(self.wT[0]))
+
+    @property
+    def has_heading(self) -> bool:
+        return bool(np.isfinite(self.wT[2]))
+
+    def to_arrays(self) -> F64:
+        """(8,) float64 packed for the localiser's stored state."""
+        packed = np.r_[self.wT, self.var_m2, self.speed_mps, self.travel_m, self.anchor_m]
+        return np.asarray(packed, dtype=np.float64)
+
+    @classmethod
+    def from_arrays(cls, packed: F64) -> TrackState:
+        """Inverse of :meth:`to_arrays` (anything but 8 values: no track)."""
+        a = np.asarray(packed, dtype=np.float64).ravel()
+        if a.size != 8:
+            return cls.empty()
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), a[6:8].copy())
+
+
+def _wrap(angle_rad: float) -> float:
+    return math.atan2(math.sin(angle_rad), math.cos(angle_rad))
+
+
+def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: TrackParams) -> TrackState:
+    """Move the track by one frame: by the odometry ``step`` when given, else a random walk.
+
+    Args:
+        state: the track after the previous frame.
+        step: the usable odometry step between the frames, or None.
+        gap_s: the frame gap, seconds.
+        params: noise model.
+    """
+    if not state.has_position:
+        return state
+    gap = max(gap_s, 0.0)
+    if step is None:
+        var = state.var_m2 + (params.free_speed_mps * gap) ** 2
+        return replace(state, var_m2=var, speed_mps=math.nan)
+    sd = step.sigma_xy_m + params.step_sigma_frac * abs(step.dx_m)
+    speed = step.dx_m / gap if gap > 0 else 0.0
+    a = params.speed_memory
+    speed = speed if not math.isfinite(state.speed_mps) else (1 - a) * state.speed_mps + a * speed
+    wT = np.asarray(compose(state.wT, step.prev_T_curr) if state.has_heading else state.wT.copy())
+    return replace(
+        state, wT=wT, var_m2=state.var_m2 + sd * sd, speed_mps=speed, travel_m=state.travel_m + step.dx_m
+    )
+
+
+def correct(state: TrackState, fix_m: F64, params: TrackParams) -> TrackState:
+    """Fuse a confident place fix (2,) ``fix_m`` (survey metres) into the track, or re-anchor at it.
+
+    Returns the track anchored at the fix when there is none yet or the fix lies beyond the gate.
+    """
+    fix = np.asarray(fix_m, dtype=np.float64)
+    r2 = params.fix_sigma_m**2
+    if not state.has_position:
+        return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m)
+    off = float(np.hypot(*(fix - state.wT[:2])))
+    if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + r2):
+        anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m)
+        return replace(anchored, speed_mps=state.speed_mps)
+    gain = state.var_m2 / (state.var_m2 + r2)
+    wT = state.wT.copy()
+    wT[:2] += gain * (fix - wT[:2])
+    return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2)
+
+
+def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, float] | None:
+    """The nearest point to ``xy`` on the segments ``edges`` (K, 2) of ``centres_m``, its distance and the
+    segment's direction (radians); None without segments."""
+    if edges.size == 0:
+        return None
+    a, b = centres_m[edges[:, 0]], centres_m[edges[:, 1]]
+    ab = b - a
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    points = a + t[:, None] * ab
+    dist = np.hypot(*(points - xy).T)
+    k = int(np.argmin(dist))
+    return points[k], float(dist[k]), math.atan2(float(ab[k, 1]), float(ab[k, 0]))
+
+
+def snap(state: TrackState, centres_m: F64, edges: I64, moving: bool, params: TrackParams) -> TrackState:
+    """Put the track on the nearest of the mapped ``edges`` (K, 2) int64 (node pairs, segments between
+    their ``centres_m`` (M, 2)), pull its heading towards that edge while ``moving``, and take an unknown
+    heading from the travel since the anchor once it is long enough."""
+    if not state.has_position:
+        return state
+    wT = state.wT.copy()
+    found = _nearest_on_edges(wT[:2], centres_m, edges)
+    edge_dir = math.nan
+    if found is not None:
+        wT[:2], _dist, edge_dir = found
+    if not np.isfinite(wT[2]):
+        moved = np.asarray(wT[:2] - state.anchor_m)
+        if abs(state.travel_m) >= params.heading_after_m and float(np.hypot(*moved)) >= 0.5 * abs(
+            state.travel_m
+        ):
+            heading = math.atan2(float(moved[1]), float(moved[0]))
+            wT[2] = _wrap(heading + (math.pi if state.travel_m < 0 else 0.0))
+    elif moving and math.isfinite(edge_dir):
+        err = _wrap(edge_dir - wT[2])
+        if abs(err) > math.pi / 2:
+            err = _wrap(err + math.pi)  # the edge's other way is nearer
+        wT[2] = _wrap(wT[2] + params.heading_pull * err)
+    return replace(state, wT=wT)
