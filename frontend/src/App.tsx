@@ -108,7 +108,7 @@ export function App() {
         ) : current === "survey" ? (
           <SurveyView siteId={siteId} />
         ) : current === "monitor" ? (
-          <MonitorView siteId={siteId} />
+          <MonitorView siteId={siteId} editable={canEdit(me)} />
         ) : (
           <GroundingView siteId={siteId} editable={canEdit(me)} />
         )}

@@ -30,6 +30,27 @@ export class ApiError extends Error {
   }
 }
 
+/**
+ * The text of an error body: a driftmap error's ``detail`` (with its ``field`` when the detail does not name
+ * it), or FastAPI's validation list as "field: message; ..." (the location without ``body``). Null without one.
+ */
+export function detailText(body: { detail?: unknown; field?: unknown }): string | null {
+  const { detail, field } = body;
+  if (typeof detail === "string") {
+    return typeof field === "string" && field && !detail.includes(field) ? `${field}: ${detail}` : detail;
+  }
+  if (Array.isArray(detail)) {
+    const parts = detail.map((item: unknown) => {
+      const { loc, msg } = (item ?? {}) as { loc?: unknown; msg?: unknown };
+      const where = Array.isArray(loc) ? loc.filter((l) => l !== "body").join(".") : "";
+      const text = typeof msg === "string" ? msg : JSON.stringify(item);
+      return where ? `${where}: ${text}` : text;
+    });
+    return parts.length > 0 ? parts.join("; ") : null;
+  }
+  return detail === undefined || detail === null ? null : JSON.stringify(detail);
+}
+
 let token: string | null = null;
 let onUnauthorized: (() => void) | null = null;
 
@@ -74,8 +95,7 @@ async function send(method: string, url: string, body?: unknown): Promise<unknow
   if (!response.ok) {
     let detail = response.statusText;
     try {
-      const json = (await response.json()) as { detail?: unknown };
-      detail = typeof json.detail === "string" ? json.detail : JSON.stringify(json.detail);
+      detail = detailText((await response.json()) as { detail?: unknown }) ?? detail;
     } catch {
       /* not JSON */
     }

@@ -204,6 +204,26 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/vehicles/{vehicle_id}/start": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Set Start
+         * @description Place the vehicle's known start: its next frames are localised near it.
+         */
+        post: operations["set_start_api_vehicles__vehicle_id__start_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/vehicles/{vehicle_id}/frames": {
         parameters: {
             query?: never;
@@ -1156,6 +1176,14 @@ export interface components {
             x?: number | null;
             /** Y */
             y?: number | null;
+            /** Yaw */
+            yaw?: number | null;
+            /** Speed Mps */
+            speed_mps?: number | null;
+            /** Moving */
+            moving?: boolean | null;
+            /** Odometry */
+            odometry?: boolean;
             /** Confidence */
             confidence?: number | null;
             /** Matched */
@@ -1585,6 +1613,12 @@ export interface components {
             y: number;
             /** Yaw */
             yaw: number | null;
+            /** Speed Mps */
+            speed_mps?: number | null;
+            /** Moving */
+            moving?: boolean | null;
+            /** Odometry */
+            odometry?: boolean;
             /** Confidence */
             confidence: number;
             /** Matched */
@@ -1814,6 +1848,33 @@ export interface components {
              * Format: date-time
              */
             token_rotated_at: string;
+        };
+        /** VehicleStartCreate */
+        VehicleStartCreate: {
+            /** X */
+            x: number;
+            /** Y */
+            y: number;
+            /**
+             * Radius M
+             * @default 10
+             */
+            radius_m?: number;
+        };
+        /** VehicleStartRead */
+        VehicleStartRead: {
+            /** Vehicle Id */
+            vehicle_id: number;
+            /** X */
+            x: number;
+            /** Y */
+            y: number;
+            /** Radius M */
+            radius_m: number;
+            /** Node */
+            node: number;
+            /** Map Version */
+            map_version: number | null;
         };
         /** VehicleWithToken */
         VehicleWithToken: {
@@ -2226,6 +2287,41 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["VehicleWithToken"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    set_start_api_vehicles__vehicle_id__start_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                vehicle_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["VehicleStartCreate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["VehicleStartRead"];
                 };
             };
             /** @description Validation Error */

@@ -1,19 +1,7 @@
 import { describe, expect, it } from "vitest";
-import { confidenceColour, driveColour, residualClass, rgbCss } from "./colours";
+import { driveColour, residualClass, rgbCss } from "./colours";
 
 describe("colour scales", () => {
-  it("runs confidence from red through amber to green and clamps", () => {
-    expect(confidenceColour(0)).toEqual([229, 72, 77]);
-    expect(confidenceColour(0.5)).toEqual([240, 180, 41]);
-    expect(confidenceColour(1)).toEqual([48, 196, 120]);
-    expect(confidenceColour(-3)).toEqual(confidenceColour(0));
-    expect(confidenceColour(7)).toEqual(confidenceColour(1));
-    expect(confidenceColour(Number.NaN)).toEqual(confidenceColour(0));
-    const mid = confidenceColour(0.75);
-    expect(mid[1]).toBeGreaterThan(180);
-    expect(mid[0]).toBeLessThan(240);
-  });
-
   it("classes residuals by distance", () => {
     expect(residualClass(0.2)).toBe("good");
     expect(residualClass(0.5)).toBe("fair");

@@ -40,17 +40,20 @@ describe("LiveState", () => {
     });
     expect(s.lastSeq).toBe(5);
     expect(statusOf(s.vehicles.get(2)!)).toBe("stale");
-    s.apply({ type: "position", ...position(6, 1, 11, 2) });
+    expect(statusOf(s.vehicles.get(1)!)).toBe("motion unknown"); // an older server: not said
+    s.apply({ type: "position", ...position(6, 1, 11, 2, { moving: true, speed_mps: 2 }) });
     expect(statusOf(s.vehicles.get(1)!)).toBe("moving");
-    s.apply({ type: "position", ...position(7, 1, 12, 2) });
+    s.apply({ type: "position", ...position(7, 1, 12, 2, { moving: false, speed_mps: 0 }) });
     expect(statusOf(s.vehicles.get(1)!)).toBe("stopped");
-    s.apply({ type: "position", ...position(8, 1, 13, 2, { lost: true }) });
+    s.apply({ type: "position", ...position(8, 1, 12.5, 2.5, { moving: null, speed_mps: null }) });
+    expect(statusOf(s.vehicles.get(1)!)).toBe("motion unknown"); // never guessed from the trail
+    s.apply({ type: "position", ...position(9, 1, 13, 2, { lost: true, moving: true }) });
     expect(statusOf(s.vehicles.get(1)!)).toBe("lost");
     s.apply({ type: "stale", vehicle_id: 1, received_at: "x" });
     const v1 = s.vehicles.get(1)!;
     expect(statusOf(v1)).toBe("stale");
     expect(v1.position?.x).toBe(2); // last known position kept
-    expect(s.lastSeq).toBe(8);
+    expect(s.lastSeq).toBe(9);
   });
 
   it("resumes from the oldest last position of the vehicles that are not stale", () => {
@@ -74,6 +77,7 @@ describe("LiveState", () => {
     const v = s.vehicles.get(1)!;
     expect(v.position?.x).toBe(10);
     expect(v.trail.map((p) => p.t)).toEqual([5, 6, 7, 8, 9, 10]);
+    expect(v.trail[0]).toEqual({ x: 5, y: 0, t: 5, confidence: 0.8, lost: false }); // drawn in its band
   });
 });
 

@@ -15,9 +15,9 @@ describe("camera obscured", () => {
     expect(cameraObscured(v)).toBe(true);
     s.apply({ type: "position", ...position(2, 1, 1, { obscured: true, lost: true }) });
     expect(statusOf(v)).toBe("lost");
-    s.apply({ type: "position", ...position(3, 1, 2, { obscured: false, x: 5 }) });
+    s.apply({ type: "position", ...position(3, 1, 2, { obscured: false, x: 5, moving: true }) });
     expect(statusOf(v)).toBe("moving");
-    s.apply({ type: "position", ...position(4, 1, 3, { x: 5 }) }); // an older server: not judged
+    s.apply({ type: "position", ...position(4, 1, 3, { x: 5, moving: false }) }); // an older server: not judged
     expect(statusOf(v)).toBe("stopped");
   });
 

@@ -7,10 +7,20 @@ export interface PositionMsg {
   site_id: number;
   t: number;
   node: number;
+  /** Survey-frame metres east and north: continuous along the tunnels. */
   x: number;
   y: number;
+  /** Heading, radians counter-clockwise from east (survey frame); null when unknown. */
   yaw: number | null;
+  /** Speed along the tunnel, metres per second; null (or absent, older servers) when unknown. */
+  speed_mps?: number | null;
+  /** Whether the vehicle moves; null (or absent) when unknown. */
+  moving?: boolean | null;
+  /** The vehicle's camera odometry was used; false: appearance-only localisation (absent: not said). */
+  odometry?: boolean;
+  /** Calibrated probability, 0-1, that the position is right. */
   confidence: number;
+  /** The confidence reaches the server's threshold and the vehicle is not lost. */
   matched: boolean;
   lost: boolean;
   map_version: number | null;
@@ -41,6 +51,9 @@ export interface TrailPoint {
   x: number;
   y: number;
   t: number;
+  /** The position's confidence and lost flag: the trail is drawn in confidence bands. */
+  confidence: number;
+  lost: boolean;
 }
 
 export interface VehicleState {
@@ -58,15 +71,24 @@ export interface VehicleState {
   heading: number | null;
 }
 
-export type VehicleStatus = "moving" | "stopped" | "lost" | "camera obscured" | "stale" | "no fix";
+export type VehicleStatus =
+  | "moving"
+  | "stopped"
+  | "motion unknown"
+  | "lost"
+  | "camera obscured"
+  | "stale"
+  | "no fix";
 
-export const MOVING_SPEED_MPS = 0.2;
 /** The direction of travel is taken over at least this much of the trail, metres. */
 export const HEADING_MIN_TRAVEL_M = 2;
 const HEADING_LOOKBACK = 200; // trail points searched back for that distance
 
 /** Direction of travel (radians from east) from the trail point ``minTravelM`` back to the last; null if it moved less. */
-export function travelHeading(trail: readonly TrailPoint[], minTravelM = HEADING_MIN_TRAVEL_M): number | null {
+export function travelHeading(
+  trail: readonly Pick<TrailPoint, "x" | "y" | "t">[],
+  minTravelM = HEADING_MIN_TRAVEL_M,
+): number | null {
   const last = trail[trail.length - 1];
   if (!last) return null;
   for (let i = trail.length - 2; i >= Math.max(0, trail.length - 1 - HEADING_LOOKBACK); i--) {
@@ -82,22 +104,14 @@ export function withHeading(v: VehicleState): VehicleState {
   return { ...v, position: { ...v.position, yaw: v.heading } };
 }
 
-/** Speed over the last two trail points, metres per second (0 without two points). */
-export function speedOf(v: VehicleState): number {
-  const n = v.trail.length;
-  if (n < 2) return 0;
-  const a = v.trail[n - 2]!;
-  const b = v.trail[n - 1]!;
-  const dt = b.t - a.t;
-  return dt > 0 ? Math.hypot(b.x - a.x, b.y - a.y) / dt : 0;
-}
-
+/** Lost and camera obscured win over motion; motion is the server's ``moving``, never guessed. */
 export function statusOf(v: VehicleState): VehicleStatus {
   if (v.stale) return "stale";
   if (v.position === null) return "no fix";
   if (v.position.lost) return "lost";
   if (v.position.obscured) return "camera obscured";
-  return speedOf(v) >= MOVING_SPEED_MPS ? "moving" : "stopped";
+  const moving = v.position.moving;
+  return moving === true ? "moving" : moving === false ? "stopped" : "motion unknown";
 }
 
 /** Whether the vehicle's camera looked obscured at its last position (a stale vehicle's too). */
@@ -188,7 +202,7 @@ export class LiveState {
     v.position = p;
     const last = v.trail[v.trail.length - 1];
     if (last && p.t < last.t) v.trail = []; // the vehicle's clock restarted
-    v.trail.push({ x: p.x, y: p.y, t: p.t });
+    v.trail.push({ x: p.x, y: p.y, t: p.t, confidence: p.confidence, lost: p.lost });
     const oldest = p.t - this.trailWindowS;
     const first = v.trail.findIndex((q) => q.t >= oldest);
     if (first > 0) v.trail.splice(0, first);

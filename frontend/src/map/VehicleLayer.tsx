@@ -1,15 +1,21 @@
-// Vehicles on the plan: a heading arrow in the confidence colour (grey when stale), the name, a trail of the
-// last minutes; markers glide to each new estimate (lib/interpolate.ts) on the animation frame.
+// Vehicles on the plan, in confidence bands (lib/confidence.ts): an arrow along the heading (a dot while the
+// heading is unknown), a dashed ring with "?" when lost, grey when stale; the name; the trail of the last
+// minutes, coloured by the band of each position and cut where the vehicle jumped (lib/trail.ts). Markers
+// glide to each new estimate (lib/interpolate.ts) on the animation frame.
 import { useEffect, useRef } from "react";
 import Feature from "ol/Feature";
 import Point from "ol/geom/Point";
 import LineString from "ol/geom/LineString";
+import MultiLineString from "ol/geom/MultiLineString";
 import VectorSource from "ol/source/Vector";
 import VectorLayer from "ol/layer/Vector";
-import { Circle, Fill, RegularShape, Stroke, Style, Text } from "ol/style";
+import { Circle, Fill, Icon, Stroke, Style, Text } from "ol/style";
 import type { FeatureLike } from "ol/Feature";
+import type ImageStyle from "ol/style/Image";
 import { Glide } from "../lib/interpolate";
-import { STALE_GREY, confidenceColour, rgbCss } from "../lib/colours";
+import { bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
+import { yawToRotation } from "../lib/motion";
+import { trailRuns } from "../lib/trail";
 import type { VehicleState } from "../lib/liveState";
 import type { MapCtx } from "./MineMap";
 
@@ -18,48 +24,113 @@ interface Props {
   vehicles: VehicleState[];
   selectedId: number | null;
   onSelect: (id: number) => void;
+  /** Whether a click on a marker selects its vehicle (off while a click means something else). */
+  selectable: boolean;
+}
+
+const ARROW_PX = 26; // drawn size on screen
+const arrows = new Map<string, HTMLCanvasElement>();
+
+/** An arrow pointing up (north before rotation), drawn at twice the screen size for sharp edges. */
+function arrowCanvas(fill: string, outline: string, outlineWidth: number): HTMLCanvasElement {
+  const key = `${fill}|${outline}|${outlineWidth}`;
+  let canvas = arrows.get(key);
+  if (!canvas) {
+    const s = ARROW_PX * 2;
+    canvas = document.createElement("canvas");
+    canvas.width = s;
+    canvas.height = s;
+    const g = canvas.getContext("2d")!;
+    g.beginPath();
+    g.moveTo(s * 0.5, s * 0.06);
+    g.lineTo(s * 0.86, s * 0.9);
+    g.lineTo(s * 0.5, s * 0.7);
+    g.lineTo(s * 0.14, s * 0.9);
+    g.closePath();
+    g.fillStyle = fill;
+    g.fill();
+    g.lineJoin = "round";
+    g.lineWidth = outlineWidth * 2;
+    g.strokeStyle = outline;
+    g.stroke();
+    arrows.set(key, canvas);
+  }
+  return canvas;
+}
+
+function markerImage(band: ConfidenceBand, yaw: number | null, selected: boolean): ImageStyle {
+  const colour = bandCss(band);
+  const outline = selected ? "#fff" : "#000";
+  const width = selected ? 2 : 1;
+  if (band === "lost") {
+    return new Circle({
+      radius: 10,
+      fill: new Fill({ color: "rgba(214, 51, 168, 0.25)" }),
+      stroke: new Stroke({ color: colour, width: 3, lineDash: [4, 3] }),
+    });
+  }
+  if (yaw === null) {
+    return new Circle({ radius: 7, fill: new Fill({ color: colour }), stroke: new Stroke({ color: outline, width }) });
+  }
+  return new Icon({
+    img: arrowCanvas(colour, outline, width),
+    scale: 0.5,
+    rotation: yawToRotation(yaw),
+    rotateWithView: true,
+  });
 }
 
 function markerStyle(feature: FeatureLike): Style[] {
-  const stale = feature.get("stale") as boolean;
-  const colour = rgbCss(stale ? STALE_GREY : confidenceColour(feature.get("confidence") as number));
+  const band = feature.get("band") as ConfidenceBand;
   const yaw = feature.get("yaw") as number | null;
   const selected = feature.get("selected") as boolean;
-  const shape =
-    yaw === null
-      ? new Circle({ radius: 7, fill: new Fill({ color: colour }), stroke: new Stroke({ color: "#000", width: 1 }) })
-      : new RegularShape({
-          points: 3,
-          radius: 10,
-          rotation: Math.PI / 2 - yaw,
-          fill: new Fill({ color: colour }),
-          stroke: new Stroke({ color: selected ? "#fff" : "#000", width: selected ? 2 : 1 }),
-        });
-  return [
+  const stale = band === "stale";
+  const styles = [
     new Style({
       zIndex: stale ? 0 : selected ? 2 : 1, // live vehicles over stale ones
-      image: shape,
+      image: markerImage(band, yaw, selected),
       text: new Text({
         text: feature.get("name") as string,
-        offsetY: -18,
+        offsetY: -20,
         font: "600 12px system-ui, sans-serif",
         fill: new Fill({ color: stale ? "#9aa3ad" : "#e3e8ee" }),
         stroke: new Stroke({ color: "#0b0e12", width: 3 }),
       }),
     }),
   ];
+  if (band === "lost") {
+    styles.push(
+      new Style({
+        zIndex: 2,
+        text: new Text({ text: "?", font: "700 13px system-ui, sans-serif", fill: new Fill({ color: "#fff" }) }),
+      }),
+    );
+  }
+  return styles;
 }
 
-function trailStyle(feature: FeatureLike): Style {
-  const stale = feature.get("stale") as boolean;
-  return new Style({ stroke: new Stroke({ color: stale ? "rgba(120,126,134,0.5)" : "rgba(77,171,247,0.6)", width: 2 }) });
+/** One style per run of the trail (its band's colour; lost dashed); ``runs`` in local map coordinates. */
+function trailStyles(runs: { band: ConfidenceBand; coords: number[][] }[], selected: boolean): Style[] {
+  return runs.map(
+    ({ band, coords }) =>
+      new Style({
+        geometry: new LineString(coords),
+        stroke: new Stroke({
+          color: bandCss(band, band === "stale" ? 0.5 : 0.85),
+          width: selected ? 4 : 2.5,
+          lineDash: band === "lost" ? [6, 4] : undefined,
+        }),
+      }),
+  );
 }
 
-export function VehicleLayer({ ctx, vehicles, selectedId, onSelect }: Props) {
+export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }: Props) {
   const source = useRef(new VectorSource());
-  const glides = useRef(new Map<number, { glide: Glide; marker: Feature<Point>; trail: Feature<LineString> }>());
+  const glides = useRef(new Map<number, { glide: Glide; marker: Feature<Point>; trail: Feature<MultiLineString> }>());
   const selectRef = useRef(onSelect);
   selectRef.current = onSelect;
+  const selectableRef = useRef(selectable);
+  selectableRef.current = selectable;
 
   useEffect(() => {
     const layer = new VectorLayer({ source: source.current, zIndex: 10, updateWhileAnimating: true });
@@ -78,6 +149,7 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect }: Props) {
     };
     frame = requestAnimationFrame(tick);
     const click = ctx.map.on("singleclick", (ev) => {
+      if (!selectableRef.current) return;
       ctx.map.forEachFeatureAtPixel(
         ev.pixel,
         (f) => {
@@ -109,8 +181,7 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect }: Props) {
       if (!entry) {
         const marker = new Feature(new Point(ctx.origin.toLocal(pose.x, pose.y)));
         marker.setStyle(markerStyle);
-        const trail = new Feature(new LineString([]));
-        trail.setStyle(trailStyle);
+        const trail = new Feature(new MultiLineString([]));
         source.current.addFeatures([trail, marker]);
         entry = { glide: new Glide(pose, now), marker, trail };
         glides.current.set(v.id, entry);
@@ -118,19 +189,23 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect }: Props) {
         const t = entry.glide.target;
         if (t.x !== pose.x || t.y !== pose.y || t.yaw !== pose.yaw) entry.glide.retarget(pose, now);
       }
-      for (const f of [entry.marker, entry.trail]) {
-        f.setProperties(
-          {
-            vehicleId: v.id,
-            name: v.name,
-            stale: v.stale,
-            confidence: v.position.confidence,
-            selected: v.id === selectedId,
-          },
-          true,
-        );
-      }
-      entry.trail.getGeometry()!.setCoordinates(v.trail.map((p) => ctx.origin.toLocal(p.x, p.y)));
+      const selected = v.id === selectedId;
+      entry.marker.setProperties(
+        {
+          vehicleId: v.id,
+          name: v.name,
+          band: confidenceBand(v.position.confidence, v.position.lost, v.stale),
+          selected,
+        },
+        true,
+      );
+      const runs = trailRuns(v.trail, v.stale).map((run) => ({
+        band: run.band,
+        coords: run.points.map((p) => ctx.origin.toLocal(p.x, p.y)),
+      }));
+      entry.trail.getGeometry()!.setCoordinates(runs.map((r) => r.coords));
+      entry.trail.setProperties({ vehicleId: v.id, points: v.trail.length }, true);
+      entry.trail.setStyle(trailStyles(runs, selected));
     }
     for (const [id, entry] of glides.current) {
       if (!seen.has(id)) {

@@ -1,19 +1,19 @@
 // Live monitoring: REST snapshot, then the /api/live WebSocket (auto-reconnect with resume); vehicles on the
-// plan and in a list with their status; alerts for lost vehicles and obscured cameras; click one for its
-// latest estimate, camera check and history, and replay any time range of it (ReplayPanel, ReplayLayer).
-import { useEffect, useMemo, useRef, useState, type ReactNode } from "react";
-import { apiGet, getToken, type Schemas } from "../api/client";
+// plan and in a list in confidence bands (with a legend); alerts for lost vehicles and obscured cameras; click
+// one for its details (VehicleDetails), place its known start (SetStart, surveyors and admins) and replay any
+// time range of it (ReplayPanel, ReplayLayer).
+import { useEffect, useMemo, useRef, useState } from "react";
+import { apiGet, getToken } from "../api/client";
 import { MineMap } from "../map/MineMap";
 import { VehicleLayer } from "../map/VehicleLayer";
-import { alertsOf, LiveState, speedOf, statusOf, withHeading, type VehicleState } from "../lib/liveState";
+import { StartLayer } from "../map/StartLayer";
+import { alertsOf, LiveState, statusOf, withHeading, type VehicleState } from "../lib/liveState";
 import { ReplayLayer } from "../map/ReplayLayer";
-import { EPOCH_CLOCK_S, formatClock } from "../lib/replay";
-import { LatestFrame } from "./LatestFrame";
 import { ReplayPanel, type ReplaySession } from "./ReplayPanel";
 import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
-import { confidenceColour, rgbCss, STALE_GREY } from "../lib/colours";
-
-const HISTORY_S = 300; // the details panel's history: the last five minutes of frame time
+import { BAND_LABELS, bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
+import { AppearanceOnlyBadge, Confidence, VehicleDetails } from "./VehicleDetails";
+import { SetStartPanel, useSetStart } from "./SetStart";
 
 function liveUrl(since: number | null): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
@@ -22,7 +22,29 @@ function liveUrl(since: number | null): string {
   return `${scheme}://${location.host}/api/live?${query.toString()}`;
 }
 
-export function MonitorView({ siteId }: { siteId: number }) {
+/** A band's swatch: a filled dot, a ring for lost (as on the map). */
+function BandDot({ band }: { band: ConfidenceBand }) {
+  const lost = band === "lost";
+  const style = lost ? { borderColor: bandCss(band) } : { background: bandCss(band) };
+  return <span className={lost ? "dot ring" : "dot"} style={style} />;
+}
+
+/** The bands' colours and meaning, on the map. */
+function ConfidenceLegend() {
+  return (
+    <div className="overlay-box legend" data-testid="confidence-legend">
+      <div className="muted">Position confidence</div>
+      {BAND_LABELS.map(([band, label]) => (
+        <div key={band} data-band={band}>
+          <BandDot band={band} />
+          {label}
+        </div>
+      ))}
+    </div>
+  );
+}
+
+export function MonitorView({ siteId, editable }: { siteId: number; editable: boolean }) {
   const state = useRef(new LiveState());
   const [version, setVersion] = useState(0);
   const [connection, setConnection] = useState<ConnectionState>("connecting");
@@ -75,16 +97,27 @@ export function MonitorView({ siteId }: { siteId: number }) {
   const drawn = useMemo(() => vehicles.map(withHeading), [vehicles]);
   const selected = vehicles.find((v) => v.id === selectedId) ?? null;
   const alerts = alertsOf(vehicles);
+  const setStart = useSetStart(editable ? (selected?.id ?? null) : null);
+  const placedStart = setStart.result?.state === "accepted" ? setStart.result.start : null;
 
   return (
     <>
       <MineMap
         key={siteId}
         siteId={siteId}
+        onMapClick={setStart.placing ? setStart.place : undefined}
         overlay={(ctx) => (
           <>
-            <VehicleLayer ctx={ctx} vehicles={drawn} selectedId={selectedId} onSelect={setSelectedId} />
+            <VehicleLayer
+              ctx={ctx}
+              vehicles={drawn}
+              selectedId={selectedId}
+              onSelect={setSelectedId}
+              selectable={!setStart.placing}
+            />
+            <StartLayer ctx={ctx} start={placedStart} placing={setStart.placing} />
             {replay && <ReplayLayer ctx={ctx} session={replay} />}
+            <ConfidenceLegend />
           </>
         )}
       />
@@ -125,6 +158,7 @@ export function MonitorView({ siteId }: { siteId: number }) {
         {vehicles.length === 0 && <p className="muted">No vehicles on this site.</p>}
         {selected && (
           <VehicleDetails v={selected}>
+            {editable && <SetStartPanel control={setStart} />}
             <ReplayPanel key={selected.id} vehicle={selected} session={replay} onSession={setReplay} />
           </VehicleDetails>
         )}
@@ -136,18 +170,21 @@ export function MonitorView({ siteId }: { siteId: number }) {
 function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boolean; onClick: () => void }) {
   const status = statusOf(v);
   const p = v.position;
-  const colour = v.stale || !p ? STALE_GREY : confidenceColour(p.confidence);
+  const band = p ? confidenceBand(p.confidence, p.lost, v.stale) : "stale";
   return (
     <tr
       className={selected ? "selected" : ""}
       onClick={onClick}
       data-testid={`vehicle-row-${v.name}`}
       data-status={status}
+      data-band={band}
       data-seq={p?.seq ?? ""}
+      data-trail={v.trail.length}
     >
       <td>
-        <span className="dot" style={{ background: rgbCss(colour) }} />
+        <BandDot band={band} />
         {v.name}
+        {p && <AppearanceOnlyBadge odometry={p.odometry} />}
       </td>
       <td>
         <span
@@ -157,80 +194,9 @@ function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boole
           {status}
         </span>
       </td>
-      <td className="num">{p ? p.confidence.toFixed(2) : "–"}</td>
-      <td className="num">{p ? p.x.toFixed(1) : "–"}</td>
-      <td className="num">{p ? p.y.toFixed(1) : "–"}</td>
+      <td className="num">{p ? <Confidence value={p.confidence} lost={p.lost} stale={v.stale} /> : "—"}</td>
+      <td className="num">{p ? p.x.toFixed(1) : "—"}</td>
+      <td className="num">{p ? p.y.toFixed(1) : "—"}</td>
     </tr>
-  );
-}
-
-function VehicleDetails({ v, children }: { v: VehicleState; children?: ReactNode }) {
-  const [history, setHistory] = useState<Schemas["PositionRead"][]>([]);
-  const seq = v.position?.seq;
-  const since = v.position ? v.position.t - HISTORY_S : null;
-  useEffect(() => {
-    let cancelled = false;
-    apiGet("/api/vehicles/{vehicle_id}/positions", { vehicle_id: v.id }, { start: since })
-      .then((rows) => !cancelled && setHistory(rows.slice(-12).reverse()))
-      .catch(() => !cancelled && setHistory([]));
-    return () => {
-      cancelled = true;
-    };
-  }, [v.id, seq, since]);
-  const p = v.position;
-  return (
-    <section data-testid="vehicle-details">
-      <h3>{v.name}</h3>
-      {p ? (
-        <table>
-          <tbody>
-            <tr><th>Status</th><td>{statusOf(v)}</td></tr>
-            <tr><th>Position</th><td>E {p.x.toFixed(2)} N {p.y.toFixed(2)}</td></tr>
-            <tr><th>Heading</th><td>{v.heading === null ? "–" : `${((v.heading * 180) / Math.PI).toFixed(0)}°${p.yaw === null ? " (travel)" : ""}`}</td></tr>
-            <tr><th>Confidence</th><td>{p.confidence.toFixed(2)} {p.matched ? "(matched)" : "(unmatched)"}</td></tr>
-            <tr><th>Speed</th><td>{speedOf(v).toFixed(2)} m/s</td></tr>
-            <tr><th>Node</th><td>{p.node}</td></tr>
-            <tr data-testid="camera-check" data-obscured={p.obscured ? "yes" : "no"}>
-              <th>Camera</th>
-              <td>
-                {p.obscured === null || p.obscured === undefined ? (
-                  "–"
-                ) : (
-                  <>
-                    {p.obscured ? `obscured (${p.obscured_reason ?? "?"})` : "clear"}
-                    <div className="muted" style={{ fontSize: 11 }}>
-                      salient {(p.salient ?? 0).toFixed(2)} · speckle {((p.speckle ?? 0) * 100).toFixed(1)} % ·
-                      flat {((p.flat_area ?? 0) * 100).toFixed(1)} %
-                    </div>
-                  </>
-                )}
-              </td>
-            </tr>
-            <tr><th>Frame time</th><td>{formatClock(p.t)}{p.t < EPOCH_CLOCK_S ? " s" : ""}</td></tr>
-            <tr><th>Received</th><td>{new Date(p.received_at).toLocaleTimeString()}</td></tr>
-          </tbody>
-        </table>
-      ) : (
-        <p className="muted">No position yet.</p>
-      )}
-      <LatestFrame key={v.id} vehicleId={v.id} seq={seq} />
-      {children}
-      <h3>History</h3>
-      <table data-testid="vehicle-history">
-        <thead>
-          <tr><th className="num">t</th><th className="num">E</th><th className="num">N</th><th className="num">Conf.</th></tr>
-        </thead>
-        <tbody>
-          {history.map((h) => (
-            <tr key={h.seq}>
-              <td className="num">{formatClock(h.t)}</td>
-              <td className="num">{h.x.toFixed(1)}</td>
-              <td className="num">{h.y.toFixed(1)}</td>
-              <td className="num">{h.confidence.toFixed(2)}</td>
-            </tr>
-          ))}
-        </tbody>
-      </table>
-    </section>
   );
 }
