@@ -101,10 +101,9 @@ class HmmParams:
     # sites went above 1.16); 0: off
     relocate_ratio: float = 1.25
     relocate_share: float = 0.5
-    # odometry-gated transitions: with a usable odometry step the belief takes one transition of the
-    # minimum reach per this many metres actually driven (and stays put in between), instead of one per
-    # frame at max speed (eq. 9-10): a stopped vehicle's belief does not spread, a moving one's spreads
-    # with the distance driven
+    # odometry: with a usable step the belief moves by the distance driven, one minimum-reach transition
+    # per this many metres (a share of one per frame) instead of max speed x frame gap (eq. 9-10): a stopped
+    # vehicle's belief does not spread, a moving one's spreads with the distance it drove
     odometry_hop_m: float = 3.5
     # the reported confidence is the calibration of score x distinct: piecewise linear through these
     # (raw, probability right) knots, raw ascending from 0 to 1 (LocaliserMap-independent)

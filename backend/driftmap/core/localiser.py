@@ -186,7 +186,13 @@ class Localiser:
         n, m = self.params.n_probe, self.map.n_nodes
         return ((steps * n + np.arange(n, dtype=np.int64)) * _PROBE_STRIDE) % m
 
-    def step(self, frame: NDArray[np.generic], t_s: float, mask: NDArray[np.bool_] | None = None) -> Estimate:
+    def step(
+        self,
+        frame: NDArray[np.generic],
+        t_s: float,
+        mask: NDArray[np.bool_] | None = None,
+        motion: OdometryStep | None = None,
+    ) -> Estimate:
         """Localise one frame.
 
         Args:
@@ -195,6 +201,9 @@ class Localiser:
             t_s: the frame's timestamp, seconds; the gap to the previous frame sets A_t.
             mask: (h, w) bool salient mask of the query at the thumbnail size; None computes it from a raw
                 frame when ``sesame`` is set (:meth:`query_mask`).
+            motion: the vehicle's usable odometry step since the previous frame, measured elsewhere (the
+                camera's odometry is then not run on this frame); None: the camera's odometry, when there is
+                a camera.
 
         Returns:
             The :class:`Estimate`.
@@ -217,8 +226,9 @@ class Localiser:
             )
 
         gap_s = t_s - s.last_t_s if np.isfinite(s.last_t_s) else 0.0
-        motion = None if self.odometry is None else self.odometry.step(frame, t_s)
-        prior, travel_m = self._predict(s, gap_s, motion)
+        if motion is None and self.odometry is not None:
+            motion = self.odometry.step(frame, t_s)
+        prior = self._predict(s, gap_s, motion)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
@@ -249,9 +259,9 @@ class Localiser:
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
-            node, travel_m = -1, 0.0
+            node = -1
         self._state = LocaliserState(
-            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct, travel_m, track
+            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct, track
         )
         return self._estimate(
             best,
@@ -266,22 +276,26 @@ class Localiser:
             moving_now,
         )
 
-    def _predict(self, s: LocaliserState, gap_s: float, motion: OdometryStep | None) -> tuple[F64, float]:
-        """The prior ``pi X_{i-1}`` of this frame and the odometry travel still to apply, metres.
+    def _predict(self, s: LocaliserState, gap_s: float, motion: OdometryStep | None) -> F64:
+        """The prior ``pi X_{i-1}`` of this frame.
 
-        A global belief stays as it is (pi of a flat belief would favour well-linked nodes). With a usable
-        odometry step the belief takes one minimum-reach transition per ``odometry_hop_m`` metres driven (the
-        step's length plus its sd) and stays put in between; without one, eq. 9-10's reach of max speed x the
-        frame gap applies.
+        A global belief stays as it is (pi of a flat belief would favour well-linked nodes). Without a
+        usable odometry step, eq. 9-10's reach of max speed x the frame gap applies. With one, the belief
+        moves by the distance driven: the share ``alpha = (|dx| + sd) / odometry_hop_m`` (at most 1) of it
+        takes one minimum-reach transition and the rest stays, so a stopped vehicle's belief (a stationary
+        step) does not spread and a moving one's spreads one node per ``odometry_hop_m`` metres driven.
         """
         if not np.isfinite(s.last_t_s) or hmm.is_global(s.belief):
-            return s.belief, 0.0
+            return s.belief
         if motion is None:
-            return self.transitions.predict(s.belief, gap_s), 0.0
-        travel_m = s.travel_m + abs(motion.dx_m) + motion.sigma_xy_m
-        if travel_m < self.params.odometry_hop_m:
-            return s.belief, travel_m
-        return self.transitions.predict(s.belief, 0.0), travel_m - self.params.odometry_hop_m
+            return self.transitions.predict(s.belief, gap_s)
+        if motion.stationary:
+            return s.belief
+        alpha = min(1.0, (abs(motion.dx_m) + motion.sigma_xy_m) / self.params.odometry_hop_m)
+        if alpha <= 0.0:
+            return s.belief
+        moved = self.transitions.predict(s.belief, 0.0)
+        return np.asarray((1.0 - alpha) * s.belief + alpha * moved, dtype=np.float64)
 
     def _follow(
         self,
@@ -300,7 +314,7 @@ class Localiser:
         if confidence >= tp.fix_min_confidence or not track.has_position:
             track = localiser_track.correct(track, lm.centres_m[best], tp)
         if motion is not None:
-            moving = math.isfinite(track.speed_mps) and abs(track.speed_mps) > tp.moving_mps
+            moving = not motion.stationary and abs(motion.dx_m) > tp.moving_mps * max(gap_s, 1e-3)
         else:
             moving = not still
         around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))

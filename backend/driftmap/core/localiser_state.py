@@ -93,7 +93,6 @@ class LocaliserState:
         last_query: (h, w) float32 thumbnail of the last frame; (0, 0) before the first.
         node: b(i) of the last frame; -1 before the first and after a global start.
         distinct: the track's running distinctness at the last frame (:attr:`Estimate.distinct`).
-        travel_m: odometry travel (unsigned, metres) not yet applied to the belief as a transition.
         track: the continuous position track (:class:`~driftmap.core.localiser_track.TrackState`).
         last_frame: (H, W) uint8 last raw frame, for the next odometry step; (0, 0) without odometry.
     """
@@ -106,7 +105,6 @@ class LocaliserState:
     last_query: NDArray[np.float32] = field(default_factory=_no_query)
     node: int = -1
     distinct: float = 0.0
-    travel_m: float = 0.0
     track: TrackState = field(default_factory=TrackState.empty)
     last_frame: NDArray[np.uint8] = field(default_factory=_no_frame)
 
@@ -121,7 +119,6 @@ class LocaliserState:
             "last_query": np.asarray(self.last_query, dtype=np.float32),
             "node": np.asarray(self.node, dtype=np.int64),
             "distinct": np.asarray(self.distinct, dtype=np.float64),
-            "travel_m": np.asarray(self.travel_m, dtype=np.float64),
             "track": self.track.to_arrays(),
             "last_frame": np.asarray(self.last_frame, dtype=np.uint8),
         }
@@ -140,7 +137,6 @@ class LocaliserState:
                 last_query=np.array(arrays.get("last_query", _no_query()), dtype=np.float32),
                 node=int(arrays.get("node", -1)),
                 distinct=float(arrays.get("distinct", 0.0)),
-                travel_m=float(arrays.get("travel_m", 0.0)),
                 track=TrackState.from_arrays(np.asarray(arrays.get("track", np.zeros(0)), dtype=np.float64)),
                 last_frame=np.array(arrays.get("last_frame", _no_frame()), dtype=np.uint8),
             )

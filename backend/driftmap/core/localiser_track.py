@@ -16,8 +16,9 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
 * **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
   between directly driven node centres) around b(i), so positions and trails stay in the tunnels; the
   heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
-* **heading** from the fixes: when the heading is unknown it is the direction from the anchor to the
-  current position once ``heading_after_m`` has been driven (plus pi when the odometry says reversing).
+* **heading** from the fixes: while the heading is unknown it is taken as the direction from the anchor to
+  a fix at least ``heading_after_m`` away, once the odometry has driven at least half that far (plus pi
+  when it says reversing); until then odometry cannot move the position and the fixes alone do.
 
 Speed comes from the odometry steps (signed metres over the frame gap, exponentially averaged); without
 odometry it is unknown (NaN).
@@ -50,8 +51,8 @@ class TrackParams:
     gate_m: float = 10.0  # a fix further than this + 3 sd from the track re-anchors it, metres
     heading_after_m: float = 3.0  # an unknown heading is taken from the track after this much travel, metres
     heading_pull: float = 0.15  # per moving frame, the share of the gap to the edge direction closed
-    speed_memory: float = 0.3  # weight of the newest step in the running speed
-    moving_mps: float = 0.15  # a vehicle faster than this (odometry) is moving, m/s
+    speed_memory: float = 0.5  # weight of the newest step in the running speed
+    moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
     fix_min_confidence: float = 0.3  # b(i)'s centre corrects the track when the frame's confidence is this
     snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
 
@@ -77,7 +78,7 @@ class TrackState:
         var_m2: position variance (isotropic), square metres.
         speed_mps: signed running speed from odometry (negative: reversing); NaN when not measured.
         travel_m: signed odometry travel since the track was anchored, metres.
-        anchor_m: (2,) float64 position where the track was anchored (heading from the fixes), metres.
+        anchor_m: (2,) float64 the fix where the track was anchored (heading from the fixes), metres.
     """
 
     wT: F64
@@ -165,6 +166,13 @@ def correct(state: TrackState, fix_m: F64, params: TrackParams) -> TrackState:
     gain = state.var_m2 / (state.var_m2 + r2)
     wT = state.wT.copy()
     wT[:2] += gain * (fix - wT[:2])
+    if not state.has_heading:
+        moved = fix - state.anchor_m
+        if float(np.hypot(*moved)) >= params.heading_after_m and abs(state.travel_m) >= 0.5 * float(
+            np.hypot(*moved)
+        ):
+            heading = math.atan2(float(moved[1]), float(moved[0]))
+            wT[2] = _wrap(heading + (math.pi if state.travel_m < 0 else 0.0))
     return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2)
 
 
@@ -185,8 +193,7 @@ def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, 
 
 def snap(state: TrackState, centres_m: F64, edges: I64, moving: bool, params: TrackParams) -> TrackState:
     """Put the track on the nearest of the mapped ``edges`` (K, 2) int64 (node pairs, segments between
-    their ``centres_m`` (M, 2)), pull its heading towards that edge while ``moving``, and take an unknown
-    heading from the travel since the anchor once it is long enough."""
+    their ``centres_m`` (M, 2)) and pull its heading towards that edge while ``moving``."""
     if not state.has_position:
         return state
     wT = state.wT.copy()
@@ -194,14 +201,7 @@ def snap(state: TrackState, centres_m: F64, edges: I64, moving: bool, params: Tr
     edge_dir = math.nan
     if found is not None:
         wT[:2], _dist, edge_dir = found
-    if not np.isfinite(wT[2]):
-        moved = np.asarray(wT[:2] - state.anchor_m)
-        if abs(state.travel_m) >= params.heading_after_m and float(np.hypot(*moved)) >= 0.5 * abs(
-            state.travel_m
-        ):
-            heading = math.atan2(float(moved[1]), float(moved[0]))
-            wT[2] = _wrap(heading + (math.pi if state.travel_m < 0 else 0.0))
-    elif moving and math.isfinite(edge_dir):
+    if np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
         err = _wrap(edge_dir - wT[2])
         if abs(err) > math.pi / 2:
             err = _wrap(err + math.pi)  # the edge's other way is nearer
