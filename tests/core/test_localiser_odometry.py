@@ -8,13 +8,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from test_localiser import DT_S, SPACING_M, chain_map, textures, view
+from tests.floor_frames import floor_texture, pinhole_camera, render
 
 from driftmap.core import hmm
 from driftmap.core.localiser import Localiser
 from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.localiser_motion import OdometryFeed
 from driftmap.core.odometry_step import OdometryStep
-from tests.floor_frames import floor_texture, pinhole_camera, render
 
 F32 = np.ndarray
 FPS_DT_S = 0.1  # a 10 fps camera
@@ -42,7 +42,7 @@ def corridor() -> tuple[F32, LocaliserMap]:
 
 
 def node_at(x_m: float) -> int:
-    return int(round(x_m / SPACING_M))
+    return round(x_m / SPACING_M)
 
 
 class TestStandingNextToALookAlike:
