@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -11,7 +12,12 @@ import pytest
 from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
 from driftmap.errors import BadInputError
-from driftmap.reports.localisation_report import METHODS, condition_of, run_localisation_report
+from driftmap.reports.localisation_report import (
+    DEFAULT_METHOD,
+    METHODS,
+    condition_of,
+    run_localisation_report,
+)
 from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
@@ -68,7 +74,7 @@ class TestReport:
         assert report.figure is not None and report.figure.read_bytes()[:8] == PNG_MAGIC
         assert report.table_path is not None and report.table_path.read_text().startswith("| condition")
         rows = {(r["condition"], r["method"]): r for r in report.rows()}
-        assert set(rows) == {("clean", name) for name, _s, _t in METHODS}
+        assert set(rows) == {("clean", name) for name, *_ in METHODS}
         frames = drives[0].t_s.size
         for (_cond, method), row in rows.items():
             assert row["frames"] == (
@@ -77,11 +83,18 @@ class TestReport:
             assert 0.0 <= float(row["auc"]) <= 1.0
             assert 0.0 <= float(row["recall_at_p100"]) <= float(row["auc"]) + 1e-9  # AP >= recall at P = 1
             assert 0.0 <= float(row["recall_at_p100_confidence"]) <= 1.0
-        for name in ("HMM+SAD", "HMM+SESAME"):
+        for name in ("HMM+SAD", "HMM+SESAME", DEFAULT_METHOD):
             assert float(rows[("clean", name)]["auc"]) >= MIN_HMM_AUC
             error = float(rows[("clean", name)]["matched_error_m"])
             assert math.isfinite(error) and error <= MAX_MATCHED_ERROR_M
-        assert "HMM+SESAME" in report.table()
+            assert 0.0 <= float(rows[("clean", name)]["ece"]) <= 1.0
+        table = report.table()
+        assert "HMM+SESAME" in table and f"{DEFAULT_METHOD}, each drive on its own" in table
+        assert drives[0].name in table
+        assert (tmp_path / "localisation_reliability.png").read_bytes()[:8] == PNG_MAGIC
+        knots = report.calibration()
+        assert knots[0][0] == 0.0 and knots[-1][0] == 1.0
+        assert all(b[1] >= a[1] for a, b in itertools.pairwise(knots))
 
     def test_known_start_puts_the_first_estimate_at_the_start(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path
@@ -93,7 +106,7 @@ class TestReport:
         truth = drives[0].truth_xy_m
         assert truth is not None
         start = lmap.centres_m[lmap.nearest_node(*truth[0])]
-        for name in ("HMM+SAD", "HMM+SESAME"):
+        for name in ("HMM+SAD", "HMM+SESAME", DEFAULT_METHOD):
             first_error_m = report.results[("clean", name)].error_m[0]
             assert first_error_m == pytest.approx(float(np.hypot(*(start - truth[0]))), abs=1e-9)
         assert "known start" in report.table()

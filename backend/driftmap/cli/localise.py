@@ -166,4 +166,6 @@ def report_localisation(
                 progress=report,
             )
     console.print(result.table())
+    knots = ", ".join(f"({x:.1f}, {p:.3f})" for x, p in result.calibration())
+    console.print(f"calibration of the default method's raw confidence on these drives: ({knots})")
     console.print(f"figure: {result.figure}\ntable: {result.table_path}")

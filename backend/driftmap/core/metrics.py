@@ -22,7 +22,16 @@ from numpy.typing import NDArray
 
 from driftmap.errors import BadInputError
 
-__all__ = ["PlaceMetrics", "PrCurve", "evaluate_matches", "match_correct", "pr_curve"]
+__all__ = [
+    "PlaceMetrics",
+    "PrCurve",
+    "Reliability",
+    "evaluate_matches",
+    "fit_calibration",
+    "match_correct",
+    "pr_curve",
+    "reliability",
+]
 
 F64 = NDArray[np.float64]
 BoolArr = NDArray[np.bool_]
@@ -148,3 +157,77 @@ def evaluate_matches(best: NDArray[np.integer], score: F64, gt: BoolArr) -> tupl
         recallable=recallable,
     )
     return metrics, curve
+
+
+@dataclass(frozen=True)
+class Reliability:
+    """A reliability diagram: frames binned by reported confidence, and how many of each bin were right.
+
+    Attributes:
+        edges: (B + 1,) float64 bin edges over [0, 1].
+        mean_confidence: (B,) float64 mean reported confidence per bin (NaN when empty).
+        right_share: (B,) float64 share of the bin's frames that were right (NaN when empty).
+        counts: (B,) int64 frames per bin.
+    """
+
+    edges: F64
+    mean_confidence: F64
+    right_share: F64
+    counts: NDArray[np.int64]
+
+    @property
+    def expected_calibration_error(self) -> float:
+        """Frame-weighted mean |right share - mean confidence| over the bins (0: perfectly calibrated)."""
+        ok = self.counts > 0
+        if not ok.any():
+            return float("nan")
+        gap = np.abs(self.right_share[ok] - self.mean_confidence[ok])
+        return float(np.sum(gap * self.counts[ok]) / self.counts[ok].sum())
+
+
+def reliability(confidence: F64, right: BoolArr, bins: int = 10) -> Reliability:
+    """The reliability diagram of (N,) reported ``confidence`` in [0, 1] against (N,) ``right``; NaN
+    confidences (lost frames) are left out."""
+    c = np.asarray(confidence, dtype=np.float64)
+    r = np.asarray(right, dtype=bool)
+    if c.shape != r.shape or c.ndim != 1:
+        raise ValueError(f"confidence and right must be (N,), got {c.shape} and {r.shape}")
+    keep = np.isfinite(c)
+    c, r = np.clip(c[keep], 0.0, 1.0), r[keep]
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    which = np.minimum(np.searchsorted(edges, c, side="right") - 1, bins - 1)
+    counts = np.bincount(which, minlength=bins).astype(np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_c = np.bincount(which, weights=c, minlength=bins) / counts
+        share = np.bincount(which, weights=r.astype(np.float64), minlength=bins) / counts
+    return Reliability(edges, mean_c, share, counts)
+
+
+def fit_calibration(raw: F64, right: BoolArr, knots: int = 11) -> tuple[tuple[float, float], ...]:
+    """Monotone (isotonic) calibration of a raw score in [0, 1]: ``knots`` (raw, P(right)) points for
+    :func:`driftmap.core.hmm.calibrated`, fitted by pool-adjacent-violators on (N,) ``raw`` and ``right``
+    (NaN raw values are left out) and read off at ``knots`` evenly spaced raw values.
+    """
+    x = np.asarray(raw, dtype=np.float64)
+    y = np.asarray(right, dtype=np.float64)
+    keep = np.isfinite(x)
+    x, y = np.clip(x[keep], 0.0, 1.0), y[keep]
+    if x.size == 0:
+        raise ValueError("no finite raw score to fit a calibration on")
+    order = np.argsort(x, kind="stable")
+    x, y = x[order], y[order]
+    # pool adjacent violators: blocks of (sum, count) with non-decreasing means
+    sums: list[float] = []
+    counts: list[float] = []
+    for value in y.tolist():
+        sums.append(value)
+        counts.append(1.0)
+        while len(sums) > 1 and sums[-2] / counts[-2] > sums[-1] / counts[-1]:
+            s, n = sums.pop(), counts.pop()
+            sums[-1] += s
+            counts[-1] += n
+    fitted = np.repeat(np.array(sums) / np.array(counts), np.array(counts, dtype=np.int64))
+    grid = np.linspace(0.0, 1.0, knots)
+    values = np.interp(grid, x, fitted, left=0.0, right=float(fitted[-1]))
+    values = np.maximum.accumulate(np.clip(values, 0.0, 1.0))
+    return tuple((float(g), float(v)) for g, v in zip(grid, values, strict=True))

@@ -26,11 +26,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from driftmap.core import hmm
 from driftmap.core.localiser import Localiser
 from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.metrics import PrCurve, pr_curve
+from driftmap.core.localiser_motion import OdometryFeed
+from driftmap.core.metrics import PrCurve, Reliability, fit_calibration, pr_curve, reliability
 from driftmap.core.saliency import SesameParams
 from driftmap.errors import BadInputError
 from driftmap.reports.plots import new_figure, save
@@ -38,6 +40,7 @@ from driftmap.services.localisation import RecordedDrive
 
 __all__ = [
     "CONDITIONS",
+    "DEFAULT_METHOD",
     "METHODS",
     "LocalisationReport",
     "MethodResult",
@@ -47,15 +50,23 @@ __all__ = [
 
 ProgressFn = Callable[[str, float], None]
 CONDITIONS = ("clean", "dust1", "dust2", "water1", "water2")
-#: (label, SESAME masks, HMM temporal filter)
-METHODS: tuple[tuple[str, bool, bool], ...] = (
-    ("SAD", False, False),
-    ("SAD+SESAME", True, False),
-    ("HMM+SAD", False, True),
-    ("HMM+SESAME", True, True),
+#: (label, SESAME masks, HMM temporal filter, odometry); the last is the product's default
+METHODS: tuple[tuple[str, bool, bool, bool], ...] = (
+    ("SAD", False, False, False),
+    ("SAD+SESAME", True, False, False),
+    ("HMM+SAD", False, True, False),
+    ("HMM+SESAME", True, True, False),
+    ("HMM+SESAME+odometry", True, True, True),
 )
+DEFAULT_METHOD = METHODS[-1][0]
 _CONDITION = re.compile(r"-((?:dust|water)\d)$")
-_COLOURS = {"SAD": "#9a9a9a", "SAD+SESAME": "#3a7bd5", "HMM+SAD": "#e08a2e", "HMM+SESAME": "#c0392b"}
+_COLOURS = {
+    "SAD": "#9a9a9a",
+    "SAD+SESAME": "#3a7bd5",
+    "HMM+SAD": "#e08a2e",
+    "HMM+SESAME": "#c0392b",
+    "HMM+SESAME+odometry": "#1e8449",
+}
 
 
 def condition_of(drive_name: str) -> str:
@@ -69,30 +80,66 @@ class MethodResult:
     """Per-frame outcomes of one method on one condition (every drive of it, concatenated).
 
     Attributes:
-        scores: (N,) confidence of each frame's estimate; NaN for a lost frame (never matched).
-        confidence: (N,) the estimate's ``confidence`` (X_i(b(i)) x the track's distinctness at b(i),
-            :attr:`driftmap.core.localiser.Estimate.confidence`); NaN for a lost frame.
-        error_m: (N,) distance from the estimated node centre to the true floor point, metres.
-        matched: (N,) the localiser's own match flag at its configured X_thresh.
+        scores: (N,) the paper's X_i(b(i)) of each frame's estimate; NaN for a lost frame (never matched).
+        confidence: (N,) the reported confidence (:attr:`driftmap.core.localiser_state.Estimate.confidence`,
+            calibrated); NaN for a lost frame.
+        raw: (N,) the confidence before calibration (X x the track's distinctness); NaN for a lost frame.
+        error_m: (N,) distance from the reported position to the true floor point, metres.
+        matched: (N,) the localiser's own match flag (confidence at its threshold, not lost).
         ms: (N,) milliseconds per frame.
+        drive: (N,) the drive of each frame.
     """
 
     scores: list[float] = field(default_factory=list)
     confidence: list[float] = field(default_factory=list)
+    raw: list[float] = field(default_factory=list)
     error_m: list[float] = field(default_factory=list)
     matched: list[bool] = field(default_factory=list)
     ms: list[float] = field(default_factory=list)
+    drive: list[str] = field(default_factory=list)
 
     def curve(self, tolerance_m: float, by_confidence: bool = False) -> PrCurve:
-        """The precision-recall curve at this ground-truth tolerance, sweeping X_thresh over the scores
-        (``by_confidence``: over the confidences instead)."""
+        """The precision-recall curve at this ground-truth tolerance, sweeping a threshold over the paper's
+        X (``by_confidence``: over the reported confidence instead)."""
         scores = np.asarray(self.confidence if by_confidence else self.scores, dtype=np.float64)
         return pr_curve(scores, np.asarray(self.error_m) <= tolerance_m, recallable=max(scores.size, 1))
 
+    def only(self, drive: str) -> MethodResult:
+        """The frames of one drive."""
+        keep = [k for k, d in enumerate(self.drive) if d == drive]
+        return MethodResult(
+            [self.scores[k] for k in keep],
+            [self.confidence[k] for k in keep],
+            [self.raw[k] for k in keep],
+            [self.error_m[k] for k in keep],
+            [self.matched[k] for k in keep],
+            [self.ms[k] for k in keep],
+            [self.drive[k] for k in keep],
+        )
+
+    def matched_errors_m(self) -> NDArray[np.float64]:
+        """(K,) distance errors of the matched frames, metres."""
+        m = np.asarray(self.matched, dtype=bool)
+        return np.asarray(self.error_m, dtype=np.float64)[m] if m.size else np.zeros(0)
+
     def matched_error_m(self) -> float:
         """Mean distance error of the matched frames, metres (NaN when none matched)."""
-        m = np.asarray(self.matched, dtype=bool)
-        return float(np.mean(np.asarray(self.error_m)[m])) if m.any() else float("nan")
+        e = self.matched_errors_m()
+        return float(np.mean(e)) if e.size else float("nan")
+
+    def reported_error_m(self) -> float:
+        """Mean distance error of every frame not lost, metres (NaN when none)."""
+        e = np.asarray(self.error_m)[np.isfinite(np.asarray(self.confidence, dtype=np.float64))]
+        return float(np.mean(e)) if e.size else float("nan")
+
+    def reliability(self, tolerance_m: float) -> Reliability:
+        """The reported confidence's reliability diagram (lost frames left out)."""
+        right = np.asarray(self.error_m) <= tolerance_m
+        return reliability(np.asarray(self.confidence, dtype=np.float64), right)
+
+
+def _pct(errors: NDArray[np.float64], q: float) -> float:
+    return float(np.percentile(errors, q)) if errors.size else float("nan")
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,10 +153,12 @@ class LocalisationReport:
     known_start: bool = False
 
     def rows(self) -> list[dict[str, float | str | int]]:
-        """One row per (condition, method) with AUC, recall@100% precision, matched share and errors."""
+        """One row per (condition, method): AUC, recall@100% precision by X and by the confidence, matched
+        share, position errors and the confidence's calibration error."""
         out: list[dict[str, float | str | int]] = []
         for (cond, method), r in self.results.items():
             curve = r.curve(self.tolerance_m)
+            errors = r.matched_errors_m()
             out.append(
                 {
                     "condition": cond,
@@ -122,18 +171,22 @@ class LocalisationReport:
                     ).recall_at_full_precision,
                     "matched": float(np.mean(r.matched)) if r.matched else 0.0,
                     "matched_error_m": r.matched_error_m(),
+                    "matched_p95_m": _pct(errors, 95),
+                    "matched_max_m": float(errors.max()) if errors.size else float("nan"),
+                    "reported_error_m": r.reported_error_m(),
+                    "ece": r.reliability(self.tolerance_m).expected_calibration_error,
                     "ms_per_frame": float(np.median(r.ms)) if r.ms else float("nan"),
                 }
             )
         return out
 
     def table(self) -> str:
-        """The table as Markdown, with each method's AUC change against clean, and how the HMM started."""
+        """The tables as Markdown: per (condition, method), then the default method per drive."""
         clean = {row["method"]: float(row["auc"]) for row in self.rows() if row["condition"] == "clean"}
         lines = [
-            "| condition | method | frames | AUC | AUC - clean | recall @ 100% precision "
-            "| recall @ 100% precision, by confidence | matched | mean error of matched (m) | ms/frame |",
-            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+            "| condition | method | frames | AUC | AUC - clean | recall @ 100% P by X | by confidence "
+            "| matched | error of matched: mean / p95 / max (m) | error of all reported (m) | ECE | ms/frame |",
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         ]
         for row in self.rows():
             delta = float(row["auc"]) - clean.get(str(row["method"]), float("nan"))
@@ -141,41 +194,85 @@ class LocalisationReport:
                 f"| {row['condition']} | {row['method']} | {row['frames']} | {float(row['auc']):.3f} "
                 f"| {delta:+.3f} | {float(row['recall_at_p100']):.3f} "
                 f"| {float(row['recall_at_p100_confidence']):.3f} | {100 * float(row['matched']):.0f}% "
-                f"| {float(row['matched_error_m']):.2f} | {float(row['ms_per_frame']):.1f} |"
+                f"| {float(row['matched_error_m']):.2f} / {float(row['matched_p95_m']):.2f} "
+                f"/ {float(row['matched_max_m']):.1f} | {float(row['reported_error_m']):.2f} "
+                f"| {float(row['ece']):.3f} | {float(row['ms_per_frame']):.1f} |"
             )
         start = "at each drive's known start (paper 000 X_0)" if self.known_start else "global (uniform)"
-        lines.append(f"\nHMM belief started {start}; {self.tolerance_m:g} m tolerance.")
+        lines.append(f"\nHMM belief started {start}; {self.tolerance_m:g} m tolerance.\n")
+        lines += [
+            f"{DEFAULT_METHOD}, each drive on its own:\n",
+            "| drive | frames | recall @ 100% P by confidence | by X | matched | error of matched: "
+            "mean / p95 / max (m) |",
+            "|---|---:|---:|---:|---:|---:|",
+        ]
+        for cond in CONDITIONS:
+            pooled = self.results.get((cond, DEFAULT_METHOD))
+            for name in sorted(set(pooled.drive) if pooled is not None else ()):
+                r = pooled.only(name) if pooled is not None else MethodResult()
+                e = r.matched_errors_m()
+                lines.append(
+                    f"| {name} | {len(r.scores)} "
+                    f"| {r.curve(self.tolerance_m, True).recall_at_full_precision:.3f} "
+                    f"| {r.curve(self.tolerance_m).recall_at_full_precision:.3f} "
+                    f"| {100 * float(np.mean(r.matched)) if r.matched else 0.0:.0f}% "
+                    f"| {r.matched_error_m():.2f} / {_pct(e, 95):.2f} / "
+                    f"{float(e.max()) if e.size else float('nan'):.1f} |"
+                )
         return "\n".join(lines)
+
+    def calibration(self) -> tuple[tuple[float, float], ...]:
+        """The calibration (``HmmParams.calibration`` knots) the default method's raw confidence would get
+        from these drives (every condition pooled)."""
+        raw: list[float] = []
+        right: list[bool] = []
+        for (_cond, method), r in self.results.items():
+            if method == DEFAULT_METHOD:
+                raw += r.raw
+                right += [e <= self.tolerance_m for e in r.error_m]
+        return fit_calibration(np.asarray(raw, dtype=np.float64), np.asarray(right, dtype=bool))
 
 
 def _run_drive(
-    drive: RecordedDrive, localisers: dict[str, Localiser], results: dict[str, MethodResult], stride: int
+    drive: RecordedDrive,
+    localisers: dict[str, tuple[Localiser, bool]],
+    results: dict[str, MethodResult],
+    stride: int,
 ) -> None:
-    """Every method on one drive; the frame is pre-processed and masked once, shared by the methods.
+    """Every method on one drive; the frame is pre-processed, masked and its odometry step measured once,
+    shared by the methods (``localisers``: name -> (localiser, uses odometry)).
 
     Single-image methods see every ``stride``-th frame only (they keep no state between frames).
     """
     if drive.truth_xy_m is None:
         raise BadInputError(f"drive {drive.name!r} has no ground truth on every frame", field="truth")
-    plain = next(loc for loc in localisers.values() if loc.sesame is None)
-    masker = next((loc for loc in localisers.values() if loc.sesame is not None), None)
+    plain = next(loc for loc, _o in localisers.values() if loc.sesame is None)
+    masker = next((loc for loc, _o in localisers.values() if loc.sesame is not None), None)
+    feed = OdometryFeed(drive.camera) if drive.camera is not None else None
     for k, frame in enumerate(drive.frames()):
         thumb = plain.thumbnail(frame)
         t0 = time.perf_counter()
         mask = masker.query_mask(frame) if masker is not None else None
         mask_ms = (time.perf_counter() - t0) * 1e3  # charged to the SESAME methods only
-        for name, loc in localisers.items():
+        t0 = time.perf_counter()
+        motion = feed.step(frame, float(drive.t_s[k])) if feed is not None else None
+        odometry_ms = (time.perf_counter() - t0) * 1e3  # charged to the odometry method only
+        for name, (loc, odometry) in localisers.items():
             if loc.single_image and k % stride:
                 continue
-            est = loc.step(thumb, float(drive.t_s[k]), mask if loc.sesame is not None else None)
+            masked = mask if loc.sesame is not None else None
+            est = loc.step(thumb, float(drive.t_s[k]), masked, motion if odometry else None)
             res = results[name]
             res.scores.append(float("nan") if est.lost else est.score)  # lost: never matched
             res.confidence.append(float("nan") if est.lost else est.confidence)
+            res.raw.append(float("nan") if est.lost else est.raw_confidence)
             res.error_m.append(
                 float(np.hypot(est.x_m - drive.truth_xy_m[k, 0], est.y_m - drive.truth_xy_m[k, 1]))
             )
             res.matched.append(est.matched)
-            res.ms.append(est.ms + (mask_ms if loc.sesame is not None else 0.0))
+            res.drive.append(drive.name)
+            extra = (mask_ms if loc.sesame is not None else 0.0) + (odometry_ms if odometry else 0.0)
+            res.ms.append(est.ms + extra)
 
 
 def run_localisation_report(
@@ -228,16 +325,19 @@ def run_localisation_report(
             lmap.nearest_node(*drive.truth_xy_m[0]) if known_start and drive.truth_xy_m is not None else None
         )
         localisers = {
-            name: Localiser(
-                lmap if masked or holistic_map is None else holistic_map,
-                params,
-                single_image=not temporal,
-                sesame=sesame if masked else None,
-                start_node=start if temporal else None,
+            name: (
+                Localiser(
+                    lmap if masked or holistic_map is None else holistic_map,
+                    params,
+                    single_image=not temporal,
+                    sesame=sesame if masked else None,
+                    start_node=start if temporal else None,
+                ),
+                odometry,
             )
-            for name, masked, temporal in METHODS
+            for name, masked, temporal, odometry in METHODS
         }
-        per = {name: results.setdefault((cond, name), MethodResult()) for name, _m, _t in METHODS}
+        per = {name: results.setdefault((cond, name), MethodResult()) for name, *_ in METHODS}
         _run_drive(drive, localisers, per, single_image_stride)
     report("done", 1.0)
     figure = table_path = None
@@ -245,6 +345,7 @@ def run_localisation_report(
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
         figure = _plot(result, out_dir / "localisation_pr.png")
+        _plot_reliability(result, out_dir / "localisation_reliability.png")
         table_path = out_dir / "localisation_table.md"
         table_path.write_text(result.table() + "\n", encoding="utf-8")
     return LocalisationReport(results, tolerance_m, figure, table_path, known_start)
@@ -254,7 +355,7 @@ def _plot(result: LocalisationReport, path: Path) -> Path:
     conditions = [c for c in CONDITIONS if any(k[0] == c for k in result.results)]
     fig, axes = new_figure(len(conditions), 1, size_in=3.6)
     for ax, cond in zip(axes, conditions, strict=True):
-        for name, _m, _t in METHODS:
+        for name, *_ in METHODS:
             r = result.results.get((cond, name))
             if r is None:
                 continue
@@ -274,5 +375,35 @@ def _plot(result: LocalisationReport, path: Path) -> Path:
         ax.set_ylim(0, 1.02)
         ax.grid(alpha=0.3)
         ax.legend(loc="lower left", fontsize=7)
+    save(fig, str(path))
+    return path
+
+
+def _plot_reliability(result: LocalisationReport, path: Path) -> Path:
+    """The default method's reliability diagram per condition: share right against reported confidence."""
+    fig, axes = new_figure(1, 1, size_in=4.2)
+    ax = axes[0]
+    ax.plot([0, 1], [0, 1], color="#555555", linestyle=":", linewidth=1, label="calibrated")
+    for cond in CONDITIONS:
+        r = result.results.get((cond, DEFAULT_METHOD))
+        if r is None:
+            continue
+        rel = r.reliability(result.tolerance_m)
+        ok = rel.counts > 0
+        ax.plot(
+            rel.mean_confidence[ok],
+            rel.right_share[ok],
+            marker="o",
+            markersize=3,
+            linewidth=1.2,
+            label=f"{cond} (ECE {rel.expected_calibration_error:.3f})",
+        )
+    ax.set_title(f"{DEFAULT_METHOD}: reliability, {result.tolerance_m:g} m tolerance")
+    ax.set_xlabel("reported confidence")
+    ax.set_ylabel("share of frames right")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", fontsize=7)
     save(fig, str(path))
     return path
