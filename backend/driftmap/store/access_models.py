@@ -1,6 +1,6 @@
 """Who may use the server and what the vehicles report: users, vehicles, position history, live state.
 
-Positions are survey-frame metres (x east, y north) of the node centre the localiser chose, ``t_s`` is the
+Positions are the localiser's continuous estimate in survey-frame metres (x east, y north), ``t_s`` is the
 vehicle's own frame timestamp in seconds, ``received_at`` the server's UTC clock. A position's ``id`` is
 the sequence number the live WebSocket uses to resume.
 """
@@ -8,8 +8,10 @@ the sequence number the live WebSocket uses to resume.
 from __future__ import annotations
 
 from datetime import datetime
+from typing import Any
 
 from sqlalchemy import (
+    JSON,
     Boolean,
     DateTime,
     Float,
@@ -51,6 +53,13 @@ class Vehicle(Base):
     token_sha256: Mapped[str] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
     token_rotated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    camera: Mapped[dict[str, Any] | None] = mapped_column(JSON(none_as_null=True), nullable=True)
+    """The vehicle camera's ``camera`` block (drive.json keys of formats.md), None when not calibrated."""
+
+    @property
+    def has_camera(self) -> bool:
+        """Whether the vehicle has a calibrated camera (its frames then carry odometry)."""
+        return self.camera is not None
 
 
 class VehiclePosition(Base):
@@ -69,7 +78,9 @@ class VehiclePosition(Base):
     x_m: Mapped[float] = mapped_column(Float)
     y_m: Mapped[float] = mapped_column(Float)
     yaw_rad: Mapped[float | None] = mapped_column(Float, nullable=True)
+    """Heading, radians counter-clockwise from +x (east); None when unknown."""
     confidence: Mapped[float] = mapped_column(Float)
+    """The calibrated probability, 0-1, that the position is right."""
     matched: Mapped[bool] = mapped_column(Boolean)
     lost: Mapped[bool] = mapped_column(Boolean)
     received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
@@ -81,6 +92,12 @@ class VehiclePosition(Base):
     sharpness: Mapped[float | None] = mapped_column(Float, nullable=True)
     speckle: Mapped[float | None] = mapped_column(Float, nullable=True)
     flat_area: Mapped[float | None] = mapped_column(Float, nullable=True)
+    # the vehicle's motion at this frame; None on older rows (and speed when not measured)
+    speed_mps: Mapped[float | None] = mapped_column(Float, nullable=True)
+    """Speed from the camera odometry, metres per second (negative: reversing)."""
+    moving: Mapped[bool | None] = mapped_column(Boolean, nullable=True)
+    odometry: Mapped[bool | None] = mapped_column(Boolean, nullable=True)
+    """This frame's motion came from the vehicle camera's odometry."""
 
 
 class VehicleLiveState(Base):
