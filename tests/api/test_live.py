@@ -7,6 +7,8 @@ simulator's ground truth. Overload is produced by submitting a burst of frames a
 from __future__ import annotations
 
 import asyncio
+import json
+import math
 import os
 import signal
 import struct
@@ -186,6 +188,44 @@ class TestFrames:
             headers={**actors.auth("vehicle"), "Content-Type": "image/png"},
         )
         assert response.status_code == 409 and "has no map" in response.json()["detail"]
+
+
+class TestMotion:
+    def test_a_vehicle_without_a_camera_never_reports_odometry(
+        self, actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        viewer = actors.auth("viewer")
+        with actors.client.websocket_connect("/api/live", headers=viewer) as ws:
+            assert ws.receive_json()["type"] == "snapshot"
+            answers = [post(actors, f) for f in frames[:20]]
+            messages = [ws.receive_json() for _ in answers]
+        history = actors.client.get(f"/api/vehicles/{actors.vehicle_id}/positions", headers=viewer).json()
+        for rows in (answers, messages, history):
+            assert [r["odometry"] for r in rows] == [False] * len(answers)
+            assert all(r["speed_mps"] is None and isinstance(r["moving"], bool) for r in rows)
+            assert all(r["yaw"] is None or math.isfinite(r["yaw"]) for r in rows)
+        assert [m["confidence"] for m in messages] == [a["confidence"] for a in answers]
+        assert [h["confidence"] for h in history] == [a["confidence"] for a in answers]
+
+    def test_a_vehicle_with_a_camera_reports_its_motion(
+        self, actors: Actors, frames: list[RecordedFrame], tiny_site_dir: Path
+    ) -> None:
+        block = json.loads((localisation_drive(tiny_site_dir) / "drive.json").read_text())["camera"]
+        camera = actors.client.put(
+            f"/api/vehicles/{actors.vehicle_id}/camera", json=block, headers=actors.auth("surveyor")
+        )
+        assert camera.status_code == 200, camera.text
+        answers = [post(actors, f) for f in frames[:60]]
+        assert [a["status"] for a in answers] == ["processed"] * len(answers)
+        measured = [a for a in answers if a["odometry"]]
+        assert len(measured) >= len(answers) // 2
+        assert all(a["speed_mps"] is not None and math.isfinite(a["speed_mps"]) for a in measured)
+        history = actors.client.get(
+            f"/api/vehicles/{actors.vehicle_id}/positions", headers=actors.auth("viewer")
+        ).json()
+        assert [(h["odometry"], h["speed_mps"], h["yaw"], h["moving"]) for h in history] == [
+            (a["odometry"], a["speed_mps"], a["yaw"], a["moving"]) for a in answers
+        ]
 
 
 class TestOverload:

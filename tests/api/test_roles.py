@@ -27,7 +27,10 @@ from tests.api.access_helpers import Actors, make_actors
 CALLERS = (None, "viewer", "surveyor", "admin", "vehicle", "other_vehicle")
 USER_ROLES = ("viewer", "surveyor", "admin")
 MISSING_ID = "999999"  # path parameters of user routes point at nothing, so no call changes stored data
-SURVEYOR_WRITES = re.compile(r"/(groundings|drives|maps|map-versions|builds|jobs)(/|$)")
+SURVEYOR_WRITES = re.compile(
+    r"/(groundings|drives|maps|map-versions|builds|jobs)(/|$)"
+    r"|/vehicles/\{vehicle_id\}/(camera|start)$"  # a vehicle's camera calibration and its known start
+)
 WEBSOCKET_RULES = {"/vehicles/{vehicle_id}/stream": "vehicle", "/live": "user"}
 """WebSocket routes (their own auth, closing with 4401/4403) and who may open them."""
 

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 import pytest
 
 from driftmap.config import Settings
-from driftmap.store.access_models import Vehicle
+from driftmap.store.access_models import Vehicle, VehicleLiveState
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import Actors, make_actors
 
@@ -21,6 +21,18 @@ def actors(settings: Settings) -> Iterator[Actors]:
 
 def _frames_url(vehicle_id: int) -> str:
     return f"/api/vehicles/{vehicle_id}/frames?t=1"
+
+
+CAMERA = {
+    "width": 64,
+    "height": 48,
+    "ground_roi": [16, 24, 32, 20],
+    "k_x": 0.02,
+    "k_y": 0.03,
+    "y_c": 0.0,
+    "y_h": 4.0,
+    "forward_sign": 1,
+}
 
 
 class TestRegister:
@@ -78,3 +90,106 @@ class TestTokens:
         assert actors.client.get(f"/api/vehicles/{actors.vehicle_id}", headers=admin).status_code == 404
         response = actors.client.post(_frames_url(actors.vehicle_id), headers=actors.auth("vehicle"))
         assert response.status_code == 401
+
+
+class TestCamera:
+    def _url(self, actors: Actors) -> str:
+        return f"/api/vehicles/{actors.vehicle_id}/camera"
+
+    def test_a_surveyor_sets_reads_and_deletes_the_camera(self, actors: Actors) -> None:
+        url, surveyor, viewer = self._url(actors), actors.auth("surveyor"), actors.auth("viewer")
+        detail = f"/api/vehicles/{actors.vehicle_id}"
+        assert actors.client.get(url, headers=viewer).status_code == 404
+        assert actors.client.get(detail, headers=viewer).json()["has_camera"] is False
+        put = actors.client.put(url, json={**CAMERA, "note": "ignored"}, headers=surveyor)
+        assert put.status_code == 200, put.text
+        assert put.json() == {**CAMERA, "ground_homography": None}
+        assert actors.client.get(url, headers=viewer).json() == put.json()
+        assert actors.client.get(detail, headers=viewer).json()["has_camera"] is True
+        listed = actors.client.get("/api/vehicles", headers=viewer).json()
+        assert [v["has_camera"] for v in listed] == [True, False]
+        homography = [[0.0, -0.1, 2.0], [-0.1, 0.0, 3.0], [0.0, 0.0, 1.0]]
+        admin_put = actors.client.put(
+            url, json={**CAMERA, "k_x": 0.5, "ground_homography": homography}, headers=actors.auth("admin")
+        )
+        assert admin_put.status_code == 200 and admin_put.json()["ground_homography"] == homography
+        assert actors.client.delete(url, headers=surveyor).status_code == 204
+        assert actors.client.get(url, headers=viewer).status_code == 404
+        assert actors.client.delete(url, headers=surveyor).status_code == 404
+        assert actors.client.get(detail, headers=viewer).json()["has_camera"] is False
+
+    @pytest.mark.parametrize(
+        ("change", "field"),
+        [
+            ({"k_x": -1.0}, "camera.k_x"),
+            ({"k_y": "fast"}, "camera.k_y"),
+            ({"ground_roi": [40, 24, 32, 20]}, "camera.ground_roi"),
+            ({"forward_sign": 0}, "camera.forward_sign"),
+            ({"width": None}, "camera.width"),
+            ({"ground_homography": [[1, 0], [0, 1]]}, "camera.ground_homography"),
+        ],
+    )
+    def test_a_bad_block_is_refused_naming_the_field_and_the_old_camera_stays(
+        self,
+        actors: Actors,
+        change: dict,
+        field: str,  # type: ignore[type-arg]
+    ) -> None:
+        url, surveyor = self._url(actors), actors.auth("surveyor")
+        assert actors.client.put(url, json=CAMERA, headers=surveyor).status_code == 200
+        bad = actors.client.put(url, json={**CAMERA, **change}, headers=surveyor)
+        assert bad.status_code == 422 and bad.json()["field"] == field, bad.text
+        assert field in bad.json()["detail"]
+        assert actors.client.get(url, headers=surveyor).json() == {**CAMERA, "ground_homography": None}
+
+    def test_a_missing_key_or_a_non_object_is_named(self, actors: Actors) -> None:
+        url, surveyor = self._url(actors), actors.auth("surveyor")
+        missing = actors.client.put(
+            url, json={k: v for k, v in CAMERA.items() if k != "y_h"}, headers=surveyor
+        )
+        assert missing.status_code == 422 and missing.json()["field"] == "camera.y_h"
+        listed = actors.client.put(url, json=[1, 2], headers=surveyor)
+        assert listed.status_code == 422 and listed.json()["field"] == "camera"
+        assert actors.client.get(url, headers=surveyor).status_code == 404
+
+    def test_viewers_and_vehicles_cannot_change_it(self, actors: Actors) -> None:
+        url = self._url(actors)
+        for caller in ("viewer", "vehicle"):
+            assert actors.client.put(url, json=CAMERA, headers=actors.auth(caller)).status_code == 403
+            assert actors.client.delete(url, headers=actors.auth(caller)).status_code == 403
+        assert actors.client.put(url, json=CAMERA).status_code == 401
+        assert actors.client.get(url, headers=actors.auth("viewer")).status_code == 404
+
+    def test_an_unknown_vehicle_is_404(self, actors: Actors) -> None:
+        response = actors.client.put("/api/vehicles/424242/camera", json=CAMERA, headers=actors.auth("admin"))
+        assert response.status_code == 404
+
+    def test_a_new_camera_drops_the_live_state_and_keeps_the_counts(self, actors: Actors) -> None:
+        storage: Storage = actors.app.state.storage
+        with storage.db.session() as session:
+            session.add(
+                VehicleLiveState(
+                    vehicle_id=actors.vehicle_id,
+                    state_npz=b"belief",
+                    last_t_s=7.0,
+                    processed=5,
+                    skipped=1,
+                    out_of_order=2,
+                )
+            )
+        with storage.db.session() as session:
+            before = session.get(VehicleLiveState, actors.vehicle_id)
+            assert before is not None
+            revision = before.revision
+        url, surveyor = self._url(actors), actors.auth("surveyor")
+        assert actors.client.put(url, json=CAMERA, headers=surveyor).status_code == 200
+        with storage.db.session() as session:
+            state = session.get(VehicleLiveState, actors.vehicle_id)
+            assert state is not None and state.state_npz is None and state.revision > revision
+            assert (state.processed, state.skipped, state.out_of_order, state.last_t_s) == (5, 1, 2, 7.0)
+            revision = state.revision
+        assert actors.client.put(url, json=CAMERA, headers=surveyor).status_code == 200  # the same camera
+        assert actors.client.delete(url, headers=surveyor).status_code == 204
+        with storage.db.session() as session:
+            state = session.get(VehicleLiveState, actors.vehicle_id)
+            assert state is not None and state.revision == revision + 1

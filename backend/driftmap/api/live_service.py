@@ -60,7 +60,8 @@ class _Lane:
 
 
 def position_message(view: PositionView) -> Message:
-    """The ``/api/live`` message of one position."""
+    """The ``/api/live`` message of one position (the fields of
+    :class:`~driftmap.api.schemas_access.PositionRead`, ``type`` and ``stale``)."""
     return {
         "type": "position",
         "seq": view.seq,
@@ -72,6 +73,9 @@ def position_message(view: PositionView) -> Message:
         "x": view.x,
         "y": view.y,
         "yaw": view.yaw,
+        "speed_mps": view.speed_mps,
+        "moving": view.moving,
+        "odometry": view.odometry,
         "confidence": view.confidence,
         "matched": view.matched,
         "lost": view.lost,
@@ -99,7 +103,10 @@ def _view(outcome: FrameOutcome) -> PositionView:
         node=outcome.node,
         x=outcome.x,
         y=outcome.y,
-        yaw=None,
+        yaw=outcome.yaw,
+        speed_mps=outcome.speed_mps,
+        moving=outcome.moving,
+        odometry=outcome.odometry,
         confidence=outcome.confidence or 0.0,
         matched=bool(outcome.matched),
         lost=bool(outcome.lost),

@@ -62,6 +62,55 @@ class VehicleRead(BaseModel):
     site_id: int
     created_at: datetime
     token_rotated_at: datetime
+    has_camera: bool = False
+    """The vehicle has a calibrated camera (``/api/vehicles/{id}/camera``): its frames carry odometry."""
+
+
+class VehicleCamera(BaseModel):
+    """A vehicle camera's calibration: the ``camera`` block of drive.json (formats.md), same keys and rules."""
+
+    width: int
+    """Frame width, pixels."""
+    height: int
+    """Frame height, pixels."""
+    ground_roi: list[int]
+    """``[x, y, w, h]`` pixel rectangle of the frame that shows the floor."""
+    k_x: float
+    """Metres per pixel of image shift in x inside the ROI."""
+    k_y: float
+    """Metres per pixel of image shift in y inside the ROI."""
+    y_c: float
+    """Metres from the rear axle to the camera."""
+    y_h: float
+    """Metres from the camera to the floor point at the ROI centre."""
+    forward_sign: int
+    """1 when image content moves down as the vehicle drives forward, else -1."""
+    ground_homography: list[list[float]] | None
+    """Optional 3x3 map from pixel (u, v, 1) to the floor point in the vehicle frame, metres (null: none)."""
+
+
+class StartRequest(BaseModel):
+    """A vehicle's known position (survey frame), to seed its live localiser."""
+
+    x: float
+    """Survey-frame metres (east)."""
+    y: float
+    """Survey-frame metres (north)."""
+    radius_m: float = 10.0
+    """How sure the start is, metres (0-200): the belief covers the map's nodes within this of the nearest."""
+
+
+class StartRead(BaseModel):
+    """A seeded known start: the next frame of the vehicle is localised from it."""
+
+    vehicle_id: int
+    x: float
+    y: float
+    radius_m: float
+    node: int
+    """The map node nearest to the start, where the belief is centred."""
+    map_version: int
+    """The site's map version the start was seeded on (its latest)."""
 
 
 class VehicleWithToken(VehicleRead):
@@ -100,14 +149,23 @@ class FrameEstimate(CameraCheck):
     t: float
     status: str
     node: int | None = None
+    """The map node the localiser believes the vehicle is at (eq. 11)."""
     x: float | None = None
-    """Survey-frame metres (east) of the node centre."""
+    """Survey-frame metres (east) of the vehicle's estimated position (continuous, not a node centre)."""
     y: float | None = None
-    """Survey-frame metres (north) of the node centre."""
+    """Survey-frame metres (north) of the vehicle's estimated position."""
+    yaw: float | None = None
+    """Heading, radians counter-clockwise from +x (east); null when unknown."""
+    speed_mps: float | None = None
+    """Speed from the camera odometry, metres per second (negative: reversing); null when not measured."""
+    moving: bool | None = None
+    """Whether the vehicle is moving (null when the frame was not processed)."""
+    odometry: bool = False
+    """This frame's motion came from the vehicle camera's odometry (always false without a camera)."""
     confidence: float | None = None
-    """The HMM belief of the chosen node, 0-1."""
+    """The calibrated probability, 0-1, that the position is right."""
     matched: bool | None = None
-    """Eq. 12 place match: the confidence is at least X_thresh and the localiser is not lost."""
+    """The confidence is at least the match threshold and the localiser is not lost."""
     lost: bool | None = None
     """The localiser's lost test failed on this frame and the ones before it (3 in a row by default)."""
     map_version: int | None = None
@@ -130,12 +188,25 @@ class PositionRead(CameraCheck):
     t: float
     """The frame's time on the vehicle's clock, seconds."""
     node: int
+    """The map node the localiser believed the vehicle was at."""
     x: float
+    """Survey-frame metres (east) of the estimated position (continuous, not a node centre)."""
     y: float
+    """Survey-frame metres (north) of the estimated position."""
     yaw: float | None
+    """Heading, radians counter-clockwise from +x (east); null when unknown."""
+    speed_mps: float | None = None
+    """Speed from the camera odometry, metres per second (negative: reversing); null when not measured."""
+    moving: bool | None = None
+    """Whether the vehicle was moving (null on positions stored before this was recorded)."""
+    odometry: bool = False
+    """This frame's motion came from the vehicle camera's odometry."""
     confidence: float
+    """The calibrated probability, 0-1, that the position is right."""
     matched: bool
+    """The confidence is at least the match threshold and the localiser is not lost."""
     lost: bool
+    """The localiser's lost test failed on this frame and the ones before it."""
     map_version: int | None
     received_at: datetime
 

@@ -1,14 +1,46 @@
-"""Vehicles: register (admin; the answer holds the vehicle's token, shown once), list, read, rotate, delete."""
+"""Vehicles: register (admin; the answer holds the vehicle's token, shown once), list, read, rotate, delete;
+their cameras and known starts (surveyors and admins).
+
+``PUT /api/vehicles/{id}/camera`` takes the ``camera`` block of drive.json (formats.md) as the JSON body and
+checks it as a drive import does (a bad block is 422 naming the field, e.g. ``camera.k_x``, and the old camera
+stays). Changing or deleting the camera restarts the vehicle's live localisation at its next frame.
+
+``POST /api/vehicles/{id}/start`` seeds the vehicle's live belief at a known position, as ``driftmap localise
+--start`` does: 422 naming ``x``, ``y`` or ``radius_m`` for a value that is not finite, a radius outside 0-200
+m, or a start more than 50 m from every node of the map; 409 when the site has no map yet. Nothing changes on
+an error.
+"""
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends, Request, status
+from typing import Annotated, Any
 
-from driftmap.api.deps import ADMIN, VIEWER, SessionDep, forget_principals
-from driftmap.api.schemas_access import VehicleCreate, VehicleRead, VehicleWithToken
+from fastapi import APIRouter, Body, Depends, Request, status
+
+from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, StorageDep, forget_principals
+from driftmap.api.schemas_access import (
+    StartRead,
+    StartRequest,
+    VehicleCamera,
+    VehicleCreate,
+    VehicleRead,
+    VehicleWithToken,
+)
+from driftmap.errors import NotFoundError
+from driftmap.services import live_start
 from driftmap.services import vehicles as vehicle_service
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
+_CAMERA_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {"application/json": {"schema": {"$ref": "#/components/schemas/VehicleCamera"}}},
+    }
+}
+
+
+def _camera_block(stored: dict[str, Any]) -> VehicleCamera:
+    return VehicleCamera.model_validate({"ground_homography": None, **stored})
 
 
 def _with_token(vehicle: object, token: str) -> VehicleWithToken:
@@ -50,3 +82,41 @@ def delete_vehicle(vehicle_id: int, session: SessionDep, request: Request) -> No
     vehicle_service.delete_vehicle(session, vehicle_service.get_vehicle(session, vehicle_id))
     session.commit()
     forget_principals(request)
+
+
+@router.get("/{vehicle_id}/camera", dependencies=[Depends(VIEWER)])
+def get_camera(vehicle_id: int, session: SessionDep) -> VehicleCamera:
+    """The vehicle's camera block (404 when it has none)."""
+    vehicle = vehicle_service.get_vehicle(session, vehicle_id)
+    if vehicle.camera is None:
+        raise NotFoundError(f"vehicle {vehicle.name!r} has no camera")
+    return _camera_block(vehicle.camera)
+
+
+@router.put("/{vehicle_id}/camera", dependencies=[Depends(SURVEYOR)], openapi_extra=_CAMERA_BODY)
+def put_camera(vehicle_id: int, session: SessionDep, block: Annotated[Any, Body()]) -> VehicleCamera:
+    """Set the vehicle's camera (a drive.json ``camera`` block); its live localisation restarts."""
+    vehicle = vehicle_service.get_vehicle(session, vehicle_id)
+    return _camera_block(vehicle_service.set_camera(session, vehicle, block))
+
+
+@router.delete(
+    "/{vehicle_id}/camera", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(SURVEYOR)]
+)
+def delete_camera(vehicle_id: int, session: SessionDep) -> None:
+    """Remove the vehicle's camera (404 when it has none); its live localisation restarts."""
+    vehicle_service.delete_camera(session, vehicle_service.get_vehicle(session, vehicle_id))
+
+
+@router.post("/{vehicle_id}/start", dependencies=[Depends(SURVEYOR)])
+def post_start(vehicle_id: int, body: StartRequest, session: SessionDep, storage: StorageDep) -> StartRead:
+    """Seed the vehicle's live localisation at a known position on its site's latest map."""
+    seeded = live_start.seed_known_start(session, storage.blobs, vehicle_id, body.x, body.y, body.radius_m)
+    return StartRead(
+        vehicle_id=seeded.vehicle_id,
+        x=seeded.x,
+        y=seeded.y,
+        radius_m=seeded.radius_m,
+        node=seeded.node,
+        map_version=seeded.map_version,
+    )

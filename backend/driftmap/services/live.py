@@ -8,11 +8,16 @@ counter makes two processes that advance the same vehicle fail instead of double
 A frame whose ``t`` is not after the last processed one is refused and counted, never processed.
 Each processed frame is also judged for an obscured camera (:mod:`driftmap.core.obscured`); that judgement's
 memory of the recent frames is kept in the same stored state (``obscured_*`` arrays of the ``.npz``).
+
+A vehicle with a calibrated camera (:func:`driftmap.services.vehicles.vehicle_camera`) is localised with its
+ground-plane odometry; without one by appearance alone, and every estimate says ``odometry=False``. Reported
+numbers that the localiser does not know (NaN heading or speed) are stored and answered as None.
 """
 
 from __future__ import annotations
 
 import io
+import math
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -26,11 +31,12 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
-from driftmap.core.localiser import Localiser, LocaliserState
+from driftmap.core.localiser import Estimate, Localiser, LocaliserState
 from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.obscured import ObscuredState, frame_measures, judge_obscured
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
+from driftmap.services.vehicles import vehicle_camera
 from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosition
 from driftmap.store.blobs import BlobStore
 from driftmap.store.db import Database
@@ -70,6 +76,8 @@ class LiveSlot:
     localiser: Localiser
     revision: int
     obscured: ObscuredState = field(default_factory=ObscuredState)
+    has_camera: bool = False
+    """The localiser was built with the vehicle's camera (its estimates may carry odometry)."""
 
 
 @dataclass(frozen=True)
@@ -88,8 +96,18 @@ class FrameOutcome:
     """The stored position's id (the live stream's sequence number) when processed."""
     node: int | None = None
     x: float | None = None
+    """Survey-frame metres (east) of the continuous position estimate."""
     y: float | None = None
+    """Survey-frame metres (north) of the continuous position estimate."""
+    yaw: float | None = None
+    """Heading, radians counter-clockwise from +x (east); None when unknown."""
+    speed_mps: float | None = None
+    """Speed from the camera odometry, metres per second (negative: reversing); None when not measured."""
+    moving: bool | None = None
+    odometry: bool = False
+    """This frame's motion came from the vehicle camera's odometry."""
     confidence: float | None = None
+    """The calibrated probability, 0-1, that the position is right."""
     matched: bool | None = None
     lost: bool | None = None
     map_version: int | None = None
@@ -150,7 +168,34 @@ def latest_map_version(session: Session, site_id: int) -> MapVersion:
     return version
 
 
-def _live_state(session: Session, vehicle_id: int) -> VehicleLiveState:
+def finite_or_none(value: float) -> float | None:
+    """``value`` as a float, None when it is NaN or infinite (JSON has no NaN)."""
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The reported motion of one estimate: what the API answers and the database stores."""
+
+    yaw: float | None
+    speed_mps: float | None
+    moving: bool
+    odometry: bool
+
+    @classmethod
+    def of(cls, estimate: Estimate, has_camera: bool) -> Motion:
+        """The motion fields of ``estimate`` (odometry only ever with a camera)."""
+        return cls(
+            yaw=finite_or_none(estimate.yaw_rad),
+            speed_mps=finite_or_none(estimate.speed_mps),
+            moving=bool(estimate.moving),
+            odometry=bool(estimate.odometry) and has_camera,
+        )
+
+
+def live_state_row(session: Session, vehicle_id: int) -> VehicleLiveState:
+    """The vehicle's live state row, added to ``session`` (with zero counts) when it has none."""
     state = session.get(VehicleLiveState, vehicle_id)
     if state is None:
         state = VehicleLiveState(vehicle_id=vehicle_id, processed=0, skipped=0, out_of_order=0)
@@ -241,7 +286,7 @@ def _localise_once(
         if vehicle is None:
             raise NotFoundError(f"no vehicle with id {vehicle_id}")
         version = latest_map_version(session, vehicle.site_id)
-        state = _live_state(session, vehicle_id)
+        state = live_state_row(session, vehicle_id)
         state.skipped += unsaved_counts[0]
         state.out_of_order += unsaved_counts[1]
         stored_revision = state.revision
@@ -252,17 +297,19 @@ def _localise_once(
                 slot.revision = state.revision  # the belief did not change, the slot stays valid
             return _outcome(vehicle, state, t_s, "out_of_order"), slot
         if slot is None or slot.map_version_id != version.id or slot.revision != stored_revision:
-            localiser = make_localiser(maps.get(session, blobs, version))
+            calibrated = vehicle_camera(vehicle)
+            localiser = make_localiser(maps.get(session, blobs, version), camera=calibrated)
             obscured_memory = ObscuredState()
             if state.state_npz is not None:
                 stored, obscured_memory = decode_state(state.state_npz)
                 if state.map_version_id == version.id:
                     localiser.restore(stored)
-            slot = LiveSlot(version.id, localiser, -1, obscured_memory)
+            slot = LiveSlot(version.id, localiser, -1, obscured_memory, has_camera=calibrated is not None)
         # the localiser's SESAME query mask also gives the camera check its salient fraction
         mask = slot.localiser.query_mask(frame)
         measures = frame_measures(frame, salient=None if mask is None else float(mask.mean()))
         estimate = slot.localiser.step(frame, t_s, mask=mask)
+        motion = Motion.of(estimate, slot.has_camera)
         slot.obscured, camera = judge_obscured(slot.obscured, measures, t_s)
         received_at = utc_now()
         state.map_version_id = version.id
@@ -276,7 +323,11 @@ def _localise_once(
             node=estimate.node,
             x_m=estimate.x_m,
             y_m=estimate.y_m,
-            confidence=estimate.score,
+            yaw_rad=motion.yaw,
+            speed_mps=motion.speed_mps,
+            moving=motion.moving,
+            odometry=motion.odometry,
+            confidence=estimate.confidence,
             matched=estimate.matched,
             lost=estimate.lost,
             received_at=received_at,
@@ -303,7 +354,11 @@ def _localise_once(
             node=estimate.node,
             x=estimate.x_m,
             y=estimate.y_m,
-            confidence=estimate.score,
+            yaw=motion.yaw,
+            speed_mps=motion.speed_mps,
+            moving=motion.moving,
+            odometry=motion.odometry,
+            confidence=estimate.confidence,
             matched=estimate.matched,
             lost=estimate.lost,
             map_version=version.version,
@@ -323,7 +378,7 @@ def add_counts(db: Database, vehicle_id: int, skipped: int, out_of_order: int) -
     """Add frames skipped and refused to a vehicle's stored counts; returns its revision before and after."""
     _ensure_live_state(db, vehicle_id)
     with db.session() as session:
-        state = _live_state(session, vehicle_id)
+        state = live_state_row(session, vehicle_id)
         before = state.revision
         state.skipped += skipped
         state.out_of_order += out_of_order

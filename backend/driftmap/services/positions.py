@@ -19,7 +19,7 @@ from driftmap.store.models import MapVersion, utc_now
 
 @dataclass(frozen=True)
 class PositionView:
-    """One position of one vehicle, as the API shows it."""
+    """One position of one vehicle, as the API shows it (see :class:`~driftmap.services.live.FrameOutcome`)."""
 
     seq: int
     vehicle_id: int
@@ -35,6 +35,9 @@ class PositionView:
     lost: bool
     map_version: int | None
     received_at: datetime
+    speed_mps: float | None = None
+    moving: bool | None = None
+    odometry: bool = False
     obscured: bool | None = None
     """The camera looked obscured at this frame (None: not judged)."""
     obscured_reason: str | None = None
@@ -80,6 +83,9 @@ def _view(row: Row[VehiclePosition, str, int, int]) -> PositionView:
         lost=p.lost,
         map_version=version,
         received_at=as_utc(p.received_at),
+        speed_mps=p.speed_mps,
+        moving=p.moving,
+        odometry=bool(p.odometry),
         obscured=p.obscured,
         obscured_reason=p.obscured_reason,
         salient=p.salient,

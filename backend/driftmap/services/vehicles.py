@@ -1,14 +1,25 @@
-"""Vehicles of a site and their API tokens (returned once, stored as a SHA-256)."""
+"""Vehicles of a site, their API tokens (returned once, stored as a SHA-256) and their cameras.
+
+A vehicle's camera is the ``camera`` block of drive.json (formats.md), validated exactly as a drive import
+validates it and stored in its canonical form. Changing it drops the vehicle's stored localiser state (the
+belief and odometry of the old camera), so the next frame starts afresh with the new camera.
+"""
 
 from __future__ import annotations
+
+from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from driftmap.core.camera import CameraModel
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
+from driftmap.formats.drive_json import camera_to_json, parse_camera_block
 from driftmap.services.security import new_vehicle_token, token_sha256
-from driftmap.store.access_models import Vehicle
+from driftmap.store.access_models import Vehicle, VehicleLiveState
 from driftmap.store.models import Site, utc_now
+
+CAMERA_SOURCE = "request body"  # where a camera block given through the API comes from, in error messages
 
 
 def create_vehicle(session: Session, name: str, site_id: int) -> tuple[Vehicle, str]:
@@ -57,3 +68,44 @@ def delete_vehicle(session: Session, vehicle: Vehicle) -> None:
     """Remove ``vehicle`` with its position history and live state."""
     session.delete(vehicle)
     session.flush()
+
+
+def vehicle_camera(vehicle: Vehicle) -> CameraModel | None:
+    """The vehicle's calibrated camera, None when it has none."""
+    if vehicle.camera is None:
+        return None
+    return parse_camera_block(vehicle.camera, "", f"vehicle {vehicle.id} camera")
+
+
+def set_camera(session: Session, vehicle: Vehicle, block: object) -> dict[str, Any]:
+    """Validate a ``camera`` block and store it as ``vehicle``'s camera; returns the stored block.
+
+    Raises:
+        BadInputError: the block is not a valid camera block (the field is named ``camera.<key>``); nothing
+            is changed.
+    """
+    stored = camera_to_json(parse_camera_block(block, "", CAMERA_SOURCE))
+    if vehicle.camera == stored:
+        return stored  # the same camera: the live state stays valid
+    vehicle.camera = stored
+    _drop_live_state(session, vehicle.id)
+    session.flush()
+    return stored
+
+
+def delete_camera(session: Session, vehicle: Vehicle) -> None:
+    """Remove ``vehicle``'s camera (NotFoundError when it has none)."""
+    if vehicle.camera is None:
+        raise NotFoundError(f"vehicle {vehicle.name!r} has no camera")
+    vehicle.camera = None
+    _drop_live_state(session, vehicle.id)
+    session.flush()
+
+
+def _drop_live_state(session: Session, vehicle_id: int) -> None:
+    """Forget the vehicle's stored localiser state and bump its revision (the counts stay): every server
+    process rebuilds its localiser at the vehicle's next frame."""
+    state = session.get(VehicleLiveState, vehicle_id)
+    if state is not None:
+        state.state_npz = None
+        state.updated_at = utc_now()  # an update even when there was no state: the revision moves on
