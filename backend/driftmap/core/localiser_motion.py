@@ -2,7 +2,7 @@
 
 A localising vehicle carries the camera its map was built from. :class:`OdometryFeed` runs the mapping
 pipeline's single odometry step (:func:`driftmap.core.odometry_step.match_step` on frames prepared once with
-:func:`driftmap.core.odometry_grid.prepare_frame`, the same implementation and parameters) on each pair of
+:func:`driftmap.core.odometry_grid.prepare_frame`, the same implementation, with a cheaper preset) on each pair of
 consecutive frames and says whether the step can be trusted. The localiser uses a usable step twice: to move
 its belief by the distance actually driven (:mod:`driftmap.core.hmm`, odometry-gated transitions) and to
 dead-reckon its continuous position (:mod:`driftmap.core.localiser_track`).
@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from driftmap.core.camera import CameraModel
 from driftmap.core.odometry_grid import GridFrame, MatchGrid, match_grid, prepare_frame
 from driftmap.core.odometry_step import OdometryStep, match_step
-from driftmap.core.params import ODOMETRY_DEFAULT, OdometryParams
+from driftmap.core.params import ODOMETRY_LIVE, OdometryParams
 
 __all__ = ["MotionParams", "OdometryFeed"]
 
@@ -45,15 +45,16 @@ class OdometryFeed:
 
     Args:
         camera: the vehicle's calibrated camera (size, ground ROI, k_x, k_y, y_c, y_h, homography).
-        params: odometry parameters (the mapping pipeline's by default); self-calibration, which needs a
-            whole drive, is not applied to single steps.
+        params: odometry parameters (default :data:`~driftmap.core.params.ODOMETRY_LIVE`, the mapping
+            pipeline's step made cheap enough for every live frame); self-calibration, which needs a whole
+            drive, is not applied to single steps.
         motion: when a step is trusted.
     """
 
     def __init__(
         self,
         camera: CameraModel,
-        params: OdometryParams = ODOMETRY_DEFAULT,
+        params: OdometryParams = ODOMETRY_LIVE,
         motion: MotionParams = MOTION_DEFAULT,
     ) -> None:
         self.camera = camera
