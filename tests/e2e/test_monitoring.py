@@ -1,18 +1,23 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status and alert and the vehicle's latest frame, against a real ``driftmap serve``
-(fixtures of ``conftest.py``).
+the camera-obscured status and alert and the vehicle's latest frame, placing a vehicle's known start on the
+plan and its trail along the tunnels, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
 
 from __future__ import annotations
 
+import itertools
+import json
+import math
 import re
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-from playwright.sync_api import Page, expect
+from numpy.typing import NDArray
+from playwright.sync_api import Page, Request, expect
 
 from driftmap.core.obscurants import LEVELS, apply_level
 from driftmap.formats.frame_images import decode_gray, encode_png
@@ -22,6 +27,11 @@ from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
 DEADLINE_S = 60.0
 FRAME_PERIOD_S = 0.1
 REPLAY_FRAMES = 40
+START_FRAMES = 100  # ten seconds of the drive: it stands for one, then drives about ten metres
+CLICK_TOLERANCE_M = 1.0  # a click lands within a pixel or two of the aimed point (about 0.3 m/px when fitted)
+CENTRELINE_TOLERANCE_M = (
+    2.0  # the drives keep within 1.5 m of the surveyed centreline; the walls are ~3 m off
+)
 
 
 def log_in(page: Page, server: Server) -> None:
@@ -185,3 +195,209 @@ class TestObscuredCamera:
         assert frame.evaluate("img => img.naturalWidth") == 320
         screenshot(p, "ui_obscured")
         assert page.errors == []
+
+
+def _readout_at(page: Page, px: float, py: float) -> tuple[float, float]:
+    """The survey point under the mouse at page pixel ``(px, py)``, read from the map's grid readout."""
+    readout = page.get_by_test_id("grid-readout")
+    before = readout.inner_text()
+    page.mouse.move(px, py)
+    deadline = time.monotonic() + DEADLINE_S
+    while True:
+        text = readout.inner_text()
+        found = re.search(r"E (-?[\d.]+)\s+N (-?[\d.]+)", text)
+        if found and text != before:
+            return float(found.group(1)), float(found.group(2))
+        assert time.monotonic() < deadline, f"the readout did not follow the mouse: {text!r}"
+        page.wait_for_timeout(50)
+
+
+def _pixel_of(page: Page, x: float, y: float) -> tuple[float, float]:
+    """The page pixel of survey point ``(x, y)``: the map's scale and offset measured through the readout (the
+    readout adds the map's local origin back, so this also checks what a click at that pixel means)."""
+    box = page.get_by_test_id("map").bounding_box()
+    assert box is not None
+    ax, ay = box["x"] + 0.3 * box["width"], box["y"] + 0.3 * box["height"]
+    bx, by = box["x"] + 0.7 * box["width"], box["y"] + 0.7 * box["height"]
+    (ea, na), (eb, nb) = _readout_at(page, ax, ay), _readout_at(page, bx, by)
+    m_per_px_x, m_per_px_y = (eb - ea) / (bx - ax), (na - nb) / (by - ay)  # north is up
+    assert m_per_px_x > 0 and math.isclose(m_per_px_x, m_per_px_y, rel_tol=0.02), (m_per_px_x, m_per_px_y)
+    return ax + (x - ea) / m_per_px_x, ay + (na - y) / m_per_px_y
+
+
+def _plain_map_at(page: Page, px: float, py: float) -> bool:
+    """Whether a click at ``(px, py)`` lands on the map itself (not a legend, layer list or map button)."""
+    return bool(
+        page.evaluate(
+            """([x, y]) => {
+                const e = document.elementFromPoint(x, y);
+                return !!e && !!e.closest('[data-testid=map]') && !e.closest('.ol-control, .overlay-box');
+            }""",
+            [px, py],
+        )
+    )
+
+
+def _layer_lines(server: Server, layer: str) -> list[NDArray[np.float64]]:
+    """Every polyline of a survey layer, unsimplified, as (N, 2) survey metres."""
+    answer = server.api("GET", "/api/sites/1/survey/layers", params={"tolerance_m": 0, "layers": layer})
+    assert answer.status_code == 200, answer.text
+    lines: list[NDArray[np.float64]] = []
+
+    def walk(coordinates: Any) -> None:
+        if coordinates and isinstance(coordinates[0], (int, float)):
+            raise AssertionError("a bare point in a line layer")
+        if coordinates and isinstance(coordinates[0][0], (int, float)):
+            lines.append(np.asarray(coordinates, dtype=np.float64)[:, :2])
+        else:
+            for c in coordinates:
+                walk(c)
+
+    for feature in answer.json()["layers"][layer]["features"]:
+        walk(feature["geometry"]["coordinates"])
+    assert lines, f"no {layer} lines"
+    return lines
+
+
+def _distance_to_lines(point: tuple[float, float], lines: list[NDArray[np.float64]]) -> float:
+    """Distance, metres, from a point to the nearest segment of any polyline."""
+    p = np.asarray(point, dtype=np.float64)
+    best = math.inf
+    for line in lines:
+        a, b = line[:-1], line[1:]
+        ab = b - a
+        u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+        best = min(best, float(np.min(np.hypot(*(a + u[:, None] * ab - p).T))))
+    return best
+
+
+def _inside_walls(point: tuple[float, float], rings: list[NDArray[np.float64]]) -> bool:
+    """Whether a point lies in the tunnels: inside an odd number of wall rings (the outline, not a pillar)."""
+    x, y = point
+    crossings = 0
+    for ring in rings:
+        a, b = ring, np.roll(ring, -1, axis=0)
+        straddles = (a[:, 1] > y) != (b[:, 1] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at_x = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+        crossings += int(np.count_nonzero(straddles & (x < at_x)))
+    return crossings % 2 == 1
+
+
+def _confidence_text(confidence: float) -> str:
+    """The UI's percentage: rounded down, so the text and the band always agree."""
+    return f"{min(100, max(0, math.floor(confidence * 100 + 1e-9)))} %"
+
+
+def _band(position: dict[str, Any]) -> str:
+    percent = math.floor(position["confidence"] * 100 + 1e-9)
+    if position["lost"]:
+        return "lost"
+    return "confident" if percent >= 90 else "uncertain" if percent >= 50 else "doubtful"
+
+
+def _speed_text(speed_mps: float | None) -> str:
+    if speed_mps is None:
+        return "—"
+    text = f"{abs(speed_mps):.1f} m/s"
+    return f"{text} reversing" if speed_mps < 0 and text != "0.0 m/s" else text
+
+
+def _bearing_text(yaw: float | None) -> str:
+    """The UI's heading: grid bearing clockwise from north with its compass point."""
+    if yaw is None:
+        return "—"
+    degrees = round((90 - math.degrees(yaw)) % 360) % 360
+    return f"{degrees:03d}° {['N', 'NE', 'E', 'SE', 'S', 'SW', 'W', 'NW'][round(degrees / 45) % 8]}"
+
+
+class TestKnownStart:
+    def test_place_a_start_on_the_plan_then_the_trail_follows_the_tunnels(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path
+    ) -> None:
+        drive = localisation_drive(tiny_site_dir)
+        frames = recorded_frames(drive, START_FRAMES + 10)
+        vehicle = Vehicle(server, "start-1")
+        camera = json.loads((drive / "drive.json").read_text())["camera"]  # its frames carry odometry
+        assert server.api("PUT", f"/api/vehicles/{vehicle.id}/camera", json=camera).status_code == 200
+        centreline, walls = _layer_lines(server, "CENTRELINE"), _layer_lines(server, "WALLS")
+        p = page.page
+        log_in(p, server)
+        p.get_by_test_id("nav-monitor").click()
+        expect(p.get_by_test_id("live-connection")).to_have_text("live")
+        expect(p.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
+        expect(p.get_by_test_id("confidence-legend")).to_contain_text("confident")
+        row = p.get_by_test_id("vehicle-row-start-1")
+        row.click()
+        expect(p.get_by_test_id("vehicle-details")).to_contain_text("No position yet")
+
+        # aim at the drive's true position at its first frame whose pixel is plain map (no legend over it)
+        first = next(i for i, f in enumerate(frames[:10]) if _plain_map_at(p, *_pixel_of(p, f.x, f.y)))
+        aim = frames[first]
+        assert _distance_to_lines((aim.x, aim.y), centreline) < CENTRELINE_TOLERANCE_M  # a tunnel point
+        px, py = _pixel_of(p, aim.x, aim.y)
+        starts: list[Any] = []  # the bodies of the start requests the page sent
+
+        def on_request(request: Request) -> None:
+            if request.method == "POST" and request.url.endswith(f"/api/vehicles/{vehicle.id}/start"):
+                starts.append(request.post_data_json)
+
+        p.on("request", on_request)
+
+        # a click on the map outside the set-start mode sends nothing; Escape leaves the mode
+        p.mouse.click(px, py)
+        p.get_by_test_id("set-start-button").click()
+        expect(p.get_by_test_id("set-start-hint")).to_be_visible()
+        p.keyboard.press("Escape")
+        expect(p.get_by_test_id("set-start")).to_have_attribute("data-placing", "no")
+        p.mouse.click(px, py)
+
+        # refused: the server's reason is shown and the mode stays for another click
+        p.get_by_test_id("start-radius").fill("500")
+        p.get_by_test_id("set-start-button").click()
+        p.mouse.click(px, py)
+        result = p.get_by_test_id("start-result")
+        expect(result).to_have_attribute("data-state", "refused")
+        expect(result).to_contain_text("radius_m")
+        expect(p.get_by_test_id("set-start")).to_have_attribute("data-placing", "yes")
+        assert len(starts) == 1, starts  # the stray clicks sent nothing
+
+        p.get_by_test_id("start-radius").fill("10")
+        p.mouse.click(px, py)
+        expect(result).to_have_attribute("data-state", "accepted")
+        expect(result).to_contain_text("Start set at")
+        expect(p.get_by_test_id("set-start")).to_have_attribute("data-placing", "no")
+        sent = starts[-1]
+        assert sent["radius_m"] == 10
+        # survey coordinates, the map's local origin added back: the aimed tunnel point within a pixel or two
+        assert math.hypot(sent["x"] - aim.x, sent["y"] - aim.y) < CLICK_TOLERANCE_M, (sent, aim)
+
+        # the vehicle drives on from there: its trail grows, every position on a tunnel
+        for f in frames[first : first + START_FRAMES]:
+            assert vehicle.post(f.t, f.data)["status"] == "processed"
+        expect(row).to_have_attribute("data-trail", str(START_FRAMES))
+        history = server.api("GET", f"/api/vehicles/{vehicle.id}/positions").json()
+        assert len(history) == START_FRAMES
+        points = [(h["x"], h["y"]) for h in history]
+        # the trail's points and the middles of its segments: a trail cutting a corner through rock fails
+        drawn = points + [((a[0] + b[0]) / 2, (a[1] + b[1]) / 2) for a, b in itertools.pairwise(points)]
+        off = [(q, d) for q in drawn if (d := _distance_to_lines(q, centreline)) > CENTRELINE_TOLERANCE_M]
+        assert off == [], f"trail off the centreline: {off}"
+        outside = [q for q in drawn if not _inside_walls(q, walls)]
+        assert outside == [], f"trail outside the tunnel walls: {outside}"
+        moved = math.hypot(history[-1]["x"] - history[0]["x"], history[-1]["y"] - history[0]["y"])
+        assert moved > 1.0, moved  # a trail, not one point
+
+        # one confidence, shown the same way in the list and the details; motion as the server said it
+        last = history[-1]
+        expect(row).to_have_attribute("data-seq", str(last["seq"]))
+        expect(row).to_have_attribute("data-band", _band(last))
+        expect(row).to_contain_text(_confidence_text(last["confidence"]))
+        expect(p.get_by_test_id("detail-confidence")).to_contain_text(_confidence_text(last["confidence"]))
+        expect(p.get_by_test_id("detail-speed")).to_have_text(f"Speed{_speed_text(last['speed_mps'])}")
+        expect(p.get_by_test_id("detail-heading")).to_contain_text(_bearing_text(last["yaw"]))
+        badge = p.get_by_test_id("vehicle-details").get_by_test_id("appearance-only")
+        expect(badge).to_have_count(0 if last["odometry"] else 1)
+        screenshot(p, "ui_known_start")
+        # the browser logs the refused start's answer (422), and nothing else
+        assert [e for e in page.errors if not re.match(r"Failed to load resource: .* 422 ", e)] == []

@@ -204,6 +204,34 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/vehicles/{vehicle_id}/camera": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Camera
+         * @description The vehicle's camera block (404 when it has none).
+         */
+        get: operations["get_camera_api_vehicles__vehicle_id__camera_get"];
+        /**
+         * Put Camera
+         * @description Set the vehicle's camera (a drive.json ``camera`` block); its live localisation restarts.
+         */
+        put: operations["put_camera_api_vehicles__vehicle_id__camera_put"];
+        post?: never;
+        /**
+         * Delete Camera
+         * @description Remove the vehicle's camera (404 when it has none); its live localisation restarts.
+         */
+        delete: operations["delete_camera_api_vehicles__vehicle_id__camera_delete"];
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/vehicles/{vehicle_id}/start": {
         parameters: {
             query?: never;
@@ -214,10 +242,10 @@ export interface paths {
         get?: never;
         put?: never;
         /**
-         * Set Start
-         * @description Place the vehicle's known start: its next frames are localised near it.
+         * Post Start
+         * @description Seed the vehicle's live localisation at a known position on its site's latest map.
          */
-        post: operations["set_start_api_vehicles__vehicle_id__start_post"];
+        post: operations["post_start_api_vehicles__vehicle_id__start_post"];
         delete?: never;
         options?: never;
         head?: never;
@@ -1182,8 +1210,11 @@ export interface components {
             speed_mps?: number | null;
             /** Moving */
             moving?: boolean | null;
-            /** Odometry */
-            odometry?: boolean;
+            /**
+             * Odometry
+             * @default false
+             */
+            odometry: boolean;
             /** Confidence */
             confidence?: number | null;
             /** Matched */
@@ -1617,8 +1648,11 @@ export interface components {
             speed_mps?: number | null;
             /** Moving */
             moving?: boolean | null;
-            /** Odometry */
-            odometry?: boolean;
+            /**
+             * Odometry
+             * @default false
+             */
+            odometry: boolean;
             /** Confidence */
             confidence: number;
             /** Matched */
@@ -1712,6 +1746,39 @@ export interface components {
             name?: string | null;
             /** Description */
             description?: string | null;
+        };
+        /**
+         * StartRead
+         * @description A seeded known start: the next frame of the vehicle is localised from it.
+         */
+        StartRead: {
+            /** Vehicle Id */
+            vehicle_id: number;
+            /** X */
+            x: number;
+            /** Y */
+            y: number;
+            /** Radius M */
+            radius_m: number;
+            /** Node */
+            node: number;
+            /** Map Version */
+            map_version: number;
+        };
+        /**
+         * StartRequest
+         * @description A vehicle's known position (survey frame), to seed its live localiser.
+         */
+        StartRequest: {
+            /** X */
+            x: number;
+            /** Y */
+            y: number;
+            /**
+             * Radius M
+             * @default 10
+             */
+            radius_m: number;
         };
         /**
          * SurveyLayersRead
@@ -1811,6 +1878,30 @@ export interface components {
             /** Context */
             ctx?: Record<string, never>;
         };
+        /**
+         * VehicleCamera
+         * @description A vehicle camera's calibration: the ``camera`` block of drive.json (formats.md), same keys and rules.
+         */
+        VehicleCamera: {
+            /** Width */
+            width: number;
+            /** Height */
+            height: number;
+            /** Ground Roi */
+            ground_roi: number[];
+            /** K X */
+            k_x: number;
+            /** K Y */
+            k_y: number;
+            /** Y C */
+            y_c: number;
+            /** Y H */
+            y_h: number;
+            /** Forward Sign */
+            forward_sign: number;
+            /** Ground Homography */
+            ground_homography: number[][] | null;
+        };
         /** VehicleCreate */
         VehicleCreate: {
             /** Name */
@@ -1848,33 +1939,11 @@ export interface components {
              * Format: date-time
              */
             token_rotated_at: string;
-        };
-        /** VehicleStartCreate */
-        VehicleStartCreate: {
-            /** X */
-            x: number;
-            /** Y */
-            y: number;
             /**
-             * Radius M
-             * @default 10
+             * Has Camera
+             * @default false
              */
-            radius_m?: number;
-        };
-        /** VehicleStartRead */
-        VehicleStartRead: {
-            /** Vehicle Id */
-            vehicle_id: number;
-            /** X */
-            x: number;
-            /** Y */
-            y: number;
-            /** Radius M */
-            radius_m: number;
-            /** Node */
-            node: number;
-            /** Map Version */
-            map_version: number | null;
+            has_camera: boolean;
         };
         /** VehicleWithToken */
         VehicleWithToken: {
@@ -1894,6 +1963,11 @@ export interface components {
              * Format: date-time
              */
             token_rotated_at: string;
+            /**
+             * Has Camera
+             * @default false
+             */
+            has_camera: boolean;
             /** Token */
             token: string;
         };
@@ -2300,7 +2374,38 @@ export interface operations {
             };
         };
     };
-    set_start_api_vehicles__vehicle_id__start_post: {
+    get_camera_api_vehicles__vehicle_id__camera_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                vehicle_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["VehicleCamera"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    put_camera_api_vehicles__vehicle_id__camera_put: {
         parameters: {
             query?: never;
             header?: never;
@@ -2311,7 +2416,7 @@ export interface operations {
         };
         requestBody: {
             content: {
-                "application/json": components["schemas"]["VehicleStartCreate"];
+                "application/json": components["schemas"]["VehicleCamera"];
             };
         };
         responses: {
@@ -2321,7 +2426,71 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": components["schemas"]["VehicleStartRead"];
+                    "application/json": components["schemas"]["VehicleCamera"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    delete_camera_api_vehicles__vehicle_id__camera_delete: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                vehicle_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            204: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content?: never;
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    post_start_api_vehicles__vehicle_id__start_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                vehicle_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["StartRequest"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["StartRead"];
                 };
             };
             /** @description Validation Error */

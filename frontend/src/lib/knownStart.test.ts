@@ -3,16 +3,17 @@ import { detailText } from "../api/client";
 import { describeStart, parseRadiusM, startBody } from "./knownStart";
 
 describe("placing a known start", () => {
-  it("takes a radius above zero in metres", () => {
+  it("takes a radius of zero metres or more (the server sets the upper bound)", () => {
     expect(parseRadiusM("10")).toBe(10);
     expect(parseRadiusM(" 2.5 ")).toBe(2.5);
     expect(parseRadiusM(".5")).toBe(0.5);
-    for (const bad of ["", "0", "-3", "abc", "1e3", "Infinity", "10 m"]) expect(parseRadiusM(bad)).toBeNull();
+    expect(parseRadiusM("0")).toBe(0);
+    for (const bad of ["", "-3", "abc", "1e3", "Infinity", "10 m"]) expect(parseRadiusM(bad)).toBeNull();
   });
 
   it("sends the clicked survey coordinates with the radius", () => {
     expect(startBody(13702.1, 56911.4, "10")).toEqual({ x: 13702.1, y: 56911.4, radius_m: 10 });
-    expect(startBody(1, 2, "0")).toBeNull();
+    expect(startBody(1, 2, "-1")).toBeNull();
     expect(describeStart({ x: 12.34, y: 45.6, radius_m: 10, node: 7 })).toBe(
       "Start set at E 12.3  N 45.6 ± 10 m (node 7)",
     );

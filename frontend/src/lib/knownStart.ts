@@ -4,12 +4,12 @@ import { formatGrid } from "./localOrigin";
 
 export const DEFAULT_START_RADIUS_M = 10;
 
-/** A radius typed in metres: a finite number above zero, else null. */
+/** A radius typed in metres: a finite number, zero (the nearest map node only) or more; else null. */
 export function parseRadiusM(text: string): number | null {
   const s = text.trim();
   if (!/^\+?(\d+(\.\d*)?|\.\d+)$/.test(s)) return null;
   const value = Number(s);
-  return Number.isFinite(value) && value > 0 ? value : null;
+  return Number.isFinite(value) && value >= 0 ? value : null;
 }
 
 export interface StartBody {

@@ -12,7 +12,7 @@ export interface PositionMsg {
   y: number;
   /** Heading, radians counter-clockwise from east (survey frame); null when unknown. */
   yaw: number | null;
-  /** Speed along the tunnel, metres per second; null (or absent, older servers) when unknown. */
+  /** Speed from the camera odometry, m/s (negative: reversing); null (or absent, older servers) when unknown. */
   speed_mps?: number | null;
   /** Whether the vehicle moves; null (or absent) when unknown. */
   moving?: boolean | null;

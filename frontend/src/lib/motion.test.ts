@@ -41,6 +41,7 @@ describe("formatting for the control room", () => {
     expect(formatSpeed(1.234)).toBe("1.2 m/s");
     expect(formatSpeed(0)).toBe("0.0 m/s");
     expect(formatSpeed(-0.01)).toBe("0.0 m/s");
+    expect(formatSpeed(-0.84)).toBe("0.8 m/s reversing");
     expect(formatSpeed(null)).toBe("—");
     expect(formatSpeed(undefined)).toBe("—");
     expect(formatSpeed(Number.NaN)).toBe("—");

@@ -30,10 +30,11 @@ export function formatBearing(yawRad: number | null | undefined): string {
   return `${String(deg).padStart(3, "0")}° ${COMPASS[Math.round(deg / 45) % 8]}`;
 }
 
-/** "1.4 m/s", or "—" when the server does not know the speed. */
+/** "1.4 m/s", "0.8 m/s reversing" (a negative speed), or "—" when the server does not know the speed. */
 export function formatSpeed(speedMps: number | null | undefined): string {
   if (speedMps === null || speedMps === undefined || !Number.isFinite(speedMps)) return UNKNOWN;
-  return `${Math.max(0, speedMps).toFixed(1)} m/s`;
+  const text = `${Math.abs(speedMps).toFixed(1)} m/s`;
+  return speedMps < 0 && text !== "0.0 m/s" ? `${text} reversing` : text;
 }
 
 /** "moving" / "stopped", or "—" when the server does not know. */

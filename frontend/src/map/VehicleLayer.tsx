@@ -15,7 +15,7 @@ import type ImageStyle from "ol/style/Image";
 import { Glide } from "../lib/interpolate";
 import { bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
 import { yawToRotation } from "../lib/motion";
-import { trailRuns } from "../lib/trail";
+import { isJump, trailRuns } from "../lib/trail";
 import type { VehicleState } from "../lib/liveState";
 import type { MapCtx } from "./MineMap";
 
@@ -187,7 +187,12 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }
         glides.current.set(v.id, entry);
       } else {
         const t = entry.glide.target;
-        if (t.x !== pose.x || t.y !== pose.y || t.yaw !== pose.yaw) entry.glide.retarget(pose, now);
+        const n = v.trail.length;
+        if (t.x !== pose.x || t.y !== pose.y || t.yaw !== pose.yaw) {
+          const jumped = n >= 2 && isJump(v.trail[n - 2]!, v.trail[n - 1]!);
+          if (jumped) entry.glide = new Glide(pose, now); // a jump is drawn as one: no glide through rock
+          else entry.glide.retarget(pose, now);
+        }
       }
       const selected = v.id === selectedId;
       entry.marker.setProperties(

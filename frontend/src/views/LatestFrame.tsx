@@ -12,6 +12,10 @@ export function LatestFrame({ vehicleId, seq }: { vehicleId: number; seq: number
   const urlRef = useRef<string | null>(null);
 
   useEffect(() => {
+    if (seq === undefined) {
+      setMissing(true); // no position yet, so no frame to ask for
+      return;
+    }
     let cancelled = false;
     const wait = Math.max(0, lastFetch.current + MIN_INTERVAL_MS - performance.now());
     const timer = window.setTimeout(async () => {

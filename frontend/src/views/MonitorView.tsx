@@ -157,8 +157,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
         </table>
         {vehicles.length === 0 && <p className="muted">No vehicles on this site.</p>}
         {selected && (
-          <VehicleDetails v={selected}>
-            {editable && <SetStartPanel control={setStart} />}
+          <VehicleDetails v={selected} actions={editable && <SetStartPanel control={setStart} />}>
             <ReplayPanel key={selected.id} vehicle={selected} session={replay} onSession={setReplay} />
           </VehicleDetails>
         )}

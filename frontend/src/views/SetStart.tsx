@@ -23,7 +23,7 @@ export interface SetStartControl {
   place: (x: number, y: number) => void;
 }
 
-const RADIUS_HELP = "The radius is a number of metres above zero.";
+const RADIUS_HELP = "The radius is a number of metres, 0 or more.";
 
 /** The set-start mode of the selected vehicle (``vehicleId``); it ends when another vehicle is selected. */
 export function useSetStart(vehicleId: number | null): SetStartControl {

@@ -1,6 +1,6 @@
 // The selected vehicle's details: its latest estimate (position, confidence in its band, heading, speed and
 // motion as the server reports them, "—" when unknown; an "appearance only" badge without camera odometry),
-// the camera check, the latest frame, the set-start control, replay (children) and the recent history.
+// the camera check, the set-start control (actions), the latest frame, replay (children) and the recent history.
 import { useEffect, useState, type ReactNode } from "react";
 import { apiGet, type Schemas } from "../api/client";
 import { bandCss, confidenceBand, formatConfidence } from "../lib/confidence";
@@ -38,7 +38,15 @@ export function Confidence({ value, lost, stale }: { value: number; lost: boolea
   );
 }
 
-export function VehicleDetails({ v, children }: { v: VehicleState; children?: ReactNode }) {
+interface Props {
+  v: VehicleState;
+  /** Shown right under the estimate (the set-start control). */
+  actions?: ReactNode;
+  /** Shown under the latest frame (the replay). */
+  children?: ReactNode;
+}
+
+export function VehicleDetails({ v, actions, children }: Props) {
   const [history, setHistory] = useState<Schemas["PositionRead"][]>([]);
   const seq = v.position?.seq;
   const since = v.position ? v.position.t - HISTORY_S : null;
@@ -107,6 +115,7 @@ export function VehicleDetails({ v, children }: { v: VehicleState; children?: Re
       ) : (
         <p className="muted">No position yet.</p>
       )}
+      {actions}
       <LatestFrame key={v.id} vehicleId={v.id} seq={seq} />
       {children}
       <h3>History</h3>
