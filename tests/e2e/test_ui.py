@@ -103,6 +103,13 @@ class TestRoles:
         expect(p.get_by_test_id("help-overlay")).to_contain_text("next keyframe")
         p.keyboard.press("Escape")
         expect(p.get_by_test_id("help-overlay")).to_have_count(0)
+        # monitoring: a viewer sees a vehicle's details but cannot place its start
+        made = server.api("POST", "/api/vehicles", json={"name": "watched-1", "site_id": 1})
+        assert made.status_code in (200, 201), made.text
+        p.get_by_test_id("nav-monitor").click()
+        p.get_by_test_id("vehicle-row-watched-1").click()
+        expect(p.get_by_test_id("vehicle-details")).to_contain_text("watched-1")
+        expect(p.get_by_test_id("set-start")).to_have_count(0)
         assert page.errors == []
 
 
