@@ -306,13 +306,13 @@ class Localiser:
         confidence: float,
         still: bool,
     ) -> tuple[TrackState, bool]:
-        """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre when the frame
-        is confident, kept on the mapped tunnels around it (:mod:`driftmap.core.localiser_track`); and whether
+        """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre (weighted by
+        the frame's confidence; 0 when lost), kept on the mapped tunnels around it (:mod:`driftmap.core.localiser_track`); and whether
         the vehicle moves (odometry speed, else a changed view)."""
         tp, lm = self.track_params, self.map
         track = localiser_track.predict(track, motion, gap_s, tp)
-        if confidence >= tp.fix_min_confidence or not track.has_position:
-            track = localiser_track.correct(track, lm.centres_m[best], tp)
+        if confidence > 0.0 or not track.has_position:  # a lost frame's b(i) says nothing
+            track = localiser_track.correct(track, lm.centres_m[best], confidence, tp)
         if motion is not None:
             moving = not motion.stationary and abs(motion.dx_m) > tp.moving_mps * max(gap_s, 1e-3)
         else:

@@ -8,11 +8,12 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   the pose is composed with the step's ``prev_T_curr`` (rear-axle arc) and the variance grows with the step's
   ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
   ``free_speed_mps`` x the gap (a random walk), and heading is held.
-* **correct** (:func:`correct`): a confident place fix, the centre of the HMM's b(i), pulls the position with
-  the Kalman gain ``var / (var + fix_sigma_m^2)`` (a node centre is within half a node spacing of the vehicle,
-  ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). A fix further than ``gate_m`` plus three
-  standard deviations from the track re-anchors it there (a relocation, a restart) and the heading becomes
-  unknown again.
+* **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i), pulls the position with the
+  Kalman gain ``var / (var + r^2)``, ``r = fix_sigma_m / sqrt(confidence)`` (a node centre is within half a
+  node spacing of the vehicle, ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter; a doubtful
+  frame pulls less). A confident fix further than ``gate_m`` plus three standard deviations from the track
+  re-anchors it there (a relocation, a restart) and the heading becomes unknown again; a doubtful one is
+  ignored.
 * **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
   between directly driven node centres) around b(i), so positions and trails stay in the tunnels; the
   heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
@@ -53,7 +54,7 @@ class TrackParams:
     heading_pull: float = 0.15  # per moving frame, the share of the gap to the edge direction closed
     speed_memory: float = 0.5  # weight of the newest step in the running speed
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
-    fix_min_confidence: float = 0.3  # b(i)'s centre corrects the track when the frame's confidence is this
+    fix_min_confidence: float = 0.3  # a fix beyond the gate re-anchors the track at this confidence
     snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
 
     def __post_init__(self) -> None:
@@ -150,17 +151,23 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
     )
 
 
-def correct(state: TrackState, fix_m: F64, params: TrackParams) -> TrackState:
-    """Fuse a confident place fix (2,) ``fix_m`` (survey metres) into the track, or re-anchor at it.
+def correct(state: TrackState, fix_m: F64, confidence: float, params: TrackParams) -> TrackState:
+    """Fuse the place fix (2,) ``fix_m`` (survey metres) of a frame of ``confidence`` into the track.
 
-    Returns the track anchored at the fix when there is none yet or the fix lies beyond the gate.
+    The fix's sd is ``fix_sigma_m / sqrt(max(confidence, 0.1))``: a doubtful frame's b(i) is usually still
+    near the vehicle and keeps the track moving, but pulls it less. A fix beyond the gate re-anchors the
+    track there when the frame is confident (``fix_min_confidence``), else it is ignored; the first fix
+    anchors a track that has none.
     """
     fix = np.asarray(fix_m, dtype=np.float64)
-    r2 = params.fix_sigma_m**2
+    confident = confidence >= params.fix_min_confidence
+    r2 = params.fix_sigma_m**2 / max(confidence, 0.1)
     if not state.has_position:
-        return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m)
+        return TrackState.at((float(fix[0]), float(fix[1])), math.sqrt(r2))
     off = float(np.hypot(*(fix - state.wT[:2])))
-    if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + r2):
+    if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + params.fix_sigma_m**2):
+        if not confident:
+            return state
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m)
         return replace(anchored, speed_mps=state.speed_mps)
     gain = state.var_m2 / (state.var_m2 + r2)

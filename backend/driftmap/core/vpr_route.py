@@ -60,11 +60,16 @@ __all__ = [
     "ROUTE_DEFAULT",
     "RouteFilter",
     "RouteParams",
+    "calibrated",
     "calibration_sample",
+    "match_distances",
     "match_route",
     "recognise_places",
+    "reference_model",
     "reference_stats",
     "route_transitions",
+    "smooth_route",
+    "window_mass",
 ]
 
 F32 = NDArray[np.float32]
@@ -88,6 +93,11 @@ class RouteParams:
     speeds: tuple[float, ...] = ()  # tracked speeds, refs per query frame (< 0: backwards); () = fixed kernel
     # (with speeds, reach_frames and direction are not used)
     speed_change: float = 0.01  # tracked: probability per step of moving to a neighbouring speed state
+    # True: forward-backward over the whole query sequence (each b(i) also weighs the frames after i, as
+    # SeqSLAM's centred sequences do); False: the causal filter (frames up to i), what a vehicle gets live
+    smooth: bool = True
+    # the reported score is the window belief mapped through these (raw, P(right)) knots (hmm.calibrated)
+    calibration: tuple[tuple[float, float], ...] = ((0.0, 0.0), (1.0, 1.0))
 
     def __post_init__(self) -> None:
         if self.reach_frames < 0 or self.score_window_frames < 0 or self.calib_exclude_frames < 0:
@@ -100,6 +110,22 @@ class RouteParams:
             raise BadInputError("need calib_samples >= 2 and block_rows >= 1", field="calib_samples")
         if list(self.speeds) != sorted(self.speeds) or not 0.0 <= self.speed_change <= 1.0:
             raise BadInputError("speeds must be ascending, speed_change in [0, 1]", field="speeds")
+        knots = np.asarray(self.calibration, dtype=np.float64)
+        if (
+            knots.ndim != 2
+            or knots.shape[0] < 2
+            or knots.shape[1] != 2
+            or knots[0, 0] != 0.0
+            or knots[-1, 0] != 1.0
+            or np.any(np.diff(knots[:, 0]) <= 0)
+            or np.any(np.diff(knots[:, 1]) <= 0)
+            or np.any((knots[:, 1] < 0) | (knots[:, 1] > 1))
+        ):
+            raise BadInputError(
+                "must be (raw, probability) knots from raw 0 to 1, both strictly increasing (a flat"
+                " stretch would tie right and wrong matches), probabilities in [0, 1]",
+                field="calibration",
+            )
 
 
 #: Query and reference traversals at about the same speed (ratio 0-2, mean 1), like SeqSLAM's default
@@ -163,8 +189,9 @@ def reference_stats(d_sample: F32, sample_index: I64, exclude_frames: int) -> tu
     return m, np.maximum(s, floor)
 
 
-def _shift(mass: F64, speed: float) -> F64:
-    """``(N,)`` mass moved ``speed`` positions along the route (fractions split linearly); mass past the ends leaves."""
+def _shift(mass: F64, speed: float, adjoint: bool = False) -> F64:
+    """``(N,)`` mass moved ``speed`` positions along the route (fractions split linearly); mass past the ends
+    leaves. ``adjoint``: the transpose of that linear map (each position gathers from where its mass goes)."""
     out = np.zeros_like(mass)
     lo = math.floor(speed)
     frac = speed - lo
@@ -172,11 +199,30 @@ def _shift(mass: F64, speed: float) -> F64:
     for off, w in ((lo, 1.0 - frac), (lo + 1, frac)):
         if w <= 0 or abs(off) >= n:
             continue
-        if off >= 0:
-            out[off:] += w * mass[: n - off]
+        src, dst = (
+            (slice(off, None), slice(None, n - off)) if off >= 0 else (slice(None, off), slice(-off, None))
+        )
+        if adjoint:
+            out[dst] += w * mass[src]
         else:
-            out[:off] += w * mass[-off:]
+            out[src] += w * mass[dst]
     return out
+
+
+def _speed_mixing(k: int, change: float) -> F64:
+    """``(K, K)`` exchange between neighbouring speed states: row k takes ``change / 2`` from each neighbour
+    (the end states keep what would leave the speed range)."""
+    mix = (1.0 - change) * np.eye(k)
+    for i in range(k):
+        mix[i, min(i + 1, k - 1)] += 0.5 * change
+        mix[i, max(i - 1, 0)] += 0.5 * change
+    return mix
+
+
+def window_mass(place: F64, window: int) -> tuple[int, float]:
+    """The peak of a ``(D,)`` belief and the belief within ``+-window`` references of it."""
+    best = int(np.argmax(place))
+    return best, float(place[max(0, best - window) : best + window + 1].sum())
 
 
 class RouteFilter:
@@ -199,7 +245,9 @@ class RouteFilter:
         self.params = params
         self.n = self.median.size
         self.pi = route_transitions(self.n, params)
+        self.pi_t = self.pi.T.tocsr()
         k = max(1, len(params.speeds))
+        self.mixing = _speed_mixing(k, params.speed_change)
         self._all = np.arange(k * self.n, dtype=np.int64)
         self.belief = hmm.initial_belief(k * self.n).reshape(k, self.n)  # (K, D): speed state x reference
         self.steps = 0
@@ -220,35 +268,88 @@ class RouteFilter:
         p = self.params
         return np.exp(p.gain * np.clip(z, -p.z_clip, p.z_clip))
 
-    def predict(self) -> F64:
-        """``(K, D)`` prior of the next step, before the uniform mix (eq. 9-10, or the tracked speeds)."""
+    def transition(self, mass: F64, adjoint: bool = False) -> F64:
+        """``(K, D)`` T(mass): one step's motion (eq. 9-10, or the tracked speeds) and the uniform mix.
+
+        T is linear; ``adjoint`` applies its transpose, which carries the backward messages of
+        :func:`smooth_route`.
+        """
         p = self.params
+        size = mass.size
         if not p.speeds:
-            return np.asarray(self.pi @ self.belief[0], dtype=np.float64)[None, :]
-        moved = np.stack(
-            [
-                np.convolve(_shift(b, v), SPEED_JITTER, mode="same")
-                for b, v in zip(self.belief, p.speeds, strict=True)
-            ]
-        )
-        faster = np.vstack([moved[1:], moved[-1:]])  # the end states keep what would leave the speed range
-        slower = np.vstack([moved[:1], moved[:-1]])
-        return np.asarray((1.0 - p.speed_change) * moved + 0.5 * p.speed_change * (faster + slower))
+            pi = self.pi_t if adjoint else self.pi
+            moved = np.asarray(pi @ mass[0], dtype=np.float64)[None, :]
+        elif adjoint:
+            mixed = self.mixing.T @ mass
+            moved = np.stack(  # the jitter kernel is symmetric: its own transpose
+                [
+                    _shift(np.convolve(b, SPEED_JITTER, mode="same"), v, True)
+                    for b, v in zip(mixed, p.speeds, strict=True)
+                ]
+            )
+        else:
+            moved = self.mixing @ np.stack(
+                [
+                    np.convolve(_shift(b, v), SPEED_JITTER, mode="same")
+                    for b, v in zip(mass, p.speeds, strict=True)
+                ]
+            )
+        return np.asarray((1.0 - p.uniform_mix) * moved + p.uniform_mix * float(mass.sum()) / size)
 
     def step(self, d: F32 | F64) -> tuple[int, float]:
-        """One filter step on a query's ``(D,)`` distance row; returns ``(b(i), score)``."""
-        p = self.params
+        """One filter step on a query's ``(D,)`` distance row; returns ``(b(i), raw score)``: the belief within
+        ``score_window_frames`` of b(i), uncalibrated."""
         gamma = self.observation(d)
-        prior = self.belief if self.steps == 0 else self.predict()
-        prior = (1.0 - p.uniform_mix) * prior + p.uniform_mix / prior.size
+        if self.steps == 0:
+            p = self.params
+            prior = (1.0 - p.uniform_mix) * self.belief + p.uniform_mix / self.belief.size
+        else:
+            prior = self.transition(self.belief)
         k = prior.shape[0]
         post = hmm.hmm_update(prior.ravel(), self._all, np.tile(gamma, k), 1.0)
         self.belief = post.reshape(k, self.n)
         self.steps += 1
-        place = self.place_belief
-        best = int(np.argmax(place))
-        w = p.score_window_frames
-        return best, float(place[max(0, best - w) : best + w + 1].sum())
+        return window_mass(self.place_belief, self.params.score_window_frames)
+
+
+def smooth_route(d: F32, filt: RouteFilter) -> tuple[I64, F64]:
+    """Forward-backward over a whole query sequence: b(i) and the raw score from every frame, before and after.
+
+    The forward pass is :meth:`RouteFilter.step` (the filtered beliefs kept as float32; the uniform mix keeps
+    them far above its underflow); the backward messages ``beta_i = T'(O_{i+1} beta_{i+1})`` (normalised)
+    use the transpose of the same transition. The posterior of frame i is ``alpha_i beta_i``, normalised.
+
+    Args:
+        d: ``(Q, D)`` distance rows of the queries in traversal order.
+        filt: a fresh filter (its statistics and parameters; it is stepped through every row).
+
+    Returns:
+        ``(b, raw)``: ``(Q,)`` int64 peak of each frame's posterior over the references and ``(Q,)`` float64
+        the posterior within ``score_window_frames`` of it.
+    """
+    d = np.asarray(d)
+    if d.ndim != 2 or d.shape[1] != filt.n:
+        raise BadInputError(f"need a (Q, {filt.n}) matrix, got {d.shape}", field="d")
+    q = d.shape[0]
+    alphas = np.empty((q, *filt.belief.shape), dtype=np.float32)
+    for i in range(q):
+        filt.step(d[i])
+        alphas[i] = filt.belief
+    best = np.zeros(q, dtype=np.int64)
+    raw = np.zeros(q, dtype=np.float64)
+    beta = np.full(filt.belief.shape, 1.0 / filt.belief.size)
+    for i in range(q - 1, -1, -1):
+        post = alphas[i] * beta
+        best[i], raw[i] = window_mass(post.sum(axis=0) / post.sum(), filt.params.score_window_frames)
+        if i > 0:
+            beta = filt.transition(filt.observation(d[i])[None, :] * beta, adjoint=True)
+            beta /= beta.sum()
+    return best, raw
+
+
+def calibrated(raw: F64, knots: tuple[tuple[float, float], ...]) -> F64:
+    """``(Q,)`` probabilities right of ``(Q,)`` raw scores: :func:`driftmap.core.hmm.calibrated` of each."""
+    return np.array([hmm.calibrated(float(x), knots) for x in np.asarray(raw, dtype=np.float64)])
 
 
 def calibration_sample(db: PreparedImages, count: int) -> I64:
@@ -258,6 +359,36 @@ def calibration_sample(db: PreparedImages, count: int) -> I64:
         return usable.astype(np.int64)
     pick = np.unique(np.linspace(0, usable.size - 1, min(count, usable.size)).round().astype(np.int64))
     return np.asarray(usable[pick], dtype=np.int64)
+
+
+def reference_model(
+    db: PreparedImages, params: VprParams = DEFAULT, route: RouteParams = ROUTE_DEFAULT, *, workers: int = 1
+) -> tuple[F64, F64]:
+    """Each reference's typical unrelated distance and spread (:func:`reference_stats`), from
+    ``route.calib_samples`` references of ``db`` compared with all of them."""
+    sample = calibration_sample(db, route.calib_samples)
+    pseudo = PreparedImages(
+        db.thumbs[sample], None if db.masks is None else db.masks[sample], None, db.usable[sample]
+    )
+    return reference_stats(
+        distance_matrix(pseudo, db, params, workers=workers), sample, route.calib_exclude_frames
+    )
+
+
+def match_distances(d: F32, ref_median: F64, ref_scale: F64, route: RouteParams = ROUTE_DEFAULT) -> Matches:
+    """The route HMM on a whole ``(Q, D)`` distance matrix (queries in traversal order), smoothed or causal.
+
+    Returns:
+        :class:`~driftmap.core.vpr.Matches`: b(i) and the calibrated window belief per query.
+    """
+    filt = RouteFilter(ref_median, ref_scale, route)
+    if route.smooth:
+        best, raw = smooth_route(d, filt)
+    else:
+        steps = [filt.step(row) for row in np.asarray(d)]
+        best = np.array([b for b, _ in steps], dtype=np.int64)
+        raw = np.array([r for _, r in steps], dtype=np.float64)
+    return Matches(db_index=best, score=calibrated(raw, route.calibration))
 
 
 def match_route(
@@ -270,36 +401,35 @@ def match_route(
 ) -> Matches:
     """Run the route HMM over all queries in order.
 
+    Smoothing needs every distance row at once: it keeps the ``(Q, D)`` distances and the ``(Q, K, D)``
+    forward beliefs, float32 (K speed states). The causal filter streams ``block_rows`` rows at a time.
+
     Args:
         query: prepared query images in traversal order.
         db: prepared references in route order (same method and thumbnail size).
         params: the image comparison (SAD shifts; SESAME masks come with the prepared images).
-        route: the filter.
+        route: the HMM, smoothed or causal, and the score's calibration.
         workers: threads computing distance rows.
 
     Returns:
-        :class:`~driftmap.core.vpr.Matches`: b(i) and the windowed belief per query.
+        :class:`~driftmap.core.vpr.Matches`: b(i) and the calibrated window belief per query.
     """
     check_pair(query, db)
-    sample = calibration_sample(db, route.calib_samples)
-    pseudo = PreparedImages(
-        db.thumbs[sample], None if db.masks is None else db.masks[sample], None, db.usable[sample]
-    )
-    m, s = reference_stats(
-        distance_matrix(pseudo, db, params, workers=workers), sample, route.calib_exclude_frames
-    )
+    m, s = reference_model(db, params, route, workers=workers)
+    if route.smooth:
+        return match_distances(distance_matrix(query, db, params, workers=workers), m, s, route)
     filt = RouteFilter(m, s, route)
     q = query.thumbs.shape[0]
     best = np.zeros(q, dtype=np.int64)
-    score = np.zeros(q, dtype=np.float64)
+    raw = np.zeros(q, dtype=np.float64)
     for b0 in range(0, q, route.block_rows):
         rows = slice(b0, min(q, b0 + route.block_rows))
         block = PreparedImages(
             query.thumbs[rows], None if query.masks is None else query.masks[rows], None, query.usable[rows]
         )
         for k, d in enumerate(distance_matrix(block, db, params, workers=workers)):
-            best[b0 + k], score[b0 + k] = filt.step(d)
-    return Matches(db_index=best, score=score)
+            best[b0 + k], raw[b0 + k] = filt.step(d)
+    return Matches(db_index=best, score=calibrated(raw, route.calibration))
 
 
 def recognise_places(
