@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -12,7 +13,7 @@ from rich.table import Table
 from driftmap.cli.common import console, user_errors
 from driftmap.core import metrics
 from driftmap.core.vpr import METHODS, PRESETS, VprMethod
-from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, recognise_places
+from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams, recognise_places
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import PlaceMatchRow, write_place_matches_csv
 from driftmap.formats.place_images import find_gt_csv, gt_matrix, list_images, read_gray_stack, read_gt_pairs
@@ -21,10 +22,17 @@ vpr_app = typer.Typer(help="Place recognition on outside datasets (formats.md)."
 
 
 def _method(name: str) -> VprMethod:
+    """The method of that name (``--method``)."""
     for method in METHODS:
         if method == name:
             return method
     raise BadInputError(f"unknown method {name!r}; choose {', '.join(METHODS)}", field="--method")
+
+
+def _route(any_speed: bool, online: bool) -> RouteParams:
+    """The route HMM of ``--any-speed`` / ``--online``."""
+    route = ROUTE_ANY_SPEED if any_speed else ROUTE_DEFAULT
+    return replace(route, smooth=False) if online else route
 
 
 @vpr_app.command("match")
@@ -32,18 +40,35 @@ def vpr_match(
     db: Annotated[Path, typer.Option("--db", help="Folder of reference images (sorted name = route order).")],
     query: Annotated[Path, typer.Option("--query", help="Folder of query images (sorted name order).")],
     out: Annotated[Path, typer.Option("--out", help="CSV to write (query,db,score), one row per query.")],
-    method: Annotated[str, typer.Option(help="sad (patch-normalised SAD) or sesame (paper 001).")] = "sesame",
+    method: Annotated[
+        str | None,
+        typer.Option(
+            help="sad (patch-normalised SAD) or sesame (paper 001); default sad with --temporal, else sesame."
+        ),
+    ] = None,
     temporal: Annotated[
         bool, typer.Option("--temporal", help="HMM over the references as an ordered route.")
     ] = False,
     preset: Annotated[
-        str, typer.Option(help="mine (shift search +-4/+-2 px) or route (camera on a fixed path, no shifts).")
-    ] = "mine",
+        str | None,
+        typer.Option(
+            help="mine (shift search +-4/+-2 px) or route (camera on a fixed path, no shifts); default route"
+            " with --temporal, else mine."
+        ),
+    ] = None,
     any_speed: Annotated[
         bool,
         typer.Option(
             "--any-speed",
             help="With --temporal: track the query's speed (0-3x the references') instead of ~1x.",
+        ),
+    ] = False,
+    online: Annotated[
+        bool,
+        typer.Option(
+            "--online",
+            help="With --temporal: the causal filter (each match from the frames up to it, as a vehicle"
+            " live) instead of the posterior given every query frame.",
         ),
     ] = False,
     gt: Annotated[
@@ -54,7 +79,10 @@ def vpr_match(
     """Match every query image to a reference image; print recall@1, AUC and recall at 100% precision
     when ground truth is available."""
     with user_errors():
-        vpr_method = _method(method)
+        vpr_method = _method(method if method is not None else ("sad" if temporal else "sesame"))
+        preset = preset if preset is not None else ("route" if temporal else "mine")
+        if (any_speed or online) and not temporal:
+            raise BadInputError("needs --temporal", field="--any-speed" if any_speed else "--online")
         if preset not in PRESETS:
             raise BadInputError(f"unknown preset {preset!r}; choose {', '.join(PRESETS)}", field="--preset")
         db_files, query_files = list_images(db), list_images(query)
@@ -68,7 +96,7 @@ def vpr_match(
             vpr_method,
             temporal=temporal,
             params=PRESETS[preset],
-            route=ROUTE_ANY_SPEED if any_speed else ROUTE_DEFAULT,
+            route=_route(any_speed, online),
             workers=workers,
         )
         seconds = time.perf_counter() - t0
@@ -81,7 +109,9 @@ def vpr_match(
         if pairs is not None:
             gt_table = gt_matrix(pairs, query_files, db_files)
             result, _ = metrics.evaluate_matches(matches.db_index, matches.score, gt_table)
-    mode = ("route HMM, any speed" if any_speed else "route HMM") if temporal else "single image"
+    mode = "single image"
+    if temporal:
+        mode = ("route HMM, online" if online else "route HMM") + (", any speed" if any_speed else "")
     console.print(
         f"wrote {len(rows)} matches to {out} ({vpr_method}, {mode}, preset {preset}; "
         f"{len(query_files)} queries x {len(db_files)} references in {seconds:.1f} s)"

@@ -9,11 +9,11 @@ b(i) (eq. 11). What differs from the mine localiser (:class:`driftmap.core.local
   (eq. 9-10 with A_t = reach, distances in frames). With ``direction="forward"`` only forward moves are
   allowed: a dataset's query traversal follows the route in its order (the folder convention: sorted name
   order = route order). ``"both"`` is the paper's symmetric matrix, for vehicles that may reverse. The
-  kernel's mean (1 reference per query frame for reach 2) is a speed prior: measured, it fails when the
-  query runs twice as fast (Nordland every 2nd query: AUC 0.07). With ``speeds`` the speed relative to the
-  references becomes part of the state instead: each speed state v moves the mass by v references (plus
-  a +-1 jitter) and changes to a neighbouring speed with probability ``speed_change`` per step
-  (:data:`ROUTE_ANY_SPEED`: 0-3x, Nordland AUC 0.74 / 0.69 / 0.82 at 1x / 2x / 3x).
+  kernel's mean (1 reference per query frame for reach 2) is a speed prior: it holds at 1.5x but fails
+  when the query runs at half or twice the references' speed (``docs/evaluation/place_recognition.md``).
+  With ``speeds`` the speed relative to the references becomes part of the state instead: each speed
+  state v moves the mass by v references (plus a +-1 jitter) and changes to a neighbouring speed with
+  probability ``speed_change`` per step (:data:`ROUTE_ANY_SPEED`: 0-3x).
 * **Observation.** Eq. 8 rescales d between the best and the worst *evaluated* node, so the best of a
   wrong neighbourhood always scores 1 and a lost belief never lets go (measured on Nordland: recall@1 0.004).
   Here each reference's own statistics decide: a sample of references, compared with the whole route
@@ -24,8 +24,15 @@ b(i) (eq. 11). What differs from the mine localiser (:class:`driftmap.core.local
 * **Recovery.** ``uniform_mix`` of the prior is spread over the whole route each step (the global
   re-initialisation of the localiser, made continuous): a wrong lock decays once the true place keeps
   matching better.
-* **Score.** The belief within ``score_window_frames`` of b(i): how sure the filter is of the place to that
-  tolerance (eq. 12's X_i(b(i)) for a window of nodes).
+* **Smoothing.** A batch of queries is known in full, so by default b(i) comes from the posterior given
+  every frame, before and after i (forward-backward, :func:`smooth_route`), as SeqSLAM's sequences are
+  centred on the query; ``smooth=False`` (:data:`ROUTE_ONLINE`) is the causal filter a vehicle runs live.
+  The frames after a place are what tells a look-alike from it: on Nordland this, not the observation or
+  the score, is what lifts AUC and recall at 100 % precision above SeqSLAM's.
+* **Score.** The posterior within ``score_window_frames`` of b(i): the model's probability that the place
+  lies within that tolerance (eq. 12's X_i(b(i)) for a window of nodes), mapped through the
+  ``calibration`` knots. Combining it with the matched reference's distinctness (the localiser's
+  ``score x distinct``) ranks right matches below wrong ones more often: measured, it lowers AUC.
 
 Every reference is compared with every query (a full row per step; references left out of the database
 by SESAME have no observation), so there is no pruning to miss a recovery.
@@ -58,6 +65,7 @@ from driftmap.errors import BadInputError
 __all__ = [
     "ROUTE_ANY_SPEED",
     "ROUTE_DEFAULT",
+    "ROUTE_ONLINE",
     "RouteFilter",
     "RouteParams",
     "calibrated",
@@ -89,14 +97,16 @@ class RouteParams:
     score_window_frames: int = 2  # the score is the belief within +-this of the best node
     calib_samples: int = 64  # references compared with the route to learn each reference's statistics
     calib_exclude_frames: int = 5  # a sampled reference's neighbours within this show the same place
-    block_rows: int = 64  # query rows computed at a time by the batch :func:`match_route`
     speeds: tuple[float, ...] = ()  # tracked speeds, refs per query frame (< 0: backwards); () = fixed kernel
     # (with speeds, reach_frames and direction are not used)
     speed_change: float = 0.01  # tracked: probability per step of moving to a neighbouring speed state
     # True: forward-backward over the whole query sequence (each b(i) also weighs the frames after i, as
     # SeqSLAM's centred sequences do); False: the causal filter (frames up to i), what a vehicle gets live
     smooth: bool = True
-    # the reported score is the window belief mapped through these (raw, P(right)) knots (hmm.calibrated)
+    # the reported score is the window posterior mapped through these (raw, P(right)) knots
+    # (hmm.calibrated). Identity: the posterior is the probability. A logistic fitted on Nordland frames
+    # 0-499 (bench/vpr_defaults.py prints it and its knots) calibrates those frames (ECE 0.076 -> 0.023)
+    # but not others: frames 500-999 Brier 0.025 -> 0.031, corridor ECE 0.055 -> 0.118
     calibration: tuple[tuple[float, float], ...] = ((0.0, 0.0), (1.0, 1.0))
 
     def __post_init__(self) -> None:
@@ -106,8 +116,8 @@ class RouteParams:
             raise BadInputError(f"must be forward or both, got {self.direction!r}", field="direction")
         if not (self.gain > 0 and self.z_clip > 0 and 0.0 <= self.uniform_mix < 1.0):
             raise BadInputError("need gain > 0, z_clip > 0, uniform_mix in [0, 1)", field="gain")
-        if self.calib_samples < 2 or self.block_rows < 1:
-            raise BadInputError("need calib_samples >= 2 and block_rows >= 1", field="calib_samples")
+        if self.calib_samples < 2:
+            raise BadInputError(f"must be >= 2, got {self.calib_samples}", field="calib_samples")
         if list(self.speeds) != sorted(self.speeds) or not 0.0 <= self.speed_change <= 1.0:
             raise BadInputError("speeds must be ascending, speed_change in [0, 1]", field="speeds")
         knots = np.asarray(self.calibration, dtype=np.float64)
@@ -133,6 +143,8 @@ class RouteParams:
 ROUTE_DEFAULT = RouteParams()
 #: Any speed ratio from 0 (stopped) to 3: the speed is part of the state and changes slowly.
 ROUTE_ANY_SPEED = RouteParams(speeds=(0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0))
+#: The causal filter: each b(i) from the frames up to i only, as a vehicle localises live.
+ROUTE_ONLINE = RouteParams(smooth=False)
 #: Each tracked speed moves the mass by v references, then spreads it by this kernel (jitter of +-1).
 SPEED_JITTER = np.array([0.25, 0.5, 0.25])
 
@@ -401,8 +413,8 @@ def match_route(
 ) -> Matches:
     """Run the route HMM over all queries in order.
 
-    Smoothing needs every distance row at once: it keeps the ``(Q, D)`` distances and the ``(Q, K, D)``
-    forward beliefs, float32 (K speed states). The causal filter streams ``block_rows`` rows at a time.
+    It keeps the ``(Q, D)`` distances and, smoothing, the ``(Q, K, D)`` forward beliefs (float32; K speed
+    states): 8 MB for 1,000 x 1,000 images.
 
     Args:
         query: prepared query images in traversal order.
@@ -412,24 +424,11 @@ def match_route(
         workers: threads computing distance rows.
 
     Returns:
-        :class:`~driftmap.core.vpr.Matches`: b(i) and the calibrated window belief per query.
+        :class:`~driftmap.core.vpr.Matches`: b(i) and the calibrated window posterior per query.
     """
     check_pair(query, db)
     m, s = reference_model(db, params, route, workers=workers)
-    if route.smooth:
-        return match_distances(distance_matrix(query, db, params, workers=workers), m, s, route)
-    filt = RouteFilter(m, s, route)
-    q = query.thumbs.shape[0]
-    best = np.zeros(q, dtype=np.int64)
-    raw = np.zeros(q, dtype=np.float64)
-    for b0 in range(0, q, route.block_rows):
-        rows = slice(b0, min(q, b0 + route.block_rows))
-        block = PreparedImages(
-            query.thumbs[rows], None if query.masks is None else query.masks[rows], None, query.usable[rows]
-        )
-        for k, d in enumerate(distance_matrix(block, db, params, workers=workers)):
-            best[b0 + k], raw[b0 + k] = filt.step(d)
-    return Matches(db_index=best, score=calibrated(raw, route.calibration))
+    return match_distances(distance_matrix(query, db, params, workers=workers), m, s, route)
 
 
 def recognise_places(
