@@ -38,9 +38,10 @@ from tests.api.access_helpers import (
     recorded_frames,
 )
 
-ON_NODE_M = 15.0  # an estimate is right when its node centre is within this of the true position, metres
+ON_NODE_M = 15.0  # an estimate is right when it lies within this of the true position, metres
 MIN_RIGHT = 0.8  # fraction of matched estimates that must be right
-MIN_MATCHED = 0.2  # fraction of frames of the drive's first 15 s that must be matched
+MIN_MATCHED = 0.1  # fraction of frames of the drive's first 15 s that must be matched (the calibrated
+# confidence of a track that starts globally stays below the threshold for its first seconds)
 DRIVE_FRAMES = 150
 
 

@@ -10,6 +10,7 @@ import pytest
 from sqlalchemy import select
 
 from driftmap.config import Settings
+from driftmap.formats.csv_exports import LOCALISATION_HEADER
 from driftmap.store.models import MapVersion
 from tests.api.data_helpers import ApiUsers, api_users
 from tests.jobs.mini_site import mini_site_dir
@@ -146,8 +147,9 @@ class TestLocalise:
         assert job["result"]["median_error_m"] is not None
         csv = users.client.get(f"/api/jobs/{job['id']}/localisation.csv", headers=users.auth("viewer"))
         lines = csv.text.splitlines()
-        assert lines[0] == "frame,node,x,y,score,matched" and len(lines) == 101
-        assert sum(int(line.rsplit(",", 1)[1]) for line in lines[1:]) == job["result"]["matched"]
+        assert lines[0] == ",".join(LOCALISATION_HEADER) and len(lines) == 101
+        matched = LOCALISATION_HEADER.index("matched")
+        assert sum(int(line.split(",")[matched]) for line in lines[1:]) == job["result"]["matched"]
         none = users.client.get(
             f"/api/jobs/{before.json()['id']}/localisation.csv", headers=users.auth("viewer")
         )
