@@ -43,7 +43,15 @@ def _match(folder: Path, out: Path, *extra: str) -> tuple[int, str]:
 
 class TestMatch:
     @pytest.mark.parametrize(
-        "extra", [(), ("--method", "sad"), ("--temporal", "--preset", "route"), ("--temporal", "--any-speed")]
+        "extra",
+        [
+            (),
+            ("--method", "sad"),
+            ("--temporal",),
+            ("--temporal", "--online"),
+            ("--temporal", "--preset", "mine", "--method", "sesame"),
+            ("--temporal", "--any-speed"),
+        ],
     )
     def test_writes_one_row_per_query_and_scores(
         self, dataset: Path, tmp_path: Path, extra: tuple[str, ...]
@@ -55,6 +63,21 @@ class TestMatch:
         assert [r.query for r in rows] == [f"{i:04d}.png" for i in range(PLACES)]
         assert sum(r.db == r.query for r in rows) >= PLACES - 2
         assert "recall@1" in output and "gt.csv" in output
+
+    @pytest.mark.parametrize(
+        ("extra", "says"),
+        [
+            (("--temporal",), "(sad, route HMM, preset route;"),
+            (("--temporal", "--online", "--any-speed"), "(sad, route HMM, online, any speed, preset route;"),
+            ((), "(sesame, single image, preset mine;"),
+        ],
+    )
+    def test_defaults_depend_on_temporal(
+        self, dataset: Path, tmp_path: Path, extra: tuple[str, ...], says: str
+    ) -> None:
+        code, output = _match(dataset, tmp_path / "m.csv", *extra)
+        assert code == 0, output
+        assert says in " ".join(output.split())  # rich wraps long lines
 
     def test_without_ground_truth(self, dataset: Path, tmp_path: Path) -> None:
         (dataset / "gt.csv").unlink()
@@ -92,3 +115,9 @@ class TestBadInput:
         assert code == 2 and "query" in output and "no images" in output
         code, output = _match(dataset, tmp_path / "m.csv", "--method", "orb")
         assert code == 2 and "orb" in output
+
+    def test_route_options_need_temporal(self, dataset: Path, tmp_path: Path) -> None:
+        for option in ("--online", "--any-speed"):
+            code, output = _match(dataset, tmp_path / "m.csv", option)
+            assert code == 2 and option in output and "--temporal" in output
+        assert not (tmp_path / "m.csv").exists()

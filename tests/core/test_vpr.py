@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -156,6 +158,104 @@ class TestRouteHmm:
         m = vpr_route.recognise_places(query, db, "sad", temporal=True)
         assert np.abs(m.db_index[5:] - np.arange(5, 40)).max() <= 1
         assert m.score[5:].min() > 0.5
+
+
+#: forward-backward and brute force agree to rounding (float32 forward beliefs)
+POSTERIOR_ATOL = 1e-6
+
+
+def _dense_transition(filt: vpr_route.RouteFilter, adjoint: bool = False) -> np.ndarray:
+    """(S, S) matrix of the filter's linear transition T (column s: T of the unit mass at state s)."""
+    shape = filt.belief.shape
+    cols = []
+    for s in range(filt.belief.size):
+        unit = np.zeros(filt.belief.size)
+        unit[s] = 1.0
+        cols.append(filt.transition(unit.reshape(shape), adjoint=adjoint).ravel())
+    return np.stack(cols, axis=1)
+
+
+#: the transitions smoothing must invert: the default kernel, the paper's symmetric one, tracked speeds
+ROUTES = {
+    "forward": vpr_route.ROUTE_DEFAULT,
+    "both": vpr_route.RouteParams(direction="both", reach_frames=1),
+    "speeds": vpr_route.RouteParams(speeds=(0.0, 1.5, 2.0), speed_change=0.1),
+}
+
+
+class TestSmoothing:
+    @pytest.mark.parametrize("name", list(ROUTES))
+    def test_adjoint_is_the_transpose(self, name: str) -> None:
+        filt = vpr_route.RouteFilter(np.ones(7), np.ones(7), ROUTES[name])
+        forward, backward = _dense_transition(filt), _dense_transition(filt, adjoint=True)
+        np.testing.assert_allclose(backward, forward.T, atol=1e-15)
+
+    @pytest.mark.parametrize("name", list(ROUTES))
+    def test_posterior_equals_brute_force_over_every_path(self, name: str) -> None:
+        n, q = 5, 4
+        route = replace(ROUTES[name], score_window_frames=0, uniform_mix=0.05)
+        rng = np.random.default_rng(7)
+        d = rng.uniform(0.5, 1.5, (q, n))
+        filt = vpr_route.RouteFilter(np.ones(n), np.full(n, 0.2), route)
+        best, raw = vpr_route.smooth_route(d, filt)
+        # every path of states through the q frames, weighted by prior x transitions x observations
+        fresh = vpr_route.RouteFilter(np.ones(n), np.full(n, 0.2), route)
+        t_matrix = _dense_transition(fresh)
+        k = fresh.belief.shape[0]
+        obs = [np.tile(fresh.observation(row), k) for row in d]
+        size = k * n
+        marginal = np.zeros((q, n))
+        for path in itertools.product(range(size), repeat=q):
+            w = obs[0][path[0]] / size
+            for i in range(1, q):
+                w *= t_matrix[path[i], path[i - 1]] * obs[i][path[i]]
+            for i, state in enumerate(path):
+                marginal[i, state % n] += w
+        marginal /= marginal.sum(axis=1, keepdims=True)
+        assert best.tolist() == np.argmax(marginal, axis=1).tolist()
+        np.testing.assert_allclose(raw, marginal.max(axis=1), atol=POSTERIOR_ATOL)
+
+    def test_later_frames_settle_an_early_look_alike(self) -> None:
+        n, frames, start, twin = 40, 20, 5, 25
+        rng = np.random.default_rng(3)
+        rows = []
+        for t in range(frames):
+            d = 1.0 + 0.05 * rng.standard_normal(n)
+            d[start + t] = 0.6  # z = 4 at the true place
+            if t < 5:
+                d[twin + t] = 0.6  # the first five frames also look like another stretch of the route
+            rows.append(d)
+        d = np.array(rows)
+        truth = np.arange(start, start + frames)
+        online = vpr_route.match_distances(d, np.ones(n), np.full(n, 0.1), vpr_route.ROUTE_ONLINE)
+        smooth = vpr_route.match_distances(d, np.ones(n), np.full(n, 0.1), vpr_route.ROUTE_DEFAULT)
+        assert online.score[:5].max() < 0.6  # the filter cannot tell the two stretches apart yet
+        assert smooth.db_index.tolist() == truth.tolist()
+        assert smooth.score[:5].min() > 0.95
+
+
+class TestCalibration:
+    def test_knots_map_the_score_and_keep_its_order(self) -> None:
+        knots = ((0.0, 0.0), (0.5, 0.1), (1.0, 1.0))
+        route = replace(vpr_route.ROUTE_DEFAULT, calibration=knots)
+        d = 1.0 + 0.05 * np.random.default_rng(4).standard_normal((12, 20))
+        d[np.arange(12), np.arange(12) + 4] = 0.7
+        raw = vpr_route.match_distances(d, np.ones(20), np.full(20, 0.1), vpr_route.ROUTE_DEFAULT)
+        cal = vpr_route.match_distances(d, np.ones(20), np.full(20, 0.1), route)
+        np.testing.assert_allclose(cal.score, np.interp(raw.score, *np.array(knots).T))
+        assert np.argsort(cal.score, kind="stable").tolist() == np.argsort(raw.score, kind="stable").tolist()
+
+    @pytest.mark.parametrize(
+        "knots",
+        [
+            ((0.0, 0.0), (0.5, 0.5), (0.8, 0.5), (1.0, 1.0)),  # flat: would tie right and wrong matches
+            ((0.1, 0.0), (1.0, 1.0)),  # does not start at raw 0
+            ((0.0, 0.0), (1.0, 1.2)),  # not a probability
+        ],
+    )
+    def test_bad_knots(self, knots: tuple[tuple[float, float], ...]) -> None:
+        with pytest.raises(BadInputError, match="knots"):
+            vpr_route.RouteParams(calibration=knots)
 
 
 @pytest.mark.skipif(not (DATA / "corridor" / "gt.csv").is_file(), reason="shared outside data absent")
