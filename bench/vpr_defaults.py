@@ -8,9 +8,12 @@ measured. Sections, each printed as a table (the tables of ``docs/evaluation/pla
 
 * ``table``: old defaults (SESAME, preset mine, causal filter, raw score), ``--method sad --preset route``
   with the causal filter, the new defaults (``ROUTE_DEFAULT``: SAD, preset route, forward-backward,
-  calibrated) and SeqSLAM (``bench/seqslam.py``, OpenSeqSLAM's defaults on the same difference matrix):
-  recall@1, AUC, recall at 100 % precision, seconds (images decoded beforehand) and the score's expected
-  calibration error (ECE, 10 bins).
+  calibration knots), SeqSLAM (``bench/seqslam.py``, OpenSeqSLAM's defaults on the same difference
+  matrix), and the new defaults with ``--method sesame`` or ``--any-speed``: recall@1, AUC, recall at
+  100 % precision, seconds (images decoded beforehand) and the score's expected calibration error (ECE,
+  10 bins).
+* ``score``: the window posterior against it times the matched reference's distinctness along the
+  sequence (the mine localiser's ``score x distinct``), smoothed and causal, on the tuning part.
 * ``calibration``: the logistic fit on the tuning part that gives ``ROUTE_DEFAULT.calibration``, against
   the raw posterior and an isotonic fit (``core.metrics.fit_calibration``), by ECE on every part.
 * ``sensitivity``: AUC / recall at 100 % precision over gain x mix x score window and over reach, on the
@@ -52,7 +55,7 @@ BoolArr = NDArray[np.bool_]
 IDENTITY = ((0.0, 0.0), (1.0, 1.0))
 #: ``driftmap vpr match --temporal`` before: SESAME, shifts +-4/+-2 px, the causal filter, raw belief.
 OLD = replace(ROUTE_DEFAULT, smooth=False, calibration=IDENTITY)
-SECTIONS = ("table", "calibration", "sensitivity", "speed")
+SECTIONS = ("table", "score", "calibration", "sensitivity", "speed")
 
 
 @dataclass(frozen=True)
@@ -120,6 +123,12 @@ def table(ps: list[Part]) -> dict[str, dict[str, tuple[Matches, metrics.PrCurve]
             p.query, p.db, "sad", temporal=True, params=vpr.ROUTE, route=ROUTE_DEFAULT
         ),
         "SeqSLAM (bench/seqslam.py)": run_seqslam,
+        "new defaults with --method sesame": lambda p: vpr_route.recognise_places(
+            p.query, p.db, "sesame", temporal=True, params=vpr.ROUTE, route=ROUTE_DEFAULT
+        ),
+        "new defaults with --any-speed": lambda p: vpr_route.recognise_places(
+            p.query, p.db, "sad", temporal=True, params=vpr.ROUTE, route=ROUTE_ANY_SPEED
+        ),
     }
     kept: dict[str, dict[str, tuple[Matches, metrics.PrCurve]]] = {}
     print("\n## table: recall@1 / AUC / recall at 100 % precision / seconds / ECE of the score")
@@ -136,6 +145,60 @@ def table(ps: list[Part]) -> dict[str, dict[str, tuple[Matches, metrics.PrCurve]
                 flush=True,
             )
     return kept
+
+
+def running_mean(x: NDArray[np.float64], memory: float) -> NDArray[np.float64]:
+    """Exponential running average with weight ``memory`` on the newest value (the localiser's track)."""
+    out = np.empty_like(x)
+    acc = 0.0
+    for i, v in enumerate(x):
+        acc = (1.0 - memory) * acc + memory * v
+        out[i] = acc
+    return out
+
+
+def centred_mean(x: NDArray[np.float64], half: int) -> NDArray[np.float64]:
+    """Mean over the frames within ``+-half`` of each (fewer at the ends)."""
+    kernel = np.ones(2 * half + 1)
+    return np.convolve(x, kernel, "same") / np.convolve(np.ones_like(x), kernel, "same")
+
+
+def score(ps: list[Part]) -> None:
+    tune = ps[0]
+    rows = np.arange(tune.d.shape[0])
+    print(f"\n## score: AUC / recall at 100 % precision on {tune.name} (recall@1 is the same in a row)")
+    print(f"| score | smoothed (default) | causal filter |\n|{'---|' * 3}")
+    runs = {
+        mode: raw_run(tune, replace(ROUTE_DEFAULT, smooth=mode == "smooth")) for mode in ("smooth", "online")
+    }
+    variants: dict[str, Callable[[Matches], NDArray[np.float64]]] = {}
+    variants["window posterior (default)"] = lambda m: m.score
+
+    def typical(m: Matches) -> NDArray[np.float64]:  # 1 - d(b) / median d: the localiser's frame distinctness
+        d = tune.d.astype(np.float64)
+        return np.clip(1.0 - d[rows, m.db_index] / np.median(d, axis=1), 0.0, 1.0)
+
+    def elsewhere(m: Matches) -> NDArray[np.float64]:  # 1 - d(b) / least d more than 5 references away
+        d = tune.d.astype(np.float64)
+        far = np.abs(np.arange(d.shape[1])[None, :] - m.db_index[:, None]) > 5
+        return np.clip(1.0 - d[rows, m.db_index] / np.where(far, d, np.inf).min(axis=1), 0.0, 1.0)
+
+    variants["x typical distinctness, running (memory 0.2)"] = lambda m: (
+        m.score * running_mean(typical(m), 0.2)
+    )
+    variants["x elsewhere distinctness, running (memory 0.2)"] = lambda m: (
+        m.score * running_mean(elsewhere(m), 0.2)
+    )
+    variants["x elsewhere distinctness, mean over +-5 frames"] = lambda m: (
+        m.score * centred_mean(elsewhere(m), 5)
+    )
+    variants["elsewhere distinctness alone, mean over +-5 frames"] = lambda m: centred_mean(elsewhere(m), 5)
+    for label, variant in variants.items():
+        cells = []
+        for m in runs.values():
+            r, _ = metrics.evaluate_matches(m.db_index, variant(m), tune.gt)
+            cells.append(f"{r.auc:.3f} / {r.recall_at_full_precision:.3f}")
+        print(f"| {label} | {' | '.join(cells)} |")
 
 
 def fit_logistic(raw: NDArray[np.float64], right: BoolArr) -> tuple[float, float]:
@@ -177,18 +240,22 @@ def calibration(ps: list[Part]) -> None:
     isotonic = metrics.fit_calibration(raw.score, right)
     print(f"\n## calibration: logistic fit on {tune.name}: a = {a:.3f}, b = {b:.3f}")
     print(f"knots: {knots}")
-    print(f"ROUTE_DEFAULT.calibration {'==' if knots == ROUTE_DEFAULT.calibration else '!='} these knots")
-    print(f"isotonic (fit_calibration): {tuple((x, round(y, 3)) for x, y in isotonic)}")
-    print(f"| part | raw posterior: ECE / R@100P | isotonic | logistic |\n|{'---|' * 4}")
+    print(f"ROUTE_DEFAULT.calibration = {ROUTE_DEFAULT.calibration}")
+    print(f"isotonic (fit_calibration): {tuple((round(x, 2), round(y, 3)) for x, y in isotonic)}")
+    print("ECE / Brier score / recall at 100 % precision of the score, mapped through each calibration:")
+    print(f"| part | raw posterior (default) | isotonic | logistic |\n|{'---|' * 4}")
     for p in ps:
         m = raw_run(p)
         right_p = metrics.match_correct(m.db_index, p.gt)
         cells = []
         for k in (IDENTITY, isotonic, knots):
-            score = vpr_route.calibrated(m.score, k)
-            rel = metrics.reliability(score, right_p)
-            r, _ = metrics.evaluate_matches(m.db_index, score, p.gt)
-            cells.append(f"{rel.expected_calibration_error:.3f} / {r.recall_at_full_precision:.3f}")
+            mapped = vpr_route.calibrated(m.score, k)
+            rel = metrics.reliability(mapped, right_p)
+            r, _ = metrics.evaluate_matches(m.db_index, mapped, p.gt)
+            brier = float(np.mean((mapped - right_p) ** 2))
+            cells.append(
+                f"{rel.expected_calibration_error:.3f} / {brier:.3f} / {r.recall_at_full_precision:.3f}"
+            )
         print(f"| {p.name} | {' | '.join(cells)} |")
 
 
@@ -255,7 +322,7 @@ def figure(ps: list[Part], kept: dict[str, dict[str, tuple[Matches, metrics.PrCu
     fig, (ax_pr, ax_rel) = plt.subplots(1, 2, figsize=(11.0, 4.6))
     held = ps[1]
     for label, (_, curve) in kept[held.name].items():
-        if label.startswith("--method"):
+        if label.startswith(("--method", "new defaults with")):
             continue
         ax_pr.step(
             np.r_[0.0, curve.recall],
@@ -305,6 +372,8 @@ def main() -> None:
     ps = parts(args.data)
     if "table" in sections:
         figure(ps, table(ps), ROOT / "docs" / "vpr_defaults.png")
+    if "score" in sections:
+        score(ps)
     if "calibration" in sections:
         calibration(ps)
     if "sensitivity" in sections:

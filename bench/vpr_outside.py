@@ -3,10 +3,12 @@
 Datasets (``../shared/data``, see its README): ``corridor`` (111 vs 111 indoor images, gt +-2 frames) and
 ``nordland-1000`` (summer references vs winter queries, first 1,000 of the 64x32 sample, gt +-1 frame).
 For each, in one process: the baseline (plain patch-normalised SAD, single image), SESAME single image,
-``--temporal`` (the route HMM of ``driftmap.core.vpr_route``) with SAD and with SESAME, the same with
-``--any-speed``, and the paper's HMM exactly as the mine localiser runs it (``core.localiser.Localiser`` on a
-chain map, eq. 8 observation) for comparison. A second table drops every other query (the query traversal
-then runs twice as fast as the references') to show the speed prior of the default filter. Prints
+``--temporal`` (the route HMM of ``driftmap.core.vpr_route``, smoothed over the whole query sequence) with SAD
+and with SESAME, the same with ``--online`` (the causal filter) and with ``--any-speed``, the paper's HMM
+exactly as the mine localiser runs it (``core.localiser.Localiser`` on a chain map, eq. 8 observation), and
+SeqSLAM (``bench/seqslam.py``, OpenSeqSLAM's defaults on the SAD difference matrix) for comparison. A second
+table drops every other query (the query traversal then runs twice as fast as the references') to show the
+speed prior of the default HMM. Prints
 recall@1, AUC, recall at 100 % precision and wall seconds (images decoded beforehand; thumbnails, masks,
 distances and the filter counted), the ratio of each to the baseline, and the reference figures measured
 outside this project. Writes ``docs/vpr_corridor.png`` and ``docs/vpr_nordland.png``.
@@ -37,9 +39,16 @@ from scipy.sparse import csr_array
 from driftmap.core import hmm, metrics
 from driftmap.core.localiser import Localiser
 from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.vpr import PRESETS, Matches, VprMethod, VprParams, prepare_images
-from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams, recognise_places
+from driftmap.core.vpr import PRESETS, Matches, VprMethod, VprParams, distance_matrix, prepare_images
+from driftmap.core.vpr_route import (
+    ROUTE_ANY_SPEED,
+    ROUTE_DEFAULT,
+    ROUTE_ONLINE,
+    RouteParams,
+    recognise_places,
+)
 from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
+from seqslam import seqslam
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Figures measured outside this project on the same frames (issue 4).
@@ -63,6 +72,7 @@ class Run:
     preset: str
     route: RouteParams = ROUTE_DEFAULT
     localiser: bool = False  # the mine localiser's HMM (eq. 8) on a chain map instead of the route HMM
+    seqslam: bool = False  # SeqSLAM on the SAD difference matrix instead of the route HMM
 
 
 @dataclass(frozen=True)
@@ -82,9 +92,12 @@ def runs(dataset: str, mine_nordland: bool) -> list[Run]:
         out.append(Run(f"SESAME single ({preset})", "sesame", False, preset))
     out.append(Run("route HMM + SAD (route)", "sad", True, "route"))
     out.append(Run("route HMM + SESAME (route)", "sesame", True, "route"))
+    out.append(Run("  online, SAD", "sad", True, "route", ROUTE_ONLINE))
+    out.append(Run("  online, SESAME", "sesame", True, "route", ROUTE_ONLINE))
     out.append(Run("  any speed, SAD", "sad", True, "route", ROUTE_ANY_SPEED))
     out.append(Run("  any speed, SESAME", "sesame", True, "route", ROUTE_ANY_SPEED))
     out.append(Run("paper HMM (Localiser), SAD", "sad", True, "route", localiser=True))
+    out.append(Run("SeqSLAM (bench/seqslam.py)", "sad", True, "route", seqslam=True))
     return out
 
 
@@ -92,6 +105,7 @@ def speed_runs() -> list[Run]:
     return [
         Run("route HMM + SAD (2x speed)", "sad", True, "route"),
         Run("  any speed, SAD (2x speed)", "sad", True, "route", ROUTE_ANY_SPEED),
+        Run("SeqSLAM (2x speed)", "sad", True, "route", seqslam=True),
     ]
 
 
@@ -139,6 +153,10 @@ def execute(
         t0 = time.perf_counter()
         if run.localiser:
             m = chain_localiser(query, db, PRESETS[run.preset])
+        elif run.seqslam:
+            params = PRESETS[run.preset]
+            pq, pd = prepare_images(query, "sad", params), prepare_images(db, "sad", params)
+            m = seqslam(distance_matrix(pq, pd, params))
         else:
             m = recognise_places(
                 query,
@@ -185,7 +203,7 @@ def plot(dataset: str, outcomes: list[Outcome], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     for o in outcomes:
         if o.run.localiser or o.run.route is not ROUTE_DEFAULT:
-            continue  # the figure keeps to the main runs
+            continue  # the figure keeps to the main runs (and SeqSLAM)
         style = "-" if o.run.temporal else "--"
         label = f"{o.run.label}: AUC {o.result.auc:.2f}"
         ax.step(
