@@ -301,18 +301,22 @@ def speed(ps: list[Part]) -> None:
             "1.5x": (np.flatnonzero(np.arange(nq) % 3 != 2), np.arange(nd)),
             "2x": (np.arange(0, nq, 2), np.arange(nd)),
         }
-        for label in ("new defaults", "--any-speed (smoothed)", "SeqSLAM"):
+        routes = {
+            "new defaults": ROUTE_DEFAULT,
+            "new defaults, gain 0.25": replace(ROUTE_DEFAULT, gain=0.25),
+            "--any-speed": ROUTE_ANY_SPEED,
+        }
+        for label in (*routes, "SeqSLAM"):
             cells = []
             for qi, dj in cases.values():
                 d, gt = p.d[np.ix_(qi, dj)], p.gt[np.ix_(qi, dj)]
                 if label == "SeqSLAM":
                     m = seqslam(d)
                 else:
-                    route = ROUTE_DEFAULT if label == "new defaults" else ROUTE_ANY_SPEED
                     ref_median, ref_scale = vpr_route.reference_model(
-                        vpr.prepare_images(p.db[dj], "sad", vpr.ROUTE), vpr.ROUTE, route
+                        vpr.prepare_images(p.db[dj], "sad", vpr.ROUTE), vpr.ROUTE, routes[label]
                     )
-                    m = vpr_route.match_distances(d, ref_median, ref_scale, route)
+                    m = vpr_route.match_distances(d, ref_median, ref_scale, routes[label])
                 r, _, _ = scored(m, gt)
                 cells.append(f"{r.auc:.3f} / {r.recall_at_full_precision:.3f}")
             print(f"| {p.name} | {label} | {' | '.join(cells)} |", flush=True)
