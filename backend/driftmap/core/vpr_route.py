@@ -324,7 +324,7 @@ class RouteFilter:
         return window_mass(self.place_belief, self.params.score_window_frames)
 
 
-def smooth_route(d: F32, filt: RouteFilter) -> tuple[I64, F64]:
+def smooth_route(d: F32 | F64, filt: RouteFilter) -> tuple[I64, F64]:
     """Forward-backward over a whole query sequence: b(i) and the raw score from every frame, before and after.
 
     The forward pass is :meth:`RouteFilter.step` (the filtered beliefs kept as float32; the uniform mix keeps
@@ -339,13 +339,13 @@ def smooth_route(d: F32, filt: RouteFilter) -> tuple[I64, F64]:
         ``(b, raw)``: ``(Q,)`` int64 peak of each frame's posterior over the references and ``(Q,)`` float64
         the posterior within ``score_window_frames`` of it.
     """
-    d = np.asarray(d)
-    if d.ndim != 2 or d.shape[1] != filt.n:
-        raise BadInputError(f"need a (Q, {filt.n}) matrix, got {d.shape}", field="d")
-    q = d.shape[0]
+    rows: NDArray[np.floating] = np.asarray(d)  # float32 stays float32 (memory)
+    if rows.ndim != 2 or rows.shape[1] != filt.n:
+        raise BadInputError(f"need a (Q, {filt.n}) matrix, got {rows.shape}", field="d")
+    q = rows.shape[0]
     alphas = np.empty((q, *filt.belief.shape), dtype=np.float32)
     for i in range(q):
-        filt.step(d[i])
+        filt.step(rows[i])
         alphas[i] = filt.belief
     best = np.zeros(q, dtype=np.int64)
     raw = np.zeros(q, dtype=np.float64)
@@ -354,7 +354,7 @@ def smooth_route(d: F32, filt: RouteFilter) -> tuple[I64, F64]:
         post = alphas[i] * beta
         best[i], raw[i] = window_mass(post.sum(axis=0) / post.sum(), filt.params.score_window_frames)
         if i > 0:
-            beta = filt.transition(filt.observation(d[i])[None, :] * beta, adjoint=True)
+            beta = filt.transition(filt.observation(rows[i])[None, :] * beta, adjoint=True)
             beta /= beta.sum()
     return best, raw
 
@@ -387,7 +387,9 @@ def reference_model(
     )
 
 
-def match_distances(d: F32, ref_median: F64, ref_scale: F64, route: RouteParams = ROUTE_DEFAULT) -> Matches:
+def match_distances(
+    d: F32 | F64, ref_median: F64, ref_scale: F64, route: RouteParams = ROUTE_DEFAULT
+) -> Matches:
     """The route HMM on a whole ``(Q, D)`` distance matrix (queries in traversal order), smoothed or causal.
 
     Returns:
