@@ -12,8 +12,9 @@ height follows the input's aspect ratio (paper 001 section 4.6 keeps it unchange
   references otherwise become the best match of many queries). Algorithm 1's adjacency test needs metric
   positions, which a plain dataset folder lacks, so only its saliency threshold applies here.
 
-With ``temporal`` the reference images form a route and :mod:`driftmap.core.vpr_route` filters the
-distance rows of the query images, taken in order, with an HMM over the chain of references.
+With ``temporal`` the reference images form a route and :mod:`driftmap.core.vpr_route` runs an HMM over the
+chain of references on the distance rows of the query images, taken in order (smoothed over all of them by
+default, or causally).
 
 Single-image scores are the distinctness ``1 - d_best / median_j d(i, j)`` of the best match (0 when it is
 no better than a typical reference, towards 1 when it stands out), as the localiser's single-image mode.
