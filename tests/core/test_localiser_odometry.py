@@ -14,6 +14,7 @@ from driftmap.core import hmm
 from driftmap.core.localiser import Localiser
 from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.localiser_motion import OdometryFeed
+from driftmap.core.localiser_track import TRACK_DEFAULT, TrackState, correct
 from driftmap.core.odometry_step import OdometryStep
 
 F32 = np.ndarray
@@ -167,3 +168,28 @@ class TestOdometryFeed:
         assert feed.step(a, 0.0) is None
         assert feed.step(a[:100], 0.1) is None
         assert feed.step(a, 0.2) is None  # the odd frame broke the chain
+
+
+class TestTrackGate:
+    """A far fix re-anchors the track, except a doubtful one against a trusted dead-reckoned track."""
+
+    def test_far_fixes(self) -> None:
+        p = TRACK_DEFAULT
+        trusted = TrackState.at((0.0, 0.0), p.fix_sigma_m, trusted=True)
+        far = np.array([100.0, 0.0])
+        held, disagree = correct(trusted, far, False, True, p)
+        assert disagree and held.wT[0] == 0.0
+        moved, disagree = correct(trusted, far, True, True, p)
+        assert not disagree and moved.wT[0] == 100.0 and moved.trusted
+        untrusted = TrackState.at((0.0, 0.0), p.fix_sigma_m)
+        moved, disagree = correct(untrusted, far, False, True, p)  # not yet confirmed: follows the fix
+        assert not disagree and moved.wT[0] == 100.0 and not moved.trusted
+        smoothed, disagree = correct(trusted, far, False, False, p)  # no odometry: the track only smooths
+        assert not disagree and smoothed.wT[0] == 100.0
+
+    def test_near_fix_pulls_and_confirms(self) -> None:
+        p = TRACK_DEFAULT
+        track = TrackState.at((0.0, 0.0), p.fix_sigma_m)
+        pulled, disagree = correct(track, np.array([2.0, 0.0]), True, True, p)
+        assert not disagree and 0.5 < pulled.wT[0] < 1.5 and pulled.trusted
+        assert TrackState.from_arrays(pulled.to_arrays()).trusted

@@ -133,7 +133,7 @@ class Localiser:
         if start_node is not None:
             xy = start_xy_m if start_xy_m is not None else tuple(self.map.centres_m[start_node])
             sd = max(start_radius_m, self.track_params.fix_sigma_m)
-            track = TrackState.at((float(xy[0]), float(xy[1])), sd)
+            track = TrackState.at((float(xy[0]), float(xy[1])), sd, trusted=True)
         # a known start is trusted as a distinct track until the views say otherwise (the running
         # distinctness forgets it within a few frames); a global start earns its confidence frame by frame
         node, distinct = (-1, 0.0) if start_node is None else (start_node, 1.0)
@@ -255,7 +255,9 @@ class Localiser:
             lost_count = s.lost_count + 1 if lost else 0
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
         confidence = 0.0 if reported_lost else hmm.calibrated(score * distinct, p.calibration)
-        track, moving_now = self._follow(s.track, motion, gap_s, best, confidence, still)
+        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, confidence, still)
+        if disagree:
+            confidence = 0.0
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
@@ -274,6 +276,7 @@ class Localiser:
             track,
             motion is not None,
             moving_now,
+            confidence,
         )
 
     def _predict(self, s: LocaliserState, gap_s: float, motion: OdometryStep | None) -> F64:
@@ -305,21 +308,27 @@ class Localiser:
         best: int,
         confidence: float,
         still: bool,
-    ) -> tuple[TrackState, bool]:
-        """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre (weighted by
-        the frame's confidence; 0 when lost), kept on the mapped tunnels around it (:mod:`driftmap.core.localiser_track`); and whether
-        the vehicle moves (odometry speed, else a changed view)."""
+    ) -> tuple[TrackState, bool, bool]:
+        """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre unless the
+        frame is lost (confidence 0), kept on the mapped tunnels around it
+        (:mod:`driftmap.core.localiser_track`); whether the vehicle moves (odometry speed, else a changed
+        view); and whether the track and b(i) disagree (a doubtful far b(i) the dead-reckoned track did not
+        follow)."""
         tp, lm = self.track_params, self.map
         track = localiser_track.predict(track, motion, gap_s, tp)
+        disagree = False
         if confidence > 0.0 or not track.has_position:  # a lost frame's b(i) says nothing
-            track = localiser_track.correct(track, lm.centres_m[best], confidence, tp)
+            confident = confidence >= tp.fix_min_confidence
+            track, disagree = localiser_track.correct(
+                track, lm.centres_m[best], confident, motion is not None, tp
+            )
         if motion is not None:
             moving = not motion.stationary and abs(motion.dx_m) > tp.moving_mps * max(gap_s, 1e-3)
         else:
             moving = not still
         around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
         edges = lm.edges_near(np.r_[around, self._near(around, tp.snap_radius_m)])
-        return localiser_track.snap(track, lm.centres_m, edges, moving, tp), moving
+        return localiser_track.snap(track, lm.centres_m, edges, moving, tp), moving, disagree
 
     def _judge(
         self, best: int, compared: I64, d_all: NDArray[np.floating], far_m: float
@@ -391,9 +400,12 @@ class Localiser:
         track: TrackState | None,
         odometry: bool,
         moving: bool,
+        confidence: float | None = None,
     ) -> Estimate:
+        """The frame's :class:`Estimate`; ``confidence`` None: the calibrated ``score x distinct`` (0 lost)."""
         distinct = min(max(distinct, 0.0), 1.0)
-        confidence = 0.0 if lost else hmm.calibrated(score * distinct, self.params.calibration)
+        if confidence is None:
+            confidence = 0.0 if lost else hmm.calibrated(score * distinct, self.params.calibration)
         speed = track.speed_mps if track is not None and odometry else math.nan
         return Estimate(
             node=node,

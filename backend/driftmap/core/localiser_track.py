@@ -8,12 +8,13 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   the pose is composed with the step's ``prev_T_curr`` (rear-axle arc) and the variance grows with the step's
   ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
   ``free_speed_mps`` x the gap (a random walk), and heading is held.
-* **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i), pulls the position with the
-  Kalman gain ``var / (var + r^2)``, ``r = fix_sigma_m / sqrt(confidence)`` (a node centre is within half a
-  node spacing of the vehicle, ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter; a doubtful
-  frame pulls less). A confident fix further than ``gate_m`` plus three standard deviations from the track
-  re-anchors it there (a relocation, a restart) and the heading becomes unknown again; a doubtful one is
-  ignored.
+* **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i) of a frame that is not lost,
+  pulls the position with the Kalman gain ``var / (var + fix_sigma_m^2)`` (a node centre is within half a
+  node spacing of the vehicle: ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). A fix further
+  than ``gate_m`` plus three standard deviations from the track re-anchors it there (a relocation, a
+  restart; the heading becomes unknown again), unless the track is dead-reckoned by odometry and trusted (a
+  confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
+  and the frame, whose place and track disagree, gets no confidence.
 * **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
   between directly driven node centres) around b(i), so positions and trails stay in the tunnels; the
   heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
@@ -54,7 +55,7 @@ class TrackParams:
     heading_pull: float = 0.15  # per moving frame, the share of the gap to the edge direction closed
     speed_memory: float = 0.5  # weight of the newest step in the running speed
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
-    fix_min_confidence: float = 0.3  # a fix beyond the gate re-anchors the track at this confidence
+    fix_min_confidence: float = 0.3  # a far fix re-anchors a dead-reckoned track at this confidence
     snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
 
     def __post_init__(self) -> None:
@@ -80,6 +81,8 @@ class TrackState:
         speed_mps: signed running speed from odometry (negative: reversing); NaN when not measured.
         travel_m: signed odometry travel since the track was anchored, metres.
         anchor_m: (2,) float64 the fix where the track was anchored (heading from the fixes), metres.
+        trusted: a confident fix (or a known start) has confirmed the track since it was anchored; only a
+            trusted dead-reckoned track holds its course against a doubtful far fix.
     """
 
     wT: F64
@@ -87,6 +90,7 @@ class TrackState:
     speed_mps: float
     travel_m: float
     anchor_m: F64
+    trusted: bool = False
 
     @classmethod
     def empty(cls) -> TrackState:
@@ -95,10 +99,10 @@ class TrackState:
         return cls(np.full(3, np.nan), math.inf, math.nan, 0.0, nan2)
 
     @classmethod
-    def at(cls, xy_m: tuple[float, float], sigma_m: float) -> TrackState:
+    def at(cls, xy_m: tuple[float, float], sigma_m: float, trusted: bool = False) -> TrackState:
         """A track anchored at the survey point ``xy_m`` with sd ``sigma_m`` metres, heading unknown."""
         xy = np.asarray(xy_m, dtype=np.float64)
-        return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, xy.copy())
+        return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, xy.copy(), trusted)
 
     @property
     def has_position(self) -> bool:
@@ -109,17 +113,19 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(8,) float64 packed for the localiser's stored state."""
-        packed = np.r_[self.wT, self.var_m2, self.speed_mps, self.travel_m, self.anchor_m]
+        """(9,) float64 packed for the localiser's stored state."""
+        packed = np.r_[
+            self.wT, self.var_m2, self.speed_mps, self.travel_m, self.anchor_m, float(self.trusted)
+        ]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays` (anything but 8 values: no track)."""
+        """Inverse of :meth:`to_arrays` (anything but 9 values: no track)."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size != 8:
+        if a.size != 9:
             return cls.empty()
-        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), a[6:8].copy())
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), a[6:8].copy(), bool(a[8]))
 
 
 def _wrap(angle_rad: float) -> float:
@@ -151,25 +157,31 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
     )
 
 
-def correct(state: TrackState, fix_m: F64, confidence: float, params: TrackParams) -> TrackState:
-    """Fuse the place fix (2,) ``fix_m`` (survey metres) of a frame of ``confidence`` into the track.
+def correct(
+    state: TrackState, fix_m: F64, confident: bool, dead_reckoned: bool, params: TrackParams
+) -> tuple[TrackState, bool]:
+    """Fuse the place fix (2,) ``fix_m`` (survey metres, b(i)'s centre of a frame not lost) into the track.
 
-    The fix's sd is ``fix_sigma_m / sqrt(max(confidence, 0.1))``: a doubtful frame's b(i) is usually still
-    near the vehicle and keeps the track moving, but pulls it less. A fix beyond the gate re-anchors the
-    track there when the frame is confident (``fix_min_confidence``), else it is ignored; the first fix
-    anchors a track that has none.
+    Within the gate the fix pulls the track with the Kalman gain (a ``confident`` fix makes the track
+    trusted). Beyond it the track re-anchors at the fix unless the track is trusted and ``dead_reckoned`` by
+    odometry and the frame is doubtful: such a track keeps its course. The first fix anchors a track that
+    has none.
+
+    Returns:
+        The new track, and whether it disagrees with the fix (a doubtful far fix was not followed: the
+        position reported is the track's, and the frame gets no confidence).
     """
     fix = np.asarray(fix_m, dtype=np.float64)
-    confident = confidence >= params.fix_min_confidence
-    r2 = params.fix_sigma_m**2 / max(confidence, 0.1)
+    r2 = params.fix_sigma_m**2
     if not state.has_position:
-        return TrackState.at((float(fix[0]), float(fix[1])), math.sqrt(r2))
+        return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident), False
     off = float(np.hypot(*(fix - state.wT[:2])))
-    if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + params.fix_sigma_m**2):
-        if not confident:
-            return state
-        anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m)
-        return replace(anchored, speed_mps=state.speed_mps)
+    if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + r2):
+        if dead_reckoned and state.trusted and not confident:
+            return state, True
+        anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
+        return replace(anchored, speed_mps=state.speed_mps), False
+    state = replace(state, trusted=state.trusted or confident)
     gain = state.var_m2 / (state.var_m2 + r2)
     wT = state.wT.copy()
     wT[:2] += gain * (fix - wT[:2])
@@ -180,7 +192,7 @@ def correct(state: TrackState, fix_m: F64, confidence: float, params: TrackParam
         ):
             heading = math.atan2(float(moved[1]), float(moved[0]))
             wT[2] = _wrap(heading + (math.pi if state.travel_m < 0 else 0.0))
-    return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2)
+    return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2), False
 
 
 def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, float] | None:
