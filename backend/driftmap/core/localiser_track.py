@@ -14,9 +14,10 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   than ``gate_m`` plus three standard deviations from the track re-anchors it there (a relocation, a
   restart; the heading becomes unknown again), unless the track is dead-reckoned by odometry and trusted (a
   confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
-  and the frame, whose place and track disagree, gets no confidence.
+  (at most ``max_hold_frames`` in a row) and the frame, whose place and track disagree, gets no confidence.
 * **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
-  between directly driven node centres) around b(i), so positions and trails stay in the tunnels; the
+  between directly driven node centres) around it when one is within ``snap_max_m``, so positions and
+  trails stay in the tunnels; the
   heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
 * **heading** from the fixes: while the heading is unknown it is taken as the direction from the anchor to
   a fix at least ``heading_after_m`` away, once the odometry has driven at least half that far (plus pi
@@ -57,6 +58,8 @@ class TrackParams:
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
     fix_min_confidence: float = 0.3  # a far fix re-anchors a dead-reckoned track at this confidence
     snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
+    snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
+    max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
 
     def __post_init__(self) -> None:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "heading_after_m"):
@@ -91,6 +94,7 @@ class TrackState:
     travel_m: float
     anchor_m: F64
     trusted: bool = False
+    held: int = 0
 
     @classmethod
     def empty(cls) -> TrackState:
@@ -121,11 +125,11 @@ class TrackState:
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays` (anything but 9 values: no track)."""
+        """Inverse of :meth:`to_arrays` (anything but 10 values: no track)."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size != 9:
+        if a.size != 10:
             return cls.empty()
-        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), a[6:8].copy(), bool(a[8]))
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), a[6:8].copy(), bool(a[8]), int(a[9]))
 
 
 def _wrap(angle_rad: float) -> float:
@@ -164,8 +168,9 @@ def correct(
 
     Within the gate the fix pulls the track with the Kalman gain (a ``confident`` fix makes the track
     trusted). Beyond it the track re-anchors at the fix unless the track is trusted and ``dead_reckoned`` by
-    odometry and the frame is doubtful: such a track keeps its course. The first fix anchors a track that
-    has none.
+    odometry and the frame is doubtful: such a track keeps its course, for at most ``max_hold_frames`` in a
+    row (then the place recognition, consistently elsewhere, wins). The first fix anchors a track that has
+    none.
 
     Returns:
         The new track, and whether it disagrees with the fix (a doubtful far fix was not followed: the
@@ -177,11 +182,11 @@ def correct(
         return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident), False
     off = float(np.hypot(*(fix - state.wT[:2])))
     if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + r2):
-        if dead_reckoned and state.trusted and not confident:
-            return state, True
+        if dead_reckoned and state.trusted and not confident and state.held < params.max_hold_frames:
+            return replace(state, held=state.held + 1), True
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
         return replace(anchored, speed_mps=state.speed_mps), False
-    state = replace(state, trusted=state.trusted or confident)
+    state = replace(state, trusted=state.trusted or confident, held=0)
     gain = state.var_m2 / (state.var_m2 + r2)
     wT = state.wT.copy()
     wT[:2] += gain * (fix - wT[:2])
@@ -218,7 +223,7 @@ def snap(state: TrackState, centres_m: F64, edges: I64, moving: bool, params: Tr
     wT = state.wT.copy()
     found = _nearest_on_edges(wT[:2], centres_m, edges)
     edge_dir = math.nan
-    if found is not None:
+    if found is not None and found[1] <= params.snap_max_m:
         wT[:2], _dist, edge_dir = found
     if np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
         err = _wrap(edge_dir - wT[2])

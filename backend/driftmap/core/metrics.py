@@ -203,31 +203,35 @@ def reliability(confidence: F64, right: BoolArr, bins: int = 10) -> Reliability:
     return Reliability(edges, mean_c, share, counts)
 
 
-def fit_calibration(raw: F64, right: BoolArr, knots: int = 11) -> tuple[tuple[float, float], ...]:
-    """Monotone (isotonic) calibration of a raw score in [0, 1]: ``knots`` (raw, P(right)) points for
-    :func:`driftmap.core.hmm.calibrated`, fitted by pool-adjacent-violators on (N,) ``raw`` and ``right``
-    (NaN raw values are left out) and read off at ``knots`` evenly spaced raw values.
+def fit_calibration(raw: F64, right: BoolArr, knots: int = 21) -> tuple[tuple[float, float], ...]:
+    """Calibration of a raw score in [0, 1] by logistic (Platt) scaling on its logit:
+    ``P(right) = sigmoid(a + b logit(raw))``, fitted by maximum likelihood on (N,) ``raw`` and ``right``
+    (NaN raw values are left out) and read off at ``knots`` evenly spaced raw values as
+    (raw, probability) points for :func:`driftmap.core.hmm.calibrated`.
+
+    A strictly increasing map (b > 0) keeps the ranking of the raw score, so thresholds move but recall at a
+    precision does not; an isotonic fit would tie frames its flat stretches join. Raw values are clipped to
+    [0.005, 0.995] before the logit.
     """
     x = np.asarray(raw, dtype=np.float64)
     y = np.asarray(right, dtype=np.float64)
     keep = np.isfinite(x)
-    x, y = np.clip(x[keep], 0.0, 1.0), y[keep]
-    if x.size == 0:
-        raise ValueError("no finite raw score to fit a calibration on")
-    order = np.argsort(x, kind="stable")
-    x, y = x[order], y[order]
-    # pool adjacent violators: blocks of (sum, count) with non-decreasing means
-    sums: list[float] = []
-    counts: list[float] = []
-    for value in y.tolist():
-        sums.append(value)
-        counts.append(1.0)
-        while len(sums) > 1 and sums[-2] / counts[-2] > sums[-1] / counts[-1]:
-            s, n = sums.pop(), counts.pop()
-            sums[-1] += s
-            counts[-1] += n
-    fitted = np.repeat(np.array(sums) / np.array(counts), np.array(counts, dtype=np.int64))
+    x, y = np.clip(x[keep], 0.005, 0.995), y[keep]
+    if x.size == 0 or y.min() == y.max():
+        raise ValueError("a calibration needs finite raw scores of both right and wrong frames")
+    features = np.column_stack([np.ones_like(x), np.log(x / (1.0 - x))])
+    w = np.zeros(2)
+    for _ in range(50):  # Newton-Raphson on the log-likelihood, lightly regularised
+        p = 1.0 / (1.0 + np.exp(-features @ w))
+        grad = features.T @ (y - p) - 1e-6 * w
+        hess = (features * (p * (1.0 - p))[:, None]).T @ features + 1e-6 * np.eye(2)
+        step = np.linalg.solve(hess, grad)
+        w += step
+        if float(np.abs(step).max()) < 1e-9:
+            break
+    w[1] = max(w[1], 1e-3)  # keep it increasing
     grid = np.linspace(0.0, 1.0, knots)
-    values = np.interp(grid, x, fitted, left=0.0, right=float(fitted[-1]))
-    values = np.maximum.accumulate(np.clip(values, 0.0, 1.0))
-    return tuple((float(g), float(v)) for g, v in zip(grid, values, strict=True))
+    g = np.clip(grid, 0.005, 0.995)
+    values = 1.0 / (1.0 + np.exp(-(w[0] + w[1] * np.log(g / (1.0 - g)))))
+    values[0], values[-1] = min(values[0], values[1]), max(values[-1], values[-2])
+    return tuple((float(a_), float(v)) for a_, v in zip(grid, values, strict=True))
