@@ -117,10 +117,9 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(9,) float64 packed for the localiser's stored state."""
-        packed = np.r_[
-            self.wT, self.var_m2, self.speed_mps, self.travel_m, self.anchor_m, float(self.trusted)
-        ]
+        """(10,) float64 packed for the localiser's stored state."""
+        scalars = [self.var_m2, self.speed_mps, self.travel_m]
+        packed = np.r_[self.wT, scalars, self.anchor_m, float(self.trusted), float(self.held)]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
