@@ -50,6 +50,7 @@ def chain_map(tex: F32, seed: int = 1) -> LocaliserMap:
         centres_m=np.column_stack([np.arange(n) * SPACING_M, np.zeros(n)]),
         adjacency_m=shortest_paths(n, edges, np.full(n - 1, SPACING_M), 50.0),
         max_adjacency_m=50.0,
+        edges=edges,
     )
 
 

@@ -16,12 +16,15 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
   (at most ``max_hold_frames`` in a row) and the frame, whose place and track disagree, gets no confidence.
 * **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
-  between directly driven node centres) around it when one is within ``snap_max_m``, so positions and
-  trails stay in the tunnels; the
+  between directly driven node centres) around it when it lies beside one within ``snap_max_m``, so
+  positions and trails stay in the tunnels (past the end of every edge, at a dead end or a gap in the
+  mapped edges, it is left as dead-reckoned); the
   heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
-* **heading** from the fixes: while the heading is unknown it is taken as the direction from the anchor to
-  a fix at least ``heading_after_m`` away, once the odometry has driven at least half that far (plus pi
-  when it says reversing); until then odometry cannot move the position and the fixes alone do.
+* **heading**: an unknown heading (after an anchor) is set, once the vehicle moves beside a mapped edge, to
+  one of the edge's two directions; while moving, the fixes' innovations along the direction of travel are
+  summed with decay (``flip_memory``): a heading the wrong way round makes the prediction run away from the
+  fixes, the sum falls below ``-flip_m`` within a few frames and the heading is turned by pi. A right heading
+  only sees the fixes' small lag.
 
 Speed comes from the odometry steps (signed metres over the frame gap, exponentially averaged); without
 odometry it is unknown (NaN).
@@ -52,8 +55,9 @@ class TrackParams:
     step_sigma_frac: float = 0.03  # odometry position sd per metre driven, on top of the step's own sigma
     free_speed_mps: float = 3.0  # without odometry: position sd grows by this x the frame gap
     gate_m: float = 10.0  # a fix further than this + 3 sd from the track re-anchors it, metres
-    heading_after_m: float = 3.0  # an unknown heading is taken from the track after this much travel, metres
-    heading_pull: float = 0.15  # per moving frame, the share of the gap to the edge direction closed
+    flip_memory: float = 0.9  # per fix, the share of the heading-reversal evidence kept
+    flip_m: float = 25.0  # the heading is reversed when that evidence falls below minus this, metres
+    heading_pull: float = 0.05  # per moving frame, the share of the gap to the edge direction closed
     speed_memory: float = 0.5  # weight of the newest step in the running speed
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
     fix_min_confidence: float = 0.3  # a far fix re-anchors a dead-reckoned track at this confidence
@@ -62,10 +66,10 @@ class TrackParams:
     max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
 
     def __post_init__(self) -> None:
-        for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "heading_after_m"):
+        for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"TrackParams.{name} must be positive, got {getattr(self, name)}")
-        for name in ("heading_pull", "speed_memory"):
+        for name in ("heading_pull", "speed_memory", "flip_memory"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise ValueError(f"TrackParams.{name} must be in (0, 1], got {getattr(self, name)}")
 
@@ -82,8 +86,8 @@ class TrackState:
             unknown.
         var_m2: position variance (isotropic), square metres.
         speed_mps: signed running speed from odometry (negative: reversing); NaN when not measured.
-        travel_m: signed odometry travel since the track was anchored, metres.
-        anchor_m: (2,) float64 the fix where the track was anchored (heading from the fixes), metres.
+        flip_m: evidence that the heading is reversed: the decaying sum of the fixes' innovations along the
+            direction of travel, metres (negative: the fixes keep pulling the track back).
         trusted: a confident fix (or a known start) has confirmed the track since it was anchored; only a
             trusted dead-reckoned track holds its course against a doubtful far fix.
     """
@@ -91,22 +95,20 @@ class TrackState:
     wT: F64
     var_m2: float
     speed_mps: float
-    travel_m: float
-    anchor_m: F64
+    flip_m: float
     trusted: bool = False
     held: int = 0
 
     @classmethod
     def empty(cls) -> TrackState:
         """No track yet."""
-        nan2 = np.full(2, np.nan)
-        return cls(np.full(3, np.nan), math.inf, math.nan, 0.0, nan2)
+        return cls(np.full(3, np.nan), math.inf, math.nan, 0.0)
 
     @classmethod
     def at(cls, xy_m: tuple[float, float], sigma_m: float, trusted: bool = False) -> TrackState:
         """A track anchored at the survey point ``xy_m`` with sd ``sigma_m`` metres, heading unknown."""
         xy = np.asarray(xy_m, dtype=np.float64)
-        return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, xy.copy(), trusted)
+        return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, trusted)
 
     @property
     def has_position(self) -> bool:
@@ -117,18 +119,17 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(10,) float64 packed for the localiser's stored state."""
-        scalars = [self.var_m2, self.speed_mps, self.travel_m]
-        packed = np.r_[self.wT, scalars, self.anchor_m, float(self.trusted), float(self.held)]
+        """(8,) float64 packed for the localiser's stored state."""
+        packed = np.r_[self.wT, self.var_m2, self.speed_mps, self.flip_m, float(self.trusted), self.held]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays` (anything but 10 values: no track)."""
+        """Inverse of :meth:`to_arrays` (anything but 8 values: no track)."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size != 10:
+        if a.size != 8:
             return cls.empty()
-        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), a[6:8].copy(), bool(a[8]), int(a[9]))
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]))
 
 
 def _wrap(angle_rad: float) -> float:
@@ -155,9 +156,7 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
     a = params.speed_memory
     speed = speed if not math.isfinite(state.speed_mps) else (1 - a) * state.speed_mps + a * speed
     wT = np.asarray(compose(state.wT, step.prev_T_curr) if state.has_heading else state.wT.copy())
-    return replace(
-        state, wT=wT, var_m2=state.var_m2 + sd * sd, speed_mps=speed, travel_m=state.travel_m + step.dx_m
-    )
+    return replace(state, wT=wT, var_m2=state.var_m2 + sd * sd, speed_mps=speed)
 
 
 def correct(
@@ -188,28 +187,33 @@ def correct(
     state = replace(state, trusted=state.trusted or confident, held=0)
     gain = state.var_m2 / (state.var_m2 + r2)
     wT = state.wT.copy()
-    wT[:2] += gain * (fix - wT[:2])
-    if not state.has_heading:
-        moved = fix - state.anchor_m
-        if float(np.hypot(*moved)) >= params.heading_after_m and abs(state.travel_m) >= 0.5 * float(
-            np.hypot(*moved)
-        ):
-            heading = math.atan2(float(moved[1]), float(moved[0]))
-            wT[2] = _wrap(heading + (math.pi if state.travel_m < 0 else 0.0))
-    return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2), False
+    innovation = fix - wT[:2]
+    wT[:2] += gain * innovation
+    flip = state.flip_m
+    if state.has_heading and math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps:
+        ahead = math.copysign(1.0, state.speed_mps) * np.array([math.cos(wT[2]), math.sin(wT[2])])
+        flip = params.flip_memory * flip + float(innovation @ ahead)
+        if flip < -params.flip_m:  # the fixes keep pulling the track back: it faces the other way
+            wT[2], flip = _wrap(wT[2] + math.pi), 0.0
+    return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2, flip_m=flip), False
 
 
 def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, float] | None:
-    """The nearest point to ``xy`` on the segments ``edges`` (K, 2) of ``centres_m``, its distance and the
-    segment's direction (radians); None without segments."""
+    """The nearest point to ``xy`` strictly inside one of the segments ``edges`` (K, 2) of ``centres_m``
+    (its foot of the perpendicular), its distance and the segment's direction (radians); None when ``xy``
+    lies beside no segment (past the end of every one: a dead end, or a gap in the mapped edges, where
+    pulling it back to the end would stop it)."""
     if edges.size == 0:
         return None
     a, b = centres_m[edges[:, 0]], centres_m[edges[:, 1]]
     ab = b - a
     length2 = np.einsum("ij,ij->i", ab, ab)
-    t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    t = np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0)
+    beside = (t > 0.0) & (t < 1.0) & (length2 > 0)
+    if not beside.any():
+        return None
     points = a + t[:, None] * ab
-    dist = np.hypot(*(points - xy).T)
+    dist = np.where(beside, np.hypot(*(points - xy).T), np.inf)
     k = int(np.argmin(dist))
     return points[k], float(dist[k]), math.atan2(float(ab[k, 1]), float(ab[k, 0]))
 
@@ -224,7 +228,9 @@ def snap(state: TrackState, centres_m: F64, edges: I64, moving: bool, params: Tr
     edge_dir = math.nan
     if found is not None and found[1] <= params.snap_max_m:
         wT[:2], _dist, edge_dir = found
-    if np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
+    if not np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
+        wT[2] = edge_dir  # one of the tunnel's two ways; the fixes flip it if it is the other (correct)
+    elif np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
         err = _wrap(edge_dir - wT[2])
         if abs(err) > math.pi / 2:
             err = _wrap(err + math.pi)  # the edge's other way is nearer
