@@ -24,7 +24,8 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   one of the edge's two directions; while moving, the fixes' innovations along the direction of travel are
   summed with decay (``flip_memory``): a heading the wrong way round makes the prediction run away from the
   fixes, the sum falls below ``-flip_m`` within a few frames and the heading is turned by pi. A right heading
-  only sees the fixes' small lag.
+  only sees the fixes' small lag; after a reversal the position variance is raised so the fixes pull the
+  track back quickly.
 
 Speed comes from the odometry steps (signed metres over the frame gap, exponentially averaged); without
 odometry it is unknown (NaN).
@@ -51,7 +52,7 @@ I64 = NDArray[np.int64]
 class TrackParams:
     """The continuous track's noise model and gates."""
 
-    fix_sigma_m: float = 2.0  # standard deviation of a place fix (b(i)'s centre) about the vehicle, metres
+    fix_sigma_m: float = 3.0  # standard deviation of a place fix (b(i)'s centre) about the vehicle, metres
     step_sigma_frac: float = 0.03  # odometry position sd per metre driven, on top of the step's own sigma
     free_speed_mps: float = 3.0  # without odometry: position sd grows by this x the frame gap
     gate_m: float = 10.0  # a fix further than this + 3 sd from the track re-anchors it, metres
@@ -189,17 +190,18 @@ def correct(
     wT = state.wT.copy()
     innovation = fix - wT[:2]
     wT[:2] += gain * innovation
-    flip = state.flip_m
+    var, flip = (1.0 - gain) * state.var_m2, state.flip_m
     if state.has_heading and math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps:
         ahead = math.copysign(1.0, state.speed_mps) * np.array([math.cos(wT[2]), math.sin(wT[2])])
         flip = params.flip_memory * flip + float(innovation @ ahead)
         if flip < -params.flip_m:  # the fixes keep pulling the track back: it faces the other way
             wT[2], flip = _wrap(wT[2] + math.pi), 0.0
-    return replace(state, wT=wT, var_m2=(1.0 - gain) * state.var_m2, flip_m=flip), False
+            var = max(var, (2.0 * params.fix_sigma_m) ** 2)  # it ran the wrong way: let the fixes pull
+    return replace(state, wT=wT, var_m2=var, flip_m=flip), False
 
 
 def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, float] | None:
-    """The nearest point to ``xy`` strictly inside one of the segments ``edges`` (K, 2) of ``centres_m``
+    """The nearest point to ``xy`` on one of the segments ``edges`` (K, 2) of ``centres_m``
     (its foot of the perpendicular), its distance and the segment's direction (radians); None when ``xy``
     lies beside no segment (past the end of every one: a dead end, or a gap in the mapped edges, where
     pulling it back to the end would stop it)."""
@@ -209,7 +211,7 @@ def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, 
     ab = b - a
     length2 = np.einsum("ij,ij->i", ab, ab)
     t = np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0)
-    beside = (t > 0.0) & (t < 1.0) & (length2 > 0)
+    beside = (t >= 0.0) & (t <= 1.0) & (length2 > 0)
     if not beside.any():
         return None
     points = a + t[:, None] * ab
