@@ -123,7 +123,9 @@ def replay(
             client.login(user, password)
             site_id = replay_service.site_id_by_name(client, site)
             for drive in recorded:
-                vehicle_id, token = replay_service.vehicle_with_token(client, site_id, drive.name)
+                vehicle_id, token = replay_service.vehicle_with_token(
+                    client, site_id, drive.name, drive.camera
+                )
                 vehicle = ReplayStats(drive.name, vehicle_id)
                 stats.append(vehicle)
                 threads.append(

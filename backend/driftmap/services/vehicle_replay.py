@@ -26,6 +26,7 @@ from typing import Any
 
 from driftmap.errors import BadInputError, ConflictError, DriftmapError, NotFoundError
 from driftmap.formats.drive_folder import read_drive_folder
+from driftmap.formats.drive_json import camera_to_json
 
 CONTENT_TYPES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
 
@@ -105,11 +106,13 @@ def wait_until_healthy(client: ApiClient, deadline_s: float, alive: Callable[[],
 
 @dataclass(frozen=True)
 class RecordedDrive:
-    """The frames of one drive folder: recorded times (s, from 0) and image files, in time order."""
+    """The frames of one drive folder: recorded times (s, from 0) and image files, in time order, and its
+    camera block (drive.json's ``camera``), which the replayed vehicle is given for its odometry."""
 
     name: str
     times_s: tuple[float, ...]
     files: tuple[Path, ...]
+    camera: dict[str, Any] = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:
@@ -123,7 +126,12 @@ def load_drive(path: Path) -> RecordedDrive:
     if not folder.frames:
         raise BadInputError("the drive has no frame", file=path / "frames.csv")
     t0 = folder.frames[0].t_s
-    return RecordedDrive(path.name, tuple(r.t_s - t0 for r in folder.frames), tuple(folder.frame_files))
+    return RecordedDrive(
+        path.name,
+        tuple(r.t_s - t0 for r in folder.frames),
+        tuple(folder.frame_files),
+        camera_to_json(folder.meta.camera),
+    )
 
 
 def site_id_by_name(client: ApiClient, name: str) -> int:
@@ -135,14 +143,23 @@ def site_id_by_name(client: ApiClient, name: str) -> int:
     raise NotFoundError(f"no site called {name!r} on {client.base_url}")
 
 
-def vehicle_with_token(client: ApiClient, site_id: int, name: str) -> tuple[int, str]:
-    """The vehicle ``name`` of the site (created when missing) and a fresh token for it (admin)."""
+def vehicle_with_token(
+    client: ApiClient, site_id: int, name: str, camera: dict[str, Any] | None = None
+) -> tuple[int, str]:
+    """The vehicle ``name`` of the site (created when missing) and a fresh token for it (admin); with
+    ``camera`` (a drive.json camera block) the vehicle is given that camera, so it is localised with
+    odometry."""
+    vehicle_id = None
     for vehicle in client.request("GET", f"/api/vehicles?site_id={site_id}"):
         if vehicle["name"] == name:
             rotated = client.request("POST", f"/api/vehicles/{vehicle['id']}/token")
-            return int(rotated["id"]), str(rotated["token"])
-    created = client.request("POST", "/api/vehicles", {"name": name, "site_id": site_id})
-    return int(created["id"]), str(created["token"])
+            vehicle_id, token = int(rotated["id"]), str(rotated["token"])
+    if vehicle_id is None:
+        created = client.request("POST", "/api/vehicles", {"name": name, "site_id": site_id})
+        vehicle_id, token = int(created["id"]), str(created["token"])
+    if camera:
+        client.request("PUT", f"/api/vehicles/{vehicle_id}/camera", camera)
+    return vehicle_id, token
 
 
 @dataclass
