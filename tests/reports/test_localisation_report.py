@@ -93,7 +93,7 @@ class TestReport:
         assert drives[0].name in table
         assert (tmp_path / "localisation_reliability.png").read_bytes()[:8] == PNG_MAGIC
         knots = report.calibration()
-        assert knots[0][0] == 0.0 and knots[-1][0] == 1.0
+        assert knots is not None and knots[0][0] == 0.0 and knots[-1][0] == 1.0
         assert all(b[1] >= a[1] for a, b in itertools.pairwise(knots))
 
     def test_known_start_puts_the_first_estimate_at_the_start(
@@ -110,6 +110,13 @@ class TestReport:
             first_error_m = report.results[("clean", name)].error_m[0]
             assert first_error_m == pytest.approx(float(np.hypot(*(start - truth[0]))), abs=1e-9)
         assert "known start" in report.table()
+
+    def test_a_subset_of_methods(self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> None:
+        lmap, drives = _latest_map_and_drives(tmp_path_factory, tiny_site_dir)
+        report = run_localisation_report(lmap, drives, SESAME_DEFAULT, methods=["HMM+SESAME", DEFAULT_METHOD])
+        assert {method for _cond, method in report.results} == {"HMM+SESAME", DEFAULT_METHOD}
+        with pytest.raises(BadInputError, match="unknown method"):
+            run_localisation_report(lmap, drives, SESAME_DEFAULT, methods=["HMM+ORB"])
 
     def test_needs_drives_and_positive_tolerance(
         self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path

@@ -135,6 +135,13 @@ def report_localisation(
             help="Start the HMM at each drive's true first position, as paper 000 does (default: global start).",
         ),
     ] = False,
+    method: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--method",
+            help="Only these methods (repeatable): SAD, SAD+SESAME, HMM+SAD, HMM+SESAME, HMM+SESAME+odometry.",
+        ),
+    ] = None,
 ) -> None:
     """Precision-recall of SAD, SAD+SESAME, HMM+SAD and HMM+SESAME over the site's localisation drives."""
     storage = open_storage()
@@ -164,8 +171,11 @@ def report_localisation(
                 holistic_map=holistic,
                 known_start=known_start,
                 progress=report,
+                methods=method,
             )
     console.print(result.table())
-    knots = ", ".join(f"({x:.1f}, {p:.3f})" for x, p in result.calibration())
-    console.print(f"calibration of the default method's raw confidence on these drives: ({knots})")
+    fitted = result.calibration()
+    if fitted is not None:
+        knots = ", ".join(f"({x:.2f}, {p:.3f})" for x, p in fitted)
+        console.print(f"calibration of the default method's raw confidence on these drives: ({knots})")
     console.print(f"figure: {result.figure}\ntable: {result.table_path}")

@@ -258,6 +258,11 @@ class Localiser:
         track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, confidence, still)
         if disagree:
             confidence = 0.0
+        elif reported_lost and motion is not None and track.trusted:
+            # the views tell nothing, but the trusted track is dead-reckoned on: a position, not lost (b(i)
+            # did not correct the track); its confidence is the views', low while they stay ambiguous
+            reported_lost = False
+            confidence = hmm.calibrated(score * distinct, p.calibration)
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally

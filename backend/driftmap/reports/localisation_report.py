@@ -221,16 +221,20 @@ class LocalisationReport:
                 )
         return "\n".join(lines)
 
-    def calibration(self) -> tuple[tuple[float, float], ...]:
+    def calibration(self) -> tuple[tuple[float, float], ...] | None:
         """The calibration (``HmmParams.calibration`` knots) the default method's raw confidence would get
-        from these drives (every condition pooled)."""
+        from these drives (every condition pooled); None without the default method or without both right
+        and wrong frames."""
         raw: list[float] = []
         right: list[bool] = []
         for (_cond, method), r in self.results.items():
             if method == DEFAULT_METHOD:
                 raw += r.raw
                 right += [e <= self.tolerance_m for e in r.error_m]
-        return fit_calibration(np.asarray(raw, dtype=np.float64), np.asarray(right, dtype=bool))
+        try:
+            return fit_calibration(np.asarray(raw, dtype=np.float64), np.asarray(right, dtype=bool))
+        except ValueError:
+            return None
 
 
 def _run_drive(
@@ -246,7 +250,7 @@ def _run_drive(
     """
     if drive.truth_xy_m is None:
         raise BadInputError(f"drive {drive.name!r} has no ground truth on every frame", field="truth")
-    plain = next(loc for loc, _o in localisers.values() if loc.sesame is None)
+    plain = next(iter(localisers.values()))[0]  # every method's map has the version's image params
     masker = next((loc for loc, _o in localisers.values() if loc.sesame is not None), None)
     feed = OdometryFeed(drive.camera) if drive.camera is not None else None
     for k, frame in enumerate(drive.frames()):
@@ -287,6 +291,7 @@ def run_localisation_report(
     holistic_map: LocaliserMap | None = None,
     known_start: bool = False,
     progress: ProgressFn | None = None,
+    methods: Sequence[str] | None = None,
 ) -> LocalisationReport:
     """Run the four methods over every drive, score them, and write the PNG and the table.
 
@@ -304,6 +309,7 @@ def run_localisation_report(
             paper 000 does ("X_0 is initialized to the starting position ... known prior to vehicle
             operation"); False starts them global (uniform), which driftmap must also survive.
         progress: called with (drive name, fraction of drives done).
+        methods: the labels of :data:`METHODS` to run; None: all.
 
     Returns:
         :class:`LocalisationReport`.
@@ -314,6 +320,11 @@ def run_localisation_report(
         raise BadInputError(f"must be >= 1, got {single_image_stride}", field="single_image_stride")
     if not tolerance_m > 0:
         raise BadInputError(f"must be positive, got {tolerance_m}", field="tolerance_m")
+    unknown = sorted(set(methods or ()) - {name for name, *_ in METHODS})
+    if unknown:
+        known = ", ".join(name for name, *_ in METHODS)
+        raise BadInputError(f"unknown method {unknown[0]!r} (one of {known})", field="methods")
+    chosen = [m for m in METHODS if methods is None or m[0] in methods]
     report = progress or (lambda _stage, _fraction: None)
     results: dict[tuple[str, str], MethodResult] = {}
     order = sorted(range(len(drives)), key=lambda i: CONDITIONS.index(condition_of(drives[i].name)))
@@ -335,9 +346,9 @@ def run_localisation_report(
                 ),
                 odometry,
             )
-            for name, masked, temporal, odometry in METHODS
+            for name, masked, temporal, odometry in chosen
         }
-        per = {name: results.setdefault((cond, name), MethodResult()) for name, *_ in METHODS}
+        per = {name: results.setdefault((cond, name), MethodResult()) for name, *_ in chosen}
         _run_drive(drive, localisers, per, single_image_stride)
     report("done", 1.0)
     figure = table_path = None
