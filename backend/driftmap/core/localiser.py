@@ -254,8 +254,9 @@ class Localiser:
         else:
             lost_count = s.lost_count + 1 if lost else 0
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
-        confidence = 0.0 if reported_lost else hmm.calibrated(score * distinct, p.calibration)
-        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, confidence, still)
+        raw = 0.0 if reported_lost else score * distinct
+        confidence = 0.0 if reported_lost else hmm.calibrated(raw, p.calibration)
+        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, raw, still)
         if disagree:
             confidence = 0.0
         elif reported_lost and motion is not None and track.trusted:
@@ -311,19 +312,19 @@ class Localiser:
         motion: OdometryStep | None,
         gap_s: float,
         best: int,
-        confidence: float,
+        raw: float,
         still: bool,
     ) -> tuple[TrackState, bool, bool]:
         """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre unless the
-        frame is lost (confidence 0), kept on the mapped tunnels around it
+        frame is lost (``raw``, the uncalibrated ``score x distinct``, is 0), kept on the mapped tunnels around it
         (:mod:`driftmap.core.localiser_track`); whether the vehicle moves (odometry speed, else a changed
         view); and whether the track and b(i) disagree (a doubtful far b(i) the dead-reckoned track did not
         follow)."""
         tp, lm = self.track_params, self.map
         track = localiser_track.predict(track, motion, gap_s, tp)
         disagree = False
-        if confidence > 0.0 or not track.has_position:  # a lost frame's b(i) says nothing
-            confident = confidence >= tp.fix_min_confidence
+        if raw > 0.0 or not track.has_position:  # a lost frame's b(i) says nothing
+            confident = raw >= tp.fix_min_confidence
             track, disagree = localiser_track.correct(
                 track, lm.centres_m[best], confident, motion is not None, tp
             )

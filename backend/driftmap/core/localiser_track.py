@@ -61,7 +61,9 @@ class TrackParams:
     heading_pull: float = 0.05  # per moving frame, the share of the gap to the edge direction closed
     speed_memory: float = 0.5  # weight of the newest step in the running speed
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
-    fix_min_confidence: float = 0.3  # a far fix re-anchors a dead-reckoned track at this confidence
+    fix_min_confidence: float = (
+        0.3  # a far fix re-anchors a trusted track at this raw confidence (X x distinct)
+    )
     snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
     snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
     max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames

@@ -203,15 +203,21 @@ def reliability(confidence: F64, right: BoolArr, bins: int = 10) -> Reliability:
     return Reliability(edges, mean_c, share, counts)
 
 
-def fit_calibration(raw: F64, right: BoolArr, knots: int = 21) -> tuple[tuple[float, float], ...]:
+def fit_calibration(
+    raw: F64, right: BoolArr, knots: int = 21, keep_raw: float = 0.05
+) -> tuple[tuple[float, float], ...]:
     """Calibration of a raw score in [0, 1] by logistic (Platt) scaling on its logit:
     ``P(right) = sigmoid(a + b logit(raw))``, fitted by maximum likelihood on (N,) ``raw`` and ``right``
     (NaN raw values are left out) and read off at ``knots`` evenly spaced raw values as
     (raw, probability) points for :func:`driftmap.core.hmm.calibrated`.
 
-    A strictly increasing map (b > 0) keeps the ranking of the raw score, so thresholds move but recall at a
-    precision does not; an isotonic fit would tie frames its flat stretches join. Raw values are clipped to
-    [0.005, 0.995] before the logit.
+    An increasing map keeps the ranking of the raw score, so thresholds move but recall at a precision does
+    not; an isotonic fit would tie frames its flat stretches join. Where right and wrong frames separate
+    well the fitted sigmoid saturates at 1 and would tie the top frames too, so ``keep_raw`` of the raw score
+    is blended in: ``(1 - keep_raw) P + keep_raw raw`` is strictly increasing and never claims certainty.
+    The first knot is pinned to 0: a frame whose views tell nothing apart (raw 0: a covered lens, a blank
+    wall) is given no confidence, whatever share of such frames happened to be right in the fitting data.
+    Raw values are clipped to [0.005, 0.995] before the logit.
     """
     x = np.asarray(raw, dtype=np.float64)
     y = np.asarray(right, dtype=np.float64)
@@ -234,4 +240,6 @@ def fit_calibration(raw: F64, right: BoolArr, knots: int = 21) -> tuple[tuple[fl
     g = np.clip(grid, 0.005, 0.995)
     values = 1.0 / (1.0 + np.exp(-(w[0] + w[1] * np.log(g / (1.0 - g)))))
     values[0], values[-1] = min(values[0], values[1]), max(values[-1], values[-2])
+    values = (1.0 - keep_raw) * values + keep_raw * grid
+    values[0] = 0.0
     return tuple((float(a_), float(v)) for a_, v in zip(grid, values, strict=True))
