@@ -101,6 +101,10 @@ class TestReplay:
         assert times[-1] - times[0] >= 0.45
         assert time.monotonic() - started >= 0.5
         assert all(isinstance(r["x"], float) and 0.0 <= r["confidence"] <= 1.0 for r in rows)
+        # the vehicle was given its drive's camera, so its frames after the first carry odometry
+        vehicles = httpx.get(f"{server}/api/vehicles", headers=_login(server)).json()
+        assert [v["has_camera"] for v in vehicles if v["name"] == drive.name] == [True]
+        assert any(r["odometry"] for r in rows[1:])
 
         again = subprocess.run(  # a second run reuses the vehicle with a fresh token and its clock goes on
             _replay(env, "tiny", str(drive), "--url", server, "--once", "--max-frames", "2"),

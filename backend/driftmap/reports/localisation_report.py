@@ -415,6 +415,6 @@ def _plot_reliability(result: LocalisationReport, path: Path) -> Path:
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", fontsize=7)
+    ax.legend(loc="lower right", fontsize=7)
     save(fig, str(path))
     return path
