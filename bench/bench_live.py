@@ -6,7 +6,7 @@ camera would: one frame every 1/``--fps`` seconds, posted without waiting for th
 loop), to ``POST /api/vehicles/{id}/frames``. Prints the p50 and p99 latency of the frame endpoint, the
 answers by status, and checks from the stored history that no frame was lost, reordered or processed twice:
 per vehicle, processed + skipped + out of order equals frames sent and the stored positions' ``t`` strictly
-increase. The baseline is the same frames localised in this process without HTTP (decode + localiser step +
+increase. Each vehicle is given the drive's camera, so its frames run the ground-plane odometry too. The baseline is the same frames localised in this process without HTTP (decode + localiser step +
 database write), one vehicle at a time; the ratio of the HTTP p50 to it is the cost of the server.
 Target (issue 5): 5 vehicles at 10 frames/s, p99 <= 150 ms.
 
@@ -27,6 +27,7 @@ import tempfile
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -34,6 +35,7 @@ import numpy as np
 from driftmap.config import Settings
 from driftmap.core.mapping import FAST
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
+from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services import drives as drive_service
 from driftmap.services import live as live_service
@@ -47,8 +49,9 @@ from driftmap.store.storage import Storage
 TARGET_P99_MS = 150.0
 
 
-def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]]]:
-    """A data dir with the simulated site and its map; the localisation drive's (t, PNG bytes)."""
+def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]], dict[str, Any]]:
+    """A data dir with the simulated site and its map; the localisation drive's (t, PNG bytes) and camera
+    block (the vehicles are given it, so they are localised with odometry, as the product's default)."""
     site_dir = work / "site"
     simulate_site(site_dir, seed=3, size=size, obscurants=False)
     data = work / "data"
@@ -69,14 +72,15 @@ def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]]]:
         user_service.create_user(session, "bench", "bench-password", "admin")
     storage.close()
     loc = read_drive_folder(next(f for f in folders if f.name.startswith("loc")))
-    return data, [(row.t_s, blob) for row, blob in iter_frame_images(loc)]
+    return data, [(row.t_s, blob) for row, blob in iter_frame_images(loc)], camera_to_json(loc.meta.camera)
 
 
-def baseline_ms(data: Path, frames: list[tuple[float, bytes]], count: int) -> float:
-    """Median ms per frame localised in-process (decode, step, database write), one vehicle."""
+def baseline_ms(data: Path, frames: list[tuple[float, bytes]], count: int, camera: dict[str, Any]) -> float:
+    """Median ms per frame localised in-process (decode, odometry and step, database write), one vehicle."""
     storage = Storage.open(Settings(data_dir=data))
     with storage.db.session() as session:
         vehicle, _token = vehicle_service.create_vehicle(session, "baseline", 1)
+        vehicle_service.set_camera(session, vehicle, camera)
         vid = vehicle.id
     maps, slot, times = live_service.LiveMaps(), None, []
     for t_s, blob in frames[:count]:
@@ -105,6 +109,7 @@ async def drive_vehicle(
 ) -> tuple[list[float], list[str], bool, int]:
     """Replay frames as vehicle ``k``; returns latencies, statuses, history check, frames sent."""
     vehicle = (await client.post("/api/vehicles", json={"name": f"v{k}", "site_id": 1}, headers=admin)).json()
+    await client.put(f"/api/vehicles/{vehicle['id']}/camera", json=args.camera, headers=admin)
     headers = {"Authorization": f"Bearer {vehicle['token']}", "Content-Type": "image/png"}
     url = f"/api/vehicles/{vehicle['id']}/frames"
     latencies: list[float] = []
@@ -166,9 +171,9 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="driftmap-bench-live-") as tmp:
         t0 = time.perf_counter()
-        data, frames = prepare(Path(tmp), args.size)
+        data, frames, args.camera = prepare(Path(tmp), args.size)
         print(f"{args.size} site simulated, imported and mapped in {time.perf_counter() - t0:.0f} s")
-        base_ms = baseline_ms(data, frames, 100)
+        base_ms = baseline_ms(data, frames, 100, args.camera)
         port = free_port()
         env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data)}
         log = Path(tmp) / "serve.log"
