@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
-from driftmap.core.metrics import evaluate_matches, pr_curve
+from driftmap.core.metrics import evaluate_matches, fit_calibration, pr_curve, reliability
 from driftmap.errors import BadInputError
 
 TOL = 1e-12
@@ -50,3 +52,28 @@ def test_evaluate_matches_counts_only_recallable_queries() -> None:
     assert metrics.recall_at_1 == pytest.approx(0.5)
     assert metrics.recall_at_full_precision == pytest.approx(0.5)
     assert curve.precision[0] == pytest.approx(1.0)
+
+
+class TestCalibration:
+    def test_platt_fit_is_increasing_pinned_at_zero_and_ranks_like_the_raw_score(self) -> None:
+        rng = np.random.default_rng(4)
+        raw = rng.uniform(0.0, 1.0, 4000)
+        right = rng.uniform(0.0, 1.0, 4000) < 0.2 + 0.75 * raw  # P(right) rises with raw
+        knots = fit_calibration(raw, right)
+        values = [v for _x, v in knots]
+        assert knots[0] == (0.0, 0.0) and knots[-1][0] == 1.0
+        assert all(b > a for a, b in itertools.pairwise(values))
+        mid = dict(knots)[0.5]
+        assert abs(mid - 0.575) < 0.06  # the generating P(right) at raw 0.5
+
+    def test_needs_right_and_wrong_frames(self) -> None:
+        with pytest.raises(ValueError, match="both right and wrong"):
+            fit_calibration(np.array([0.1, 0.9]), np.array([True, True]))
+
+    def test_reliability_bins_and_error(self) -> None:
+        conf = np.array([0.05, 0.05, 0.95, 0.95, np.nan])
+        right = np.array([False, True, True, True, False])
+        rel = reliability(conf, right, bins=10)
+        assert rel.counts.tolist() == [2, 0, 0, 0, 0, 0, 0, 0, 0, 2]  # the NaN (lost) frame left out
+        assert rel.right_share[0] == 0.5 and rel.right_share[-1] == 1.0
+        assert rel.expected_calibration_error == pytest.approx((2 * 0.45 + 2 * 0.05) / 4)

@@ -57,13 +57,26 @@ class TestExamples:
         assert read_poses_csv(tmp_path / "poses.csv") == rows
 
     def test_localisation(self, tmp_path: Path) -> None:
-        rows = [LocalisationRow(0, 17, 1.5, 2.5, -12.25, True), LocalisationRow(1, 3, 0.0, 0.0, -99.0, False)]
+        rows = [
+            LocalisationRow(0, 17, 1.5, 2.5, 0.25, True, 1.5, -0.5, True, 0.75),
+            LocalisationRow(1, 3, 0.0, 0.0, 0.0, False),
+        ]
         write_localisation_csv(tmp_path / "loc.csv", rows)
-        assert (tmp_path / "loc.csv").read_text().splitlines()[1:] == [
-            "0,17,1.5,2.5,-12.25,1",
-            "1,3,0.0,0.0,-99.0,0",
+        assert (tmp_path / "loc.csv").read_text().splitlines() == [
+            "frame,node,x,y,score,matched,yaw,speed,odometry,x_paper",
+            "0,17,1.5,2.5,0.25,1,1.5,-0.5,1,0.75",
+            "1,3,0.0,0.0,0.0,0,,,0,",
         ]
         assert read_localisation_csv(tmp_path / "loc.csv") == rows
+
+    def test_localisation_first_version_is_still_read(self, tmp_path: Path) -> None:
+        (tmp_path / "old.csv").write_text("frame,node,x,y,score,matched\n0,17,1.5,2.5,0.5,1\n")
+        assert read_localisation_csv(tmp_path / "old.csv") == [LocalisationRow(0, 17, 1.5, 2.5, 0.5, True)]
+
+    def test_localisation_flags_are_0_or_1(self) -> None:
+        text = "frame,node,x,y,score,matched,yaw,speed,odometry,x_paper\n0,1,0.0,0.0,0.5,1,,,yes,\n"
+        with pytest.raises(BadInputError, match="odometry"):
+            parse_localisation_csv(text, "l.csv")
 
     def test_place_matches(self, tmp_path: Path) -> None:
         rows = [PlaceMatchRow("q 001.png", "db,7.png", -1234.0)]

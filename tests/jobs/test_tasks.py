@@ -222,7 +222,8 @@ class TestLocaliseAndSimulate:
         assert job.status == "succeeded", job.error
         assert job.result is not None and job.result["frames"] == 100 and job.result["map_version"] == 1
         csv = storage.blobs.get(job.result["csv_sha256"]).decode()
-        assert csv.splitlines()[0] == "frame,node,x,y,score,matched" and len(csv.splitlines()) == 101
+        header = "frame,node,x,y,score,matched,yaw,speed,odometry,x_paper"
+        assert csv.splitlines()[0] == header and len(csv.splitlines()) == 101
 
     def test_simulate_job_creates_the_site_with_its_drives(self, storage: Storage, queue: JobQueue) -> None:
         args = {"name": "sim", "seed": 5, "size": "tiny", "max_frames_per_drive": 8}
