@@ -1,9 +1,13 @@
-"""Online localisation against a stored map (paper 000 III-B): one frame in, one place estimate out.
+"""Online localisation against a stored map (paper 000 III-B): one frame in, one position estimate out.
 
-:class:`Localiser` holds the map (:class:`LocaliserMap`) and the belief; :meth:`Localiser.step` runs one HMM
-step of :mod:`driftmap.core.hmm` and returns an :class:`Estimate` (eq. 11 best node, eq. 12 match flag).
-The batch CLI and the live server use it the same way; the live server keeps :meth:`Localiser.state` in its
-shared store between frames and calls :meth:`Localiser.restore` on the next.
+:class:`Localiser` holds the map (:class:`LocaliserMap`), the belief and the continuous track;
+:meth:`Localiser.step` runs the vehicle camera's odometry step (:mod:`driftmap.core.localiser_motion`), one
+HMM step of :mod:`driftmap.core.hmm` whose transition moves the belief by the distance driven, and the track
+update (:mod:`driftmap.core.localiser_track`), and returns an :class:`Estimate`: b(i) (eq. 11), the
+continuous position and heading, speed, and the one calibrated confidence that ``matched`` thresholds.
+``docs/design/localiser.md`` explains the model. The batch CLI, the report and the live server use it the
+same way; the live server keeps :meth:`Localiser.state` in its shared store between frames and calls
+:meth:`Localiser.restore` on the next.
 
 Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i)) is below ``lost_confidence``
 or the believed place does not look distinctly better than somewhere else: d(i, b(i)) is above
