@@ -73,11 +73,7 @@ export function App() {
         <span className="spacer" />
         <label className="muted">
           Site{" "}
-          <select
-            data-testid="site-select"
-            value={siteId ?? ""}
-            onChange={(e) => setSiteId(Number(e.target.value))}
-          >
+          <select data-testid="site-select" value={siteId ?? ""} onChange={(e) => setSiteId(Number(e.target.value))}>
             {sites.map((s) => (
               <option key={s.id} value={s.id}>
                 {s.name}

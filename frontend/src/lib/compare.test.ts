@@ -31,6 +31,10 @@ describe("map version comparison", () => {
   it("splits poses into one track per drive", () => {
     const tracks = tracksByDrive(b);
     expect([...tracks.keys()]).toEqual([2, 1]);
-    expect(tracks.get(1)).toEqual([[0, 0], [10, 1], [20, 0]]);
+    expect(tracks.get(1)).toEqual([
+      [0, 0],
+      [10, 1],
+      [20, 0],
+    ]);
   });
 });

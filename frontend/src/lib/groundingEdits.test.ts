@@ -7,7 +7,13 @@ const moved: GroundingEdit = { kind: "move", driveId: 2, frame: 40, from: { x: 1
 group("grounding edits", () => {
   it("inverts each kind of edit, and inverting twice gives the edit back", () => {
     expect(inverse(created)).toEqual({ ...created, kind: "delete" });
-    expect(inverse(moved)).toEqual({ kind: "move", driveId: 2, frame: 40, from: { x: 12.5, y: 19 }, to: { x: 10, y: 20 } });
+    expect(inverse(moved)).toEqual({
+      kind: "move",
+      driveId: 2,
+      frame: 40,
+      from: { x: 12.5, y: 19 },
+      to: { x: 10, y: 20 },
+    });
     for (const e of [created, moved, inverse(created)]) expect(inverse(inverse(e))).toEqual(e);
   });
 

@@ -2,17 +2,42 @@ import { describe, expect, it } from "vitest";
 import { LiveState, travelHeading, withHeading, type PositionMsg } from "./liveState";
 
 const position = (seq: number, t: number, x: number, y: number, yaw: number | null = null): PositionMsg => ({
-  seq, vehicle_id: 1, vehicle: "v1", site_id: 1, t, node: 1, x, y, yaw, confidence: 0.9, matched: true,
-  lost: false, map_version: 1, received_at: "2026-01-01T00:00:00+00:00",
+  seq,
+  vehicle_id: 1,
+  vehicle: "v1",
+  site_id: 1,
+  t,
+  node: 1,
+  x,
+  y,
+  yaw,
+  confidence: 0.9,
+  matched: true,
+  lost: false,
+  map_version: 1,
+  received_at: "2026-01-01T00:00:00+00:00",
 });
 
 describe("heading from the direction of travel", () => {
   it("looks back at least the minimum travel", () => {
     expect(travelHeading([])).toBeNull();
-    expect(travelHeading([{ x: 0, y: 0, t: 0 }, { x: 1, y: 0, t: 1 }])).toBeNull(); // 1 m < 2 m
-    const north = [{ x: 0, y: 0, t: 0 }, { x: 0, y: 1, t: 1 }, { x: 0, y: 3, t: 2 }];
+    expect(
+      travelHeading([
+        { x: 0, y: 0, t: 0 },
+        { x: 1, y: 0, t: 1 },
+      ]),
+    ).toBeNull(); // 1 m < 2 m
+    const north = [
+      { x: 0, y: 0, t: 0 },
+      { x: 0, y: 1, t: 1 },
+      { x: 0, y: 3, t: 2 },
+    ];
     expect(travelHeading(north)).toBeCloseTo(Math.PI / 2);
-    const west = [{ x: 10, y: 0, t: 0 }, { x: 7, y: 0, t: 1 }, { x: 6.5, y: 0, t: 2 }];
+    const west = [
+      { x: 10, y: 0, t: 0 },
+      { x: 7, y: 0, t: 1 },
+      { x: 6.5, y: 0, t: 2 },
+    ];
     expect(travelHeading(west)).toBeCloseTo(Math.PI);
   });
 

@@ -3,10 +3,29 @@ import { Backoff, backoffDelay } from "./backoff";
 import { LiveState, statusOf, type PositionMsg } from "./liveState";
 import { LiveSocket, type SocketLike } from "./liveSocket";
 
-function position(seq: number, vehicle_id: number, t: number, x: number, extra: Partial<PositionMsg> = {}): PositionMsg {
+function position(
+  seq: number,
+  vehicle_id: number,
+  t: number,
+  x: number,
+  extra: Partial<PositionMsg> = {},
+): PositionMsg {
   return {
-    seq, vehicle_id, vehicle: `v${vehicle_id}`, site_id: 1, t, node: 1, x, y: 0, yaw: 0, confidence: 0.8,
-    matched: true, lost: false, map_version: 1, received_at: "2026-01-01T00:00:00+00:00", ...extra,
+    seq,
+    vehicle_id,
+    vehicle: `v${vehicle_id}`,
+    site_id: 1,
+    t,
+    node: 1,
+    x,
+    y: 0,
+    yaw: 0,
+    confidence: 0.8,
+    matched: true,
+    lost: false,
+    map_version: 1,
+    received_at: "2026-01-01T00:00:00+00:00",
+    ...extra,
   };
 }
 
@@ -32,7 +51,9 @@ describe("LiveState", () => {
   it("takes the snapshot, then positions, then stale, and remembers the last seq", () => {
     const s = new LiveState(60);
     s.apply({
-      type: "snapshot", seq: 5, stale_after_s: 10,
+      type: "snapshot",
+      seq: 5,
+      stale_after_s: 10,
       vehicles: [
         { vehicle_id: 1, vehicle: "v1", site_id: 1, stale: false, position: position(5, 1, 10, 0) },
         { vehicle_id: 2, vehicle: "v2", site_id: 1, stale: true, position: null },

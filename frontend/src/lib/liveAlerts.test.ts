@@ -2,8 +2,21 @@ import { describe, expect, it } from "vitest";
 import { alertsOf, cameraObscured, LiveState, statusOf, type PositionMsg } from "./liveState";
 
 const position = (seq: number, id: number, t: number, extra: Partial<PositionMsg> = {}): PositionMsg => ({
-  seq, vehicle_id: id, vehicle: `v${id}`, site_id: 1, t, node: 1, x: 0, y: 0, yaw: null, confidence: 0.9,
-  matched: true, lost: false, map_version: 1, received_at: "2026-01-01T00:00:00+00:00", ...extra,
+  seq,
+  vehicle_id: id,
+  vehicle: `v${id}`,
+  site_id: 1,
+  t,
+  node: 1,
+  x: 0,
+  y: 0,
+  yaw: null,
+  confidence: 0.9,
+  matched: true,
+  lost: false,
+  map_version: 1,
+  received_at: "2026-01-01T00:00:00+00:00",
+  ...extra,
 });
 
 describe("camera obscured", () => {

@@ -71,14 +71,7 @@ export interface VehicleState {
   heading: number | null;
 }
 
-export type VehicleStatus =
-  | "moving"
-  | "stopped"
-  | "motion unknown"
-  | "lost"
-  | "camera obscured"
-  | "stale"
-  | "no fix";
+export type VehicleStatus = "moving" | "stopped" | "motion unknown" | "lost" | "camera obscured" | "stale" | "no fix";
 
 /** The direction of travel is taken over at least this much of the trail, metres. */
 export const HEADING_MIN_TRAVEL_M = 2;

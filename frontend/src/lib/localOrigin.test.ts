@@ -27,7 +27,15 @@ describe("LocalOrigin", () => {
 
   it("shifts nested GeoJSON coordinates and keeps extra dimensions", () => {
     const o = new LocalOrigin(100, 200);
-    expect(o.shiftCoordinates([[101, 202, 5], [99, 198]])).toEqual([[1, 2, 5], [-1, -2]]);
+    expect(
+      o.shiftCoordinates([
+        [101, 202, 5],
+        [99, 198],
+      ]),
+    ).toEqual([
+      [1, 2, 5],
+      [-1, -2],
+    ]);
     expect(o.localExtent([100, 200, 110, 230])).toEqual([0, 0, 10, 30]);
   });
 

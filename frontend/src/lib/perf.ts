@@ -9,7 +9,11 @@ declare global {
 }
 
 /** Record that ``name`` happened now (or at ``at`` ms); also counts how often as ``name#count``. */
-export function mark(name: string, at: number = performance.now(), target: Window | undefined = globalThis.window): void {
+export function mark(
+  name: string,
+  at: number = performance.now(),
+  target: Window | undefined = globalThis.window,
+): void {
   if (!target) return;
   const marks = (target.__driftmapPerf ??= {});
   marks[name] = at;

@@ -1,10 +1,23 @@
 import { describe, expect, it } from "vitest";
 import {
-  formatClock, indexAt, parseClock, poseAt, rangeBefore, ReplayClock, trailUntil, type TrackPoint,
+  formatClock,
+  indexAt,
+  parseClock,
+  poseAt,
+  rangeBefore,
+  ReplayClock,
+  trailUntil,
+  type TrackPoint,
 } from "./replay";
 
 const point = (t: number, x: number, y: number, extra: Partial<TrackPoint> = {}): TrackPoint => ({
-  t, x, y, yaw: null, confidence: 0.5, lost: false, ...extra,
+  t,
+  x,
+  y,
+  yaw: null,
+  confidence: 0.5,
+  lost: false,
+  ...extra,
 });
 const track = [point(10, 0, 0), point(11, 10, 0), point(13, 10, 20), point(14, 10, 20)];
 

@@ -2,8 +2,35 @@ import { describe, expect, it } from "vitest";
 import { closestOnSegment, snapPoint, snapTargetsOf } from "./snap";
 
 const layers = {
-  WALLS: { type: "FeatureCollection", features: [{ geometry: { type: "LineString", coordinates: [[0, 0], [10, 0], [10, 10]] } }] },
-  CENTRELINE: { type: "FeatureCollection", features: [{ geometry: { type: "LineString", coordinates: [[0, 5], [20, 5]] } }] },
+  WALLS: {
+    type: "FeatureCollection",
+    features: [
+      {
+        geometry: {
+          type: "LineString",
+          coordinates: [
+            [0, 0],
+            [10, 0],
+            [10, 10],
+          ],
+        },
+      },
+    ],
+  },
+  CENTRELINE: {
+    type: "FeatureCollection",
+    features: [
+      {
+        geometry: {
+          type: "LineString",
+          coordinates: [
+            [0, 5],
+            [20, 5],
+          ],
+        },
+      },
+    ],
+  },
 };
 const targets = snapTargetsOf(layers, (n) => /centre|center/i.test(n));
 

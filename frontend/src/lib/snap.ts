@@ -11,7 +11,14 @@ export interface SnapTargets {
 export type SnapResult = { x: number; y: number; kind: "vertex" | "centreline" | "none" };
 
 /** The closest point of segment (ax, ay)-(bx, by) to (x, y). */
-export function closestOnSegment(x: number, y: number, ax: number, ay: number, bx: number, by: number): [number, number] {
+export function closestOnSegment(
+  x: number,
+  y: number,
+  ax: number,
+  ay: number,
+  bx: number,
+  by: number,
+): [number, number] {
   const dx = bx - ax;
   const dy = by - ay;
   const length2 = dx * dx + dy * dy;
@@ -53,8 +60,8 @@ export function snapTargetsOf(layers: Record<string, unknown>, isCentreline: (na
     return coordinates.flatMap((c) => lines(c, depth - 1));
   };
   for (const [name, collection] of Object.entries(layers)) {
-    const features = (collection as { features?: { geometry?: { type?: string; coordinates?: unknown } | null }[] })
-      .features ?? [];
+    const features =
+      (collection as { features?: { geometry?: { type?: string; coordinates?: unknown } | null }[] }).features ?? [];
     for (const f of features) {
       const g = f.geometry;
       if (!g) continue;

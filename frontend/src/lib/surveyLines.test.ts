@@ -7,9 +7,39 @@ describe("survey lines as one multi-line", () => {
   it("concatenates lines, multi-lines and polygon rings, shifted to the origin", () => {
     const collection = {
       features: [
-        line([[100, 200], [110, 200]]),
-        { geometry: { type: "MultiLineString", coordinates: [[[100, 200], [100, 210], [105, 215]], [[0, 0], [1, 1]]] } },
-        { geometry: { type: "Polygon", coordinates: [[[100, 200], [101, 200], [101, 201], [100, 200]]] } },
+        line([
+          [100, 200],
+          [110, 200],
+        ]),
+        {
+          geometry: {
+            type: "MultiLineString",
+            coordinates: [
+              [
+                [100, 200],
+                [100, 210],
+                [105, 215],
+              ],
+              [
+                [0, 0],
+                [1, 1],
+              ],
+            ],
+          },
+        },
+        {
+          geometry: {
+            type: "Polygon",
+            coordinates: [
+              [
+                [100, 200],
+                [101, 200],
+                [101, 201],
+                [100, 200],
+              ],
+            ],
+          },
+        },
       ],
     };
     const out = flattenLines(collection, 100, 200);
@@ -24,8 +54,19 @@ describe("survey lines as one multi-line", () => {
         { geometry: { type: "Point", coordinates: [5, 5] } },
         { geometry: null },
         line([[1, 1]]),
-        { geometry: { type: "LineString", coordinates: [[1, 1], ["x", 2]] } },
-        line([[0, 0], [3, 4]]),
+        {
+          geometry: {
+            type: "LineString",
+            coordinates: [
+              [1, 1],
+              ["x", 2],
+            ],
+          },
+        },
+        line([
+          [0, 0],
+          [3, 4],
+        ]),
       ],
     };
     const out = flattenLines(collection, 0, 0);

@@ -48,7 +48,8 @@ export function flattenLines(collection: unknown, x0: number, y0: number): FlatL
     let drew = false;
     if (g.type === "LineString") drew = part(c);
     else if (g.type === "MultiLineString" || g.type === "Polygon") for (const p of c) drew = part(p) || drew;
-    else if (g.type === "MultiPolygon") for (const poly of c) for (const ring of poly as unknown[]) drew = part(ring) || drew;
+    else if (g.type === "MultiPolygon")
+      for (const poly of c) for (const ring of poly as unknown[]) drew = part(ring) || drew;
     if (drew) features += 1;
   }
   return { flat, ends, features };

@@ -9,7 +9,12 @@ describe("trail runs", () => {
     const points = [pt(0, 0), pt(1, 1), pt(2, 2, 0.6), pt(3, 3, 0.6), pt(4, 4, 0.2), pt(5, 5)];
     const runs = trailRuns(points, false);
     expect(runs.map((r) => r.band)).toEqual(["confident", "uncertain", "doubtful", "confident"]);
-    expect(runs.map((r) => r.points.map((p) => p.x))).toEqual([[0, 1], [1, 2, 3], [3, 4], [4, 5]]);
+    expect(runs.map((r) => r.points.map((p) => p.x))).toEqual([
+      [0, 1],
+      [1, 2, 3],
+      [3, 4],
+      [4, 5],
+    ]);
   });
 
   it("draws lost stretches as lost and everything grey when stale", () => {

@@ -72,8 +72,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
     const added: BaseLayer[] = [];
     const snap: { current: SnapTargets | null } = { current: null };
     const isCentreline = (name: string) => /centre|center/i.test(name);
-    const fetchLayers = (zoom: number) =>
-      apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId }, { zoom });
+    const fetchLayers = (zoom: number) => apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId }, { zoom });
     (async () => {
       let origin = new LocalOrigin(0, 0);
       let siteExtent: Extent | null = null;
@@ -206,4 +205,3 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
     </div>
   );
 }
-

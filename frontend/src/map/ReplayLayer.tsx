@@ -19,7 +19,11 @@ function markerStyle(feature: FeatureLike): Style {
   const yaw = feature.get("yaw") as number | null;
   const image =
     yaw === null
-      ? new Circle({ radius: 8, fill: new Fill({ color: REPLAY_COLOUR }), stroke: new Stroke({ color: "#fff", width: 2 }) })
+      ? new Circle({
+          radius: 8,
+          fill: new Fill({ color: REPLAY_COLOUR }),
+          stroke: new Stroke({ color: "#fff", width: 2 }),
+        })
       : new RegularShape({
           points: 3,
           radius: 11,

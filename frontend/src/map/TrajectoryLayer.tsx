@@ -71,9 +71,7 @@ export function TrajectoryLayer({ ctx, poses, closures, showClosures, selected, 
       const line = new Feature(new LineString(coords));
       line.setStyle(new Style({ stroke: new Stroke({ color: colour, width: 2 }) }));
       const points = new Feature(new MultiPoint(coords.filter((_, i) => i % keyframeStride === 0)));
-      points.setStyle(
-        new Style({ image: new Circle({ radius: 2.5, fill: new Fill({ color: colour }) }) }),
-      );
+      points.setStyle(new Style({ image: new Circle({ radius: 2.5, fill: new Fill({ color: colour }) }) }));
       s.addFeatures([line, points]);
     }
   }, [ctx, poses, keyframeStride]);

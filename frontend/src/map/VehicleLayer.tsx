@@ -190,7 +190,8 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }
         const n = v.trail.length;
         if (t.x !== pose.x || t.y !== pose.y || t.yaw !== pose.yaw) {
           const jumped = n >= 2 && isJump(v.trail[n - 2]!, v.trail[n - 1]!);
-          if (jumped) entry.glide = new Glide(pose, now); // a jump is drawn as one: no glide through rock
+          if (jumped)
+            entry.glide = new Glide(pose, now); // a jump is drawn as one: no glide through rock
           else entry.glide.retarget(pose, now);
         }
       }

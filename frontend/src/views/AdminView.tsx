@@ -17,7 +17,13 @@ function useErrors(): [string | null, (f: () => Promise<void>) => Promise<void>]
   return [error, run];
 }
 
-export function AdminView({ sites, onSitesChanged }: { sites: Schemas["SiteRead"][]; onSitesChanged: () => Promise<void> }) {
+export function AdminView({
+  sites,
+  onSitesChanged,
+}: {
+  sites: Schemas["SiteRead"][];
+  onSitesChanged: () => Promise<void>;
+}) {
   return (
     <div className="adminpage">
       <Users />
@@ -48,26 +54,57 @@ function Users() {
     <section className="card" data-testid="admin-users">
       <h2>Users</h2>
       <table>
-        <thead><tr><th>Name</th><th>Role</th><th /></tr></thead>
+        <thead>
+          <tr>
+            <th>Name</th>
+            <th>Role</th>
+            <th />
+          </tr>
+        </thead>
         <tbody>
           {users.map((u) => (
             <tr key={u.id} data-testid={`user-row-${u.username}`}>
               <td>{u.username}</td>
               <td>{u.role}</td>
-              <td><button className="danger" onClick={() => void run(async () => { await apiDelete("/api/users/{user_id}", { user_id: u.id }); await load(); })}>Delete</button></td>
+              <td>
+                <button
+                  className="danger"
+                  onClick={() =>
+                    void run(async () => {
+                      await apiDelete("/api/users/{user_id}", { user_id: u.id });
+                      await load();
+                    })
+                  }
+                >
+                  Delete
+                </button>
+              </td>
             </tr>
           ))}
         </tbody>
       </table>
       <form className="row" onSubmit={create}>
-        <input placeholder="user name" value={name} onChange={(e) => setName(e.target.value)} data-testid="new-user-name" />
-        <input placeholder="password (8+)" type="password" value={password} onChange={(e) => setPassword(e.target.value)} data-testid="new-user-password" />
+        <input
+          placeholder="user name"
+          value={name}
+          onChange={(e) => setName(e.target.value)}
+          data-testid="new-user-name"
+        />
+        <input
+          placeholder="password (8+)"
+          type="password"
+          value={password}
+          onChange={(e) => setPassword(e.target.value)}
+          data-testid="new-user-password"
+        />
         <select value={role} onChange={(e) => setRole(e.target.value as Role)} data-testid="new-user-role">
           <option value="viewer">viewer</option>
           <option value="surveyor">surveyor</option>
           <option value="admin">admin</option>
         </select>
-        <button className="primary" type="submit" disabled={!name || !password}>Add user</button>
+        <button className="primary" type="submit" disabled={!name || !password}>
+          Add user
+        </button>
       </form>
       {error && <p className="error">{error}</p>}
     </section>
@@ -103,7 +140,13 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
     <section className="card" data-testid="admin-vehicles">
       <h2>Vehicles</h2>
       <table>
-        <thead><tr><th>Name</th><th>Site</th><th /></tr></thead>
+        <thead>
+          <tr>
+            <th>Name</th>
+            <th>Site</th>
+            <th />
+          </tr>
+        </thead>
         <tbody>
           {vehicles.map((v) => (
             <tr key={v.id} data-testid={`admin-vehicle-${v.name}`}>
@@ -111,22 +154,45 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
               <td>{siteName(v.site_id)}</td>
               <td className="row" style={{ margin: 0 }}>
                 <button onClick={() => rotate(v.id, v.name)}>New token</button>
-                <button className="danger" onClick={() => void run(async () => { await apiDelete("/api/vehicles/{vehicle_id}", { vehicle_id: v.id }); await load(); })}>Delete</button>
+                <button
+                  className="danger"
+                  onClick={() =>
+                    void run(async () => {
+                      await apiDelete("/api/vehicles/{vehicle_id}", { vehicle_id: v.id });
+                      await load();
+                    })
+                  }
+                >
+                  Delete
+                </button>
               </td>
             </tr>
           ))}
         </tbody>
       </table>
       <form className="row" onSubmit={create}>
-        <input placeholder="vehicle name" value={name} onChange={(e) => setName(e.target.value)} data-testid="new-vehicle-name" />
+        <input
+          placeholder="vehicle name"
+          value={name}
+          onChange={(e) => setName(e.target.value)}
+          data-testid="new-vehicle-name"
+        />
         <select value={site ?? ""} onChange={(e) => setSiteId(Number(e.target.value))}>
-          {sites.map((s) => <option key={s.id} value={s.id}>{s.name}</option>)}
+          {sites.map((s) => (
+            <option key={s.id} value={s.id}>
+              {s.name}
+            </option>
+          ))}
         </select>
-        <button className="primary" type="submit" disabled={!name || site === null}>Add vehicle</button>
+        <button className="primary" type="submit" disabled={!name || site === null}>
+          Add vehicle
+        </button>
       </form>
       {token && (
         <div data-testid="vehicle-token">
-          <p>Token for <b>{token.name}</b> — copy it now, it is not shown again:</p>
+          <p>
+            Token for <b>{token.name}</b> — copy it now, it is not shown again:
+          </p>
           <div className="token">{token.token}</div>
           <button onClick={() => setToken(null)}>Done</button>
         </div>
@@ -153,7 +219,13 @@ function Sites({ sites, onChanged }: { sites: Schemas["SiteRead"][]; onChanged: 
     <section className="card" data-testid="admin-sites">
       <h2>Sites</h2>
       <table>
-        <thead><tr><th>Name</th><th>Description</th><th>Created</th></tr></thead>
+        <thead>
+          <tr>
+            <th>Name</th>
+            <th>Description</th>
+            <th>Created</th>
+          </tr>
+        </thead>
         <tbody>
           {sites.map((s) => (
             <tr key={s.id} data-testid={`site-row-${s.name}`}>
@@ -165,9 +237,16 @@ function Sites({ sites, onChanged }: { sites: Schemas["SiteRead"][]; onChanged: 
         </tbody>
       </table>
       <form className="row" onSubmit={create}>
-        <input placeholder="site name" value={name} onChange={(e) => setName(e.target.value)} data-testid="new-site-name" />
+        <input
+          placeholder="site name"
+          value={name}
+          onChange={(e) => setName(e.target.value)}
+          data-testid="new-site-name"
+        />
         <input placeholder="description" value={description} onChange={(e) => setDescription(e.target.value)} />
-        <button className="primary" type="submit" disabled={!name}>Add site</button>
+        <button className="primary" type="submit" disabled={!name}>
+          Add site
+        </button>
       </form>
       {error && <p className="error">{error}</p>}
     </section>

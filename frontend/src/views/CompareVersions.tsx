@@ -89,7 +89,9 @@ export function CompareVersions({ siteId, versions, ctx }: Props) {
           <>
             <span className="muted">A</span>
             {picker("a")}
-            <span className="muted" style={{ color: "#ffd43b" }}>B</span>
+            <span className="muted" style={{ color: "#ffd43b" }}>
+              B
+            </span>
             {picker("b")}
           </>
         )}

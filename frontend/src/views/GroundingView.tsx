@@ -273,11 +273,19 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         <div className="row">
           <h3 style={{ margin: 0 }}>Groundings ({groundings.length})</h3>
           <span className="spacer" />
-          <button onClick={() => void exportCsv()} disabled={!drive} data-testid="export-csv" title="Export this drive's groundings">
+          <button
+            onClick={() => void exportCsv()}
+            disabled={!drive}
+            data-testid="export-csv"
+            title="Export this drive's groundings"
+          >
             CSV ↓
           </button>
           {editable && (
-            <label className="filebutton" title={`Import groundings.csv into ${drive?.name ?? "the drive"} (replaces its groundings)`}>
+            <label
+              className="filebutton"
+              title={`Import groundings.csv into ${drive?.name ?? "the drive"} (replaces its groundings)`}
+            >
               CSV ↑
               <input
                 type="file"
@@ -292,12 +300,22 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
             </label>
           )}
           {editable && (
-            <button data-testid="undo" onClick={() => void edits.undo()} disabled={!edits.canUndo} title="Undo (u or Ctrl+Z)">
+            <button
+              data-testid="undo"
+              onClick={() => void edits.undo()}
+              disabled={!edits.canUndo}
+              title="Undo (u or Ctrl+Z)"
+            >
               Undo
             </button>
           )}
           {editable && (
-            <button data-testid="redo" onClick={() => void edits.redo()} disabled={!edits.canRedo} title="Redo (r or Ctrl+Y)">
+            <button
+              data-testid="redo"
+              onClick={() => void edits.redo()}
+              disabled={!edits.canRedo}
+              title="Redo (r or Ctrl+Y)"
+            >
               Redo
             </button>
           )}
@@ -311,7 +329,11 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           onDelete={(id) => void edits.remove(id)}
         />
         <p className="muted">
-          Press <button onClick={() => setHelp(true)} data-testid="help">?</button> for keyboard shortcuts
+          Press{" "}
+          <button onClick={() => setHelp(true)} data-testid="help">
+            ?
+          </button>{" "}
+          for keyboard shortcuts
         </p>
         {help && <ShortcutHelp editable={editable} onClose={() => setHelp(false)} />}
       </aside>

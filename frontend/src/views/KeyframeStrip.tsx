@@ -27,7 +27,11 @@ export function KeyframeStrip(props: Props) {
   return (
     <>
       <div className="row">
-        <select data-testid="drive-select" value={driveId ?? ""} onChange={(e) => props.onDrive(Number(e.target.value))}>
+        <select
+          data-testid="drive-select"
+          value={driveId ?? ""}
+          onChange={(e) => props.onDrive(Number(e.target.value))}
+        >
           {drives.map((d) => (
             <option key={d.id} value={d.id}>
               {d.name} ({d.frame_count} frames)

@@ -64,10 +64,23 @@ export function ReplayPanel({ vehicle, session, onSession }: Props) {
         return;
       }
       const track: TrackPoint[] = rows.map((r) => ({
-        t: r.t, x: r.x, y: r.y, yaw: r.yaw, confidence: r.confidence, lost: r.lost, obscured: r.obscured,
+        t: r.t,
+        x: r.x,
+        y: r.y,
+        yaw: r.yaw,
+        confidence: r.confidence,
+        lost: r.lost,
+        obscured: r.obscured,
       }));
       const clock = new ReplayClock(track[0]!.t, track[track.length - 1]!.t, session?.clock.speed ?? 10);
-      onSession({ vehicleId: vehicle.id, name: vehicle.name, track, clock, follow: session?.follow ?? false, followOffsetM: null });
+      onSession({
+        vehicleId: vehicle.id,
+        name: vehicle.name,
+        track,
+        clock,
+        follow: session?.follow ?? false,
+        followOffsetM: null,
+      });
     } catch (e) {
       setError(e instanceof Error ? e.message : String(e));
     } finally {
@@ -108,7 +121,13 @@ export function ReplayPanel({ vehicle, session, onSession }: Props) {
   );
 }
 
-function ReplayPlayer({ session, onSession }: { session: ReplaySession; onSession: (s: ReplaySession | null) => void }) {
+function ReplayPlayer({
+  session,
+  onSession,
+}: {
+  session: ReplaySession;
+  onSession: (s: ReplaySession | null) => void;
+}) {
   const { clock, track } = session;
   const [, setFrame] = useState(0);
   const last = useRef(performance.now());

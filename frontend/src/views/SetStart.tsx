@@ -7,9 +7,7 @@ import { DEFAULT_START_RADIUS_M, describeStart, parseRadiusM, startBody } from "
 import type { PlacedStart } from "../map/StartLayer";
 
 export type StartResult =
-  | { state: "sending" }
-  | { state: "accepted"; text: string; start: PlacedStart }
-  | { state: "refused"; text: string };
+  { state: "sending" } | { state: "accepted"; text: string; start: PlacedStart } | { state: "refused"; text: string };
 
 export interface SetStartControl {
   vehicleId: number | null;

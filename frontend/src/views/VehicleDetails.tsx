@@ -69,8 +69,16 @@ export function VehicleDetails({ v, actions, children }: Props) {
       {p ? (
         <table>
           <tbody>
-            <tr><th>Status</th><td>{statusOf(v)}</td></tr>
-            <tr><th>Position</th><td>E {p.x.toFixed(2)} N {p.y.toFixed(2)}</td></tr>
+            <tr>
+              <th>Status</th>
+              <td>{statusOf(v)}</td>
+            </tr>
+            <tr>
+              <th>Position</th>
+              <td>
+                E {p.x.toFixed(2)} N {p.y.toFixed(2)}
+              </td>
+            </tr>
             <tr data-testid="detail-confidence">
               <th>Confidence</th>
               <td>
@@ -85,13 +93,22 @@ export function VehicleDetails({ v, actions, children }: Props) {
                 {travel && <span className="muted"> (direction of travel)</span>}
               </td>
             </tr>
-            <tr data-testid="detail-speed"><th>Speed</th><td>{formatSpeed(p.speed_mps)}</td></tr>
-            <tr data-testid="detail-motion"><th>Motion</th><td>{formatMotion(p.moving)}</td></tr>
+            <tr data-testid="detail-speed">
+              <th>Speed</th>
+              <td>{formatSpeed(p.speed_mps)}</td>
+            </tr>
+            <tr data-testid="detail-motion">
+              <th>Motion</th>
+              <td>{formatMotion(p.moving)}</td>
+            </tr>
             <tr data-testid="detail-odometry">
               <th>Odometry</th>
               <td>{p.odometry === undefined ? "—" : p.odometry ? "camera odometry" : "none (appearance only)"}</td>
             </tr>
-            <tr><th>Node</th><td>{p.node}</td></tr>
+            <tr>
+              <th>Node</th>
+              <td>{p.node}</td>
+            </tr>
             <tr data-testid="camera-check" data-obscured={p.obscured ? "yes" : "no"}>
               <th>Camera</th>
               <td>
@@ -101,15 +118,24 @@ export function VehicleDetails({ v, actions, children }: Props) {
                   <>
                     {p.obscured ? `obscured (${p.obscured_reason ?? "?"})` : "clear"}
                     <div className="muted" style={{ fontSize: 11 }}>
-                      salient {(p.salient ?? 0).toFixed(2)} · speckle {((p.speckle ?? 0) * 100).toFixed(1)} % ·
-                      flat {((p.flat_area ?? 0) * 100).toFixed(1)} %
+                      salient {(p.salient ?? 0).toFixed(2)} · speckle {((p.speckle ?? 0) * 100).toFixed(1)} % · flat{" "}
+                      {((p.flat_area ?? 0) * 100).toFixed(1)} %
                     </div>
                   </>
                 )}
               </td>
             </tr>
-            <tr><th>Frame time</th><td>{formatClock(p.t)}{p.t < EPOCH_CLOCK_S ? " s" : ""}</td></tr>
-            <tr><th>Received</th><td>{new Date(p.received_at).toLocaleTimeString()}</td></tr>
+            <tr>
+              <th>Frame time</th>
+              <td>
+                {formatClock(p.t)}
+                {p.t < EPOCH_CLOCK_S ? " s" : ""}
+              </td>
+            </tr>
+            <tr>
+              <th>Received</th>
+              <td>{new Date(p.received_at).toLocaleTimeString()}</td>
+            </tr>
           </tbody>
         </table>
       ) : (
@@ -135,7 +161,9 @@ export function VehicleDetails({ v, actions, children }: Props) {
               <td className="num">{formatClock(h.t)}</td>
               <td className="num">{h.x.toFixed(1)}</td>
               <td className="num">{h.y.toFixed(1)}</td>
-              <td className="num"><Confidence value={h.confidence} lost={h.lost} stale={false} /></td>
+              <td className="num">
+                <Confidence value={h.confidence} lost={h.lost} stale={false} />
+              </td>
               <td className="num">{formatSpeed(h.speed_mps)}</td>
             </tr>
           ))}
