@@ -58,6 +58,7 @@ from driftmap.core.localiser_map import LocaliserMap
 from driftmap.core.localiser_motion import OdometryFeed
 from driftmap.core.localiser_state import Estimate, LocaliserState
 from driftmap.core.localiser_track import TRACK_DEFAULT, TrackParams, TrackState
+from driftmap.core.localiser_turns import TURNS_DEFAULT, TurnHistory, TurnParams, turn_likelihood
 from driftmap.core.odometry_step import OdometryStep
 from driftmap.core.params import SAD_DEFAULT, ImageParams, SadParams
 from driftmap.core.saliency import SesameParams, sesame_masks
@@ -89,6 +90,8 @@ class Localiser:
         track_params: the continuous position track's noise model (:mod:`driftmap.core.localiser_track`).
         start_xy_m: the known start's survey point, metres (the track starts there); None: ``start_node``'s
             centre.
+        turn_params: the check of turns driven against the map's turns (:mod:`driftmap.core.localiser_turns`;
+            needs odometry); None: no turn check.
     """
 
     def __init__(
@@ -105,8 +108,10 @@ class Localiser:
         camera: CameraModel | None = None,
         track_params: TrackParams = TRACK_DEFAULT,
         start_xy_m: tuple[float, float] | None = None,
+        turn_params: TurnParams | None = TURNS_DEFAULT,
     ) -> None:
         self.map = lmap
+        self.turn_params = turn_params
         self.track_params = track_params
         self.odometry = None if camera is None or single_image else OdometryFeed(camera)
         self.params = params
@@ -233,6 +238,7 @@ class Localiser:
         if motion is None and self.odometry is not None:
             motion = self.odometry.step(frame, t_s)
         prior = self._predict(s, gap_s, motion)
+        prior, turns = self._check_turns(prior, s.turns, motion)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
         d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
@@ -273,7 +279,7 @@ class Localiser:
             belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
             node = -1
         self._state = LocaliserState(
-            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct, track
+            belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct, track, turns=turns
         )
         return self._estimate(
             best,
@@ -309,6 +315,24 @@ class Localiser:
             return s.belief
         moved = self.transitions.predict(s.belief, 0.0)
         return np.asarray((1.0 - alpha) * s.belief + alpha * moved, dtype=np.float64)
+
+    def _check_turns(
+        self, prior: F64, history: TurnHistory, motion: OdometryStep | None
+    ) -> tuple[F64, TurnHistory]:
+        """The prior weighed by the turn check (:mod:`driftmap.core.localiser_turns`) when this frame's step
+        completes a sample of a driven window, and the driven path's history after the step (forgotten
+        after an unusable step: the heading change of that frame is unknown)."""
+        tp = self.turn_params
+        if tp is None or motion is None:
+            return prior, TurnHistory.empty()
+        if motion.stationary:
+            return prior, history
+        history, turn = history.advance(motion.dx_m, motion.dtheta_rad, tp)
+        if turn is None or hmm.is_global(prior):
+            return prior, history
+        weighed = prior * turn_likelihood(turn, self.map.turns(tp))
+        total = float(weighed.sum())
+        return (np.asarray(weighed / total, dtype=np.float64) if total > 0 else prior), history
 
     def _follow(
         self,

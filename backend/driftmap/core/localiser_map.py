@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_array
 
 from driftmap.core import hmm
+from driftmap.core.localiser_turns import TurnParams, map_turns
 from driftmap.core.params import IMAGES_DEFAULT, ImageParams
 from driftmap.core.topomap import TopoMap
 from driftmap.errors import BadInputError
@@ -48,6 +49,7 @@ class LocaliserMap:
     image_params: ImageParams = IMAGES_DEFAULT
     edges: I64 = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
+    _turns: dict[TurnParams, F64] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         m = self.centres_m.shape[0]
@@ -83,6 +85,13 @@ class LocaliserMap:
         if not (np.isfinite(x_m) and np.isfinite(y_m)):
             raise BadInputError(f"need a finite survey point, got ({x_m}, {y_m})", field="start")
         return int(np.argmin(np.hypot(self.centres_m[:, 0] - x_m, self.centres_m[:, 1] - y_m)))
+
+    def turns(self, params: TurnParams) -> F64:
+        """(M, K) float64 each node's mapped heading changes over ``params.window_m`` of path, radians
+        (:func:`driftmap.core.localiser_turns.map_turns`, computed once per window)."""
+        if params not in self._turns:
+            self._turns[params] = map_turns(self.centres_m, self.edges, params)
+        return self._turns[params]
 
     def long_steps(self, from_m: float) -> I64:
         """(K, 2) int64 direct steps between nodes at least ``from_m`` long (computed once per length).

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.localiser_track import TrackState
+from driftmap.core.localiser_turns import TurnHistory
 from driftmap.errors import BadInputError
 
 __all__ = ["Estimate", "LocaliserState"]
@@ -95,6 +96,7 @@ class LocaliserState:
         distinct: the track's running distinctness at the last frame (:attr:`Estimate.distinct`).
         track: the continuous position track (:class:`~driftmap.core.localiser_track.TrackState`).
         last_frame: (H, W) uint8 last raw frame, for the next odometry step; (0, 0) without odometry.
+        turns: the driven path's heading for the turn check (:mod:`driftmap.core.localiser_turns`).
     """
 
     belief: F64
@@ -107,6 +109,7 @@ class LocaliserState:
     distinct: float = 0.0
     track: TrackState = field(default_factory=TrackState.empty)
     last_frame: NDArray[np.uint8] = field(default_factory=_no_frame)
+    turns: TurnHistory = field(default_factory=TurnHistory.empty)
 
     def to_arrays(self) -> dict[str, NDArray[np.generic]]:
         """Named arrays (scalars as 0-d) for the store."""
@@ -121,6 +124,7 @@ class LocaliserState:
             "distinct": np.asarray(self.distinct, dtype=np.float64),
             "track": self.track.to_arrays(),
             "last_frame": np.asarray(self.last_frame, dtype=np.uint8),
+            "turns": self.turns.to_arrays(),
         }
 
     @classmethod
@@ -139,6 +143,7 @@ class LocaliserState:
                 distinct=float(arrays.get("distinct", 0.0)),
                 track=TrackState.from_arrays(np.asarray(arrays.get("track", np.zeros(0)), dtype=np.float64)),
                 last_frame=np.array(arrays.get("last_frame", _no_frame()), dtype=np.uint8),
+                turns=TurnHistory.from_arrays(np.asarray(arrays.get("turns", np.zeros(0)), dtype=np.float64)),
             )
         except KeyError as exc:
             raise BadInputError("stored localiser state is missing an array", field=str(exc.args[0])) from exc
