@@ -16,6 +16,10 @@ export default tseslint.config(
       globals: globals.browser,
       parserOptions: { projectService: true, tsconfigRootDir: import.meta.dirname },
     },
+    rules: {
+      // `const { type: _, ...rest } = message` drops a field on purpose
+      "@typescript-eslint/no-unused-vars": ["error", { ignoreRestSiblings: true }],
+    },
   },
   {
     files: ["*.{js,ts}", "scripts/**/*.mjs"],

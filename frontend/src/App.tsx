@@ -27,7 +27,7 @@ export function App() {
       forget();
       setMe(null);
     });
-    restore().then((m) => {
+    void restore().then((m) => {
       setMe(m);
       setChecked(true);
     });
@@ -42,6 +42,8 @@ export function App() {
   }, []);
 
   useEffect(() => {
+    // loadSites sets state only after its request resolves
+    // eslint-disable-next-line react-hooks/set-state-in-effect
     if (me) void loadSites();
   }, [me, loadSites]);
 
@@ -84,13 +86,7 @@ export function App() {
         <span data-testid="whoami">
           {me.name} <span className="muted">({me.role})</span>
         </span>
-        <button
-          data-testid="logout"
-          onClick={async () => {
-            await logout();
-            setMe(null);
-          }}
-        >
+        <button data-testid="logout" onClick={() => void logout().then(() => setMe(null))}>
           Log out
         </button>
       </header>

@@ -37,7 +37,7 @@ export class LocalOrigin {
   /** Shift every [x, y] of a GeoJSON-style nested coordinate array; returns a new array. */
   shiftCoordinates(coordinates: unknown): unknown {
     if (Array.isArray(coordinates) && typeof coordinates[0] === "number" && typeof coordinates[1] === "number") {
-      return [coordinates[0] - this.x0, coordinates[1] - this.y0, ...coordinates.slice(2)];
+      return [coordinates[0] - this.x0, coordinates[1] - this.y0, ...(coordinates.slice(2) as unknown[])];
     }
     if (Array.isArray(coordinates)) return coordinates.map((c) => this.shiftCoordinates(c));
     return coordinates;

@@ -22,10 +22,10 @@ export function chooseSurveyRenderer(glRenderer: string | null, override?: strin
 export function webglRenderer(): string | null {
   try {
     const canvas = document.createElement("canvas");
-    const gl = (canvas.getContext("webgl2") ?? canvas.getContext("webgl")) as WebGLRenderingContext | null;
+    const gl = canvas.getContext("webgl2") ?? canvas.getContext("webgl");
     if (!gl) return null;
     const info = gl.getExtension("WEBGL_debug_renderer_info");
-    const name = info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+    const name: unknown = info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
     gl.getExtension("WEBGL_lose_context")?.loseContext();
     return String(name);
   } catch {

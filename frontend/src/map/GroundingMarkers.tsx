@@ -2,6 +2,7 @@
 // residual vector). When editable, a square can be dragged to adjust its surveyed point: ``onMove`` gets the
 // grounding's id and its new position in mine-grid metres once the drag ends.
 import { useEffect, useRef } from "react";
+import { useLatest } from "../lib/useLatest";
 import Feature from "ol/Feature";
 import LineString from "ol/geom/LineString";
 import Point from "ol/geom/Point";
@@ -35,8 +36,7 @@ const MOVED_EPS_M = 1e-6;
 
 export function GroundingMarkers({ ctx, groundings, poses, editable, onMove }: Props) {
   const sources = useRef({ squares: new VectorSource<Feature<Point>>(), links: new VectorSource() });
-  const moveRef = useRef(onMove);
-  moveRef.current = onMove;
+  const moveRef = useLatest(onMove);
 
   useEffect(() => {
     const s = sources.current;
@@ -89,7 +89,7 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, onMove }: P
       ctx.map.removeInteraction(translate);
       if (target) target.style.cursor = "";
     };
-  }, [ctx, editable]);
+  }, [ctx, editable, moveRef]);
 
   useEffect(() => {
     const { squares, links } = sources.current;

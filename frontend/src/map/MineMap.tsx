@@ -1,6 +1,7 @@
 // The plan view every page shares: survey layers (WebGL when available), pan/zoom, grid readout, scale bar,
 // fit-to-site. Pages add their own layers through ``overlay``, which gets the map and the local origin.
 import { useEffect, useRef, useState, type ReactNode } from "react";
+import { useLatest } from "../lib/useLatest";
 import OlMap from "ol/Map";
 import View from "ol/View";
 import VectorSource from "ol/source/Vector";
@@ -56,10 +57,8 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
   const [renderer] = useState(() =>
     chooseSurveyRenderer(webglRenderer(), new URLSearchParams(location.search).get("renderer")),
   );
-  const clickRef = useRef(onMapClick);
-  clickRef.current = onMapClick;
-  const originRef = useRef<LocalOrigin | null>(null);
-  originRef.current = ctx?.origin ?? null;
+  const clickRef = useLatest(onMapClick);
+  const originRef = useLatest<LocalOrigin | null>(ctx?.origin ?? null);
 
   useEffect(() => {
     if (!target.current) return;
@@ -73,7 +72,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
     const snap: { current: SnapTargets | null } = { current: null };
     const isCentreline = (name: string) => /centre|center/i.test(name);
     const fetchLayers = (zoom: number) => apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId }, { zoom });
-    (async () => {
+    void (async () => {
       let origin = new LocalOrigin(0, 0);
       let siteExtent: Extent | null = null;
       try {
@@ -164,7 +163,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
       setCtx(null);
       setLayers([]);
     };
-  }, [siteId, renderer]);
+  }, [siteId, renderer, clickRef, originRef]);
 
   useEffect(() => {
     for (const l of layers) l.layer.setVisible(visible[l.name] ?? true);

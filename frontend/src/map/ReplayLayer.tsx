@@ -79,18 +79,19 @@ export function ReplayLayer({ ctx, session }: { ctx: MapCtx; session: ReplaySess
         const view = ctx.map.getView();
         if (session.follow) {
           const centre = view.getCenter();
-          if (!centre || Math.hypot(centre[0]! - at[0]!, centre[1]! - at[1]!) > 1e-3) view.setCenter(at);
+          if (!centre || Math.hypot(centre[0]! - at[0], centre[1]! - at[1]) > 1e-3) view.setCenter(at);
           const now = view.getCenter()!;
-          session.followOffsetM = Math.hypot(now[0]! - at[0]!, now[1]! - at[1]!);
+          session.followOffsetM = Math.hypot(now[0]! - at[0], now[1]! - at[1]);
         }
       }
       raf = requestAnimationFrame(tick);
     };
     raf = requestAnimationFrame(tick);
+    const drawn = source.current;
     return () => {
       cancelAnimationFrame(raf);
       ctx.map.removeLayer(layer);
-      source.current.clear();
+      drawn.clear();
     };
   }, [ctx, session]);
 

@@ -3,6 +3,7 @@
 // minutes, coloured by the band of each position and cut where the vehicle jumped (lib/trail.ts). Markers
 // glide to each new estimate (lib/interpolate.ts) on the animation frame.
 import { useEffect, useRef } from "react";
+import { useLatest } from "../lib/useLatest";
 import Feature from "ol/Feature";
 import Point from "ol/geom/Point";
 import LineString from "ol/geom/LineString";
@@ -127,10 +128,8 @@ function trailStyles(runs: { band: ConfidenceBand; coords: number[][] }[], selec
 export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }: Props) {
   const source = useRef(new VectorSource());
   const glides = useRef(new Map<number, { glide: Glide; marker: Feature<Point>; trail: Feature<MultiLineString> }>());
-  const selectRef = useRef(onSelect);
-  selectRef.current = onSelect;
-  const selectableRef = useRef(selectable);
-  selectableRef.current = selectable;
+  const selectRef = useLatest(onSelect);
+  const selectableRef = useLatest(selectable);
 
   useEffect(() => {
     const layer = new VectorLayer({ source: source.current, zIndex: 10, updateWhileAnimating: true });
@@ -168,7 +167,7 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }
       ctx.map.un("singleclick", click.listener);
       ctx.map.removeLayer(layer);
     };
-  }, [ctx]);
+  }, [ctx, selectRef, selectableRef]);
 
   useEffect(() => {
     const now = performance.now();

@@ -47,7 +47,7 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
           {version === null ? "no map yet" : `map v${version}`}
         </span>
         {editable && (
-          <button className="primary" data-testid="build-map" onClick={build} disabled={running}>
+          <button className="primary" data-testid="build-map" onClick={() => void build()} disabled={running}>
             Build map
           </button>
         )}

@@ -19,21 +19,26 @@ const metres = (v: number | null | undefined) => (v === null || v === undefined 
 export function CompareVersions({ siteId, versions, ctx }: Props) {
   const [on, setOn] = useState(false);
   const [pair, setPair] = useState<{ a: number; b: number } | null>(null);
-  const [loaded, setLoaded] = useState<{ a: PoseArrays; b: PoseArrays; stats: Stats } | null>(null);
-  const [error, setError] = useState<string | null>(null);
+  const [versionsSeen, setVersionsSeen] = useState<number[] | null>(null);
+  // each answer remembers the request it belongs to (site and pair), so a stale one is never shown
+  const [answer, setAnswer] = useState<{ key: string; a: PoseArrays; b: PoseArrays; stats: Stats } | null>(null);
+  const [failure, setFailure] = useState<{ key: string; text: string } | null>(null);
+  const key = pair ? `${siteId}:${pair.a}:${pair.b}` : null;
+  const loaded = answer !== null && answer.key === key ? answer : null;
+  const error = failure !== null && failure.key === key ? failure.text : null;
   const cache = useRef(new Map<number, Promise<PoseArrays>>());
 
   useEffect(() => {
     cache.current.clear();
   }, [siteId]);
-  useEffect(() => {
+  if (versionsSeen !== versions) {
+    // new versions: keep the pair while both still exist
+    setVersionsSeen(versions);
     setPair((p) => (p && versions.includes(p.a) && versions.includes(p.b) ? p : defaultPair(versions)));
-  }, [versions]);
+  }
 
   useEffect(() => {
-    setLoaded(null);
-    setError(null);
-    if (!on || !pair) return;
+    if (!on || !pair || key === null) return;
     let cancelled = false;
     const poses = (version: number) => {
       let p = cache.current.get(version);
@@ -51,15 +56,15 @@ export function CompareVersions({ siteId, versions, ctx }: Props) {
           poses(pair.b),
           apiGet("/api/sites/{site_id}/maps/compare", { site_id: siteId }, { a: pair.a, b: pair.b }),
         ]);
-        if (!cancelled) setLoaded({ a, b, stats });
+        if (!cancelled) setAnswer({ key, a, b, stats });
       } catch (e) {
-        if (!cancelled) setError(e instanceof ApiError ? e.message : String(e));
+        if (!cancelled) setFailure({ key, text: e instanceof ApiError ? e.message : String(e) });
       }
     })();
     return () => {
       cancelled = true;
     };
-  }, [on, pair, siteId]);
+  }, [on, pair, siteId, key]);
 
   const moved = useMemo(() => (loaded ? displacements(loaded.a, loaded.b) : []), [loaded]);
   const sorted = [...versions].sort((p, q) => q - p);

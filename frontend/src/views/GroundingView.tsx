@@ -77,6 +77,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
       setDrives(mapping);
       setDriveId((d) => d ?? mapping[0]?.id ?? null);
     })();
+    // both set state only after their requests resolve
+    // eslint-disable-next-line react-hooks/set-state-in-effect
     void loadVersion();
     void loadGroundings();
   }, [siteId, loadVersion, loadGroundings]);
@@ -112,12 +114,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
 
   useEffect(() => {
     if (!playing) return;
-    const last = keyframes[keyframes.length - 1];
-    if (frame !== null && frame === last) {
-      setPlaying(false);
-      return;
-    }
-    const timer = setTimeout(() => step(1), PLAY_STEP_MS);
+    const atLast = frame !== null && frame === keyframes[keyframes.length - 1];
+    const timer = setTimeout(() => (atLast ? setPlaying(false) : step(1)), atLast ? 0 : PLAY_STEP_MS);
     return () => clearTimeout(timer);
   }, [playing, frame, keyframes, step]);
 

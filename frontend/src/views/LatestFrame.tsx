@@ -12,10 +12,7 @@ export function LatestFrame({ vehicleId, seq }: { vehicleId: number; seq: number
   const urlRef = useRef<string | null>(null);
 
   useEffect(() => {
-    if (seq === undefined) {
-      setMissing(true); // no position yet, so no frame to ask for
-      return;
-    }
+    if (seq === undefined) return; // no position yet, so no frame to ask for
     let cancelled = false;
     const wait = Math.max(0, lastFetch.current + MIN_INTERVAL_MS - performance.now());
     const timer = window.setTimeout(async () => {
@@ -59,7 +56,9 @@ export function LatestFrame({ vehicleId, seq }: { vehicleId: number; seq: number
   );
 
   if (shown === null) {
-    return missing ? <p className="muted">No frame from this vehicle on this server yet.</p> : null;
+    return missing || seq === undefined ? (
+      <p className="muted">No frame from this vehicle on this server yet.</p>
+    ) : null;
   }
   return (
     <img

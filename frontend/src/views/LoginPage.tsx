@@ -23,7 +23,7 @@ export function LoginPage({ onLogin }: { onLogin: (me: Me) => void }) {
 
   return (
     <div className="shell" style={{ justifyContent: "center" }}>
-      <form className="login" onSubmit={submit} data-testid="login-form">
+      <form className="login" onSubmit={(e) => void submit(e)} data-testid="login-form">
         <h1>driftmap</h1>
         <div className="muted">Camera-only mapping for underground mines</div>
         <label htmlFor="username">User name</label>

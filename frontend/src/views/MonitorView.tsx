@@ -2,7 +2,7 @@
 // plan and in a list in confidence bands (with a legend); alerts for lost vehicles and obscured cameras; click
 // one for its details (VehicleDetails), place its known start (SetStart, surveyors and admins) and replay any
 // time range of it (ReplayPanel, ReplayLayer).
-import { useEffect, useMemo, useRef, useState } from "react";
+import { useEffect, useMemo, useState } from "react";
 import { apiGet, getToken } from "../api/client";
 import { MineMap } from "../map/MineMap";
 import { VehicleLayer } from "../map/VehicleLayer";
@@ -45,7 +45,8 @@ function ConfidenceLegend() {
 }
 
 export function MonitorView({ siteId, editable }: { siteId: number; editable: boolean }) {
-  const state = useRef(new LiveState());
+  // one long-lived model, mutated by the socket's messages; `version` below is what re-renders
+  const [state] = useState(() => new LiveState());
   const [version, setVersion] = useState(0);
   const [connection, setConnection] = useState<ConnectionState>("connecting");
   const [selectedId, setSelectedId] = useState<number | null>(null);
@@ -64,19 +65,19 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
     };
     const socket = new LiveSocket({
       url: liveUrl,
-      lastSeq: () => state.current.resumeSeq(),
+      lastSeq: () => state.resumeSeq(),
       onMessage: (m) => {
-        state.current.apply(m);
+        state.apply(m);
         bump();
       },
       onState: (s) => !cancelled && setConnection(s),
     });
-    (async () => {
+    void (async () => {
       try {
         const latest = await apiGet("/api/positions/latest");
         if (cancelled) return;
         const seq = Math.max(0, ...latest.map((v) => v.position?.seq ?? 0));
-        state.current.apply({ type: "snapshot", seq, stale_after_s: state.current.staleAfterS, vehicles: latest });
+        state.apply({ type: "snapshot", seq, stale_after_s: state.staleAfterS, vehicles: latest });
         bump();
       } catch {
         /* the WebSocket snapshot follows anyway */
@@ -87,10 +88,10 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
       cancelled = true;
       socket.stop();
     };
-  }, []);
+  }, [state]);
 
   const vehicles = useMemo(
-    () => state.current.sorted().filter((v) => v.siteId === siteId),
+    () => state.sorted().filter((v) => v.siteId === siteId),
     // eslint-disable-next-line react-hooks/exhaustive-deps
     [version, siteId],
   );

@@ -130,9 +130,10 @@ function ReplayPlayer({
 }) {
   const { clock, track } = session;
   const [, setFrame] = useState(0);
-  const last = useRef(performance.now());
+  const last = useRef(0);
 
   useEffect(() => {
+    last.current = performance.now();
     let raf = 0;
     let shown = 0;
     const tick = (now: number) => {
@@ -172,6 +173,8 @@ function ReplayPlayer({
           data-testid="replay-speed"
           value={String(clock.speed)}
           onChange={(e) => {
+            // the clock lives outside React (the map layer reads it every frame); the re-render is forced below
+            // eslint-disable-next-line react-hooks/immutability
             clock.speed = Number(e.target.value);
             setFrame((f) => f + 1);
           }}

@@ -29,10 +29,12 @@ export function useSetStart(vehicleId: number | null): SetStartControl {
   const [radiusText, setRadiusText] = useState(String(DEFAULT_START_RADIUS_M));
   const [result, setResult] = useState<StartResult | null>(null);
 
-  useEffect(() => {
+  const [forVehicle, setForVehicle] = useState(vehicleId);
+  if (forVehicle !== vehicleId) {
+    setForVehicle(vehicleId);
     setPlacing(false);
     setResult(null);
-  }, [vehicleId]);
+  }
 
   useEffect(() => {
     if (!placing) return;

@@ -1,6 +1,7 @@
 // The grounding workstation's edits through the API (create, delete, move), each recorded for undo and redo
 // (see lib/groundingEdits.ts). Edits name groundings by (drive, frame); the id is looked up when one is applied.
 import { useRef, useState } from "react";
+import { useLatest } from "../lib/useLatest";
 import { ApiError, apiDelete, apiPatch, apiPost, type Schemas } from "../api/client";
 import { EMPTY_HISTORY, describe, recorded, step, type EditHistory, type GroundingEdit } from "../lib/groundingEdits";
 
@@ -17,8 +18,7 @@ interface Options {
 
 export function useGroundingEdits({ groundings, reload, say }: Options) {
   const [history, setHistory] = useState<EditHistory>(EMPTY_HISTORY);
-  const current = useRef(groundings);
-  current.current = groundings;
+  const current = useLatest(groundings);
   const busy = useRef(false);
 
   const find = (driveId: number, frame: number): Grounding => {
