@@ -7,7 +7,7 @@ DEMO_DIR ?= data/demo
 DEMO_SEED ?= 7
 DEMO_PORT ?= 8000
 
-.PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test system-packages
+.PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test frontend-lint frontend-api system-packages
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,15 @@ frontend: frontend/node_modules/.installed
 
 frontend-test: frontend
 	cd frontend && npm test -- --run
+
+# ESLint and Prettier over frontend/, then src/api/schema.d.ts against the app's OpenAPI (the app's own schema,
+# dumped with the venv's Python; `make frontend-api` regenerates the file).
+frontend-lint: frontend/node_modules/.installed $(VENV)/.installed-dev
+	cd frontend && npm run lint
+	cd frontend && PYTHON=$(abspath $(BIN)/python) npm run check:api
+
+frontend-api: frontend/node_modules/.installed $(VENV)/.installed-run
+	cd frontend && PYTHON=$(abspath $(BIN)/python) npm run gen:api
 
 # Debian packages the tests run against: chromium for the browser end-to-end tests (tests/e2e),
 # redis-server for the job queue and live hub on Redis, postgresql for the PostgreSQL run of the suite and the
@@ -74,7 +83,7 @@ pytest: $(VENV)/.installed-dev frontend system-packages
 	$(BIN)/pytest -q --database sqlite
 	$(BIN)/pytest -q --database postgresql -m "not topology"
 
-test: lint typecheck imports frontend-test pytest
+test: lint typecheck imports frontend-lint frontend-test pytest
 
 BENCHES := bench_import bench_simulate bench_sad kitti_odometry bench_loops bench_posegraph bench_topomap bench_mapping \
 	bench_localise vpr_outside bench_survey_layers bench_live bench_ui
