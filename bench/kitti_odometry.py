@@ -16,7 +16,7 @@ Two more columns split each final error by its source, step by step against the 
 translations with the true heading changes (the two add roughly in quadrature).
 
 Writes a plot of estimated against true trajectories to ``bench/out/kitti_odometry.png`` and copies
-it to ``docs/kitti_odometry.png``. Ground truth positions are the camera's floor point, as ours.
+it to ``docs/evaluation/kitti_odometry.png``. Ground truth positions are the camera's floor point, as ours.
 
 Usage: ``.venv/bin/python bench/kitti_odometry.py [--data ../shared/data/kitti]``
 """
@@ -110,7 +110,7 @@ def main() -> None:
                 f"{np.median(run.ms_per_step):>8.0f} {run.horizon_offset_px:>10.1f} {run.lever_m:>6.2f}{flag}"
             )
     plot(results, truths, args.out)
-    docs = ROOT / "docs" / "kitti_odometry.png"
+    docs = ROOT / "docs" / "evaluation" / "kitti_odometry.png"
     docs.parent.mkdir(exist_ok=True)
     shutil.copyfile(args.out, docs)
     print(f"plot: {args.out} (copied to {docs.relative_to(ROOT)})")

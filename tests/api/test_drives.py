@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -18,23 +17,12 @@ from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, Frame, Grounding
 from driftmap.store.storage import Storage
 from tests.api.data_helpers import ApiUsers, api_users, create_site_with_survey, upload_zip
-from tests.jobs.mini_site import drive_folders, mini_site_dir, zip_folder
-
-
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
-
-
-@pytest.fixture
-def users(settings: Settings) -> Iterator[ApiUsers]:
-    made = api_users(settings)
-    yield made
-    made.client.close()
+from tests.jobs.mini_site import drive_folders, zip_folder
 
 
 @pytest.fixture
 def site_id(users: ApiUsers, mini_site: Path) -> int:
+    """Unlike the shared ``site_id``: a site made through the API with the survey only, no drives yet."""
     return create_site_with_survey(users, mini_site)
 
 

@@ -2,35 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
-import pytest
 
-from driftmap.config import Settings
 from driftmap.formats.csv_exports import parse_groundings_csv
-from tests.api.data_helpers import ApiUsers, api_users
-from tests.jobs.mini_site import mini_site_dir
-from tests.sim_site import import_site
-
-
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
-
-
-@pytest.fixture
-def users(settings: Settings) -> Iterator[ApiUsers]:
-    made = api_users(settings)
-    yield made
-    made.client.close()
-
-
-@pytest.fixture
-def site_id(users: ApiUsers, mini_site: Path) -> int:
-    import_site(users.storage, mini_site, name="tiny", kinds=("mapping", "localisation"))
-    return int(users.get("/api/sites")["items"][0]["id"])
+from tests.api.data_helpers import ApiUsers
 
 
 def _drives(users: ApiUsers, site_id: int, kind: str) -> list[dict[str, object]]:

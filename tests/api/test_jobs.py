@@ -35,18 +35,14 @@ from tests.api.data_helpers import (
     stop_worker,
     upload_zip,
 )
-from tests.jobs.mini_site import drive_folders, mini_site_dir, zip_folder
+from tests.jobs.mini_site import drive_folders, zip_folder
 from tests.redis_server import running_redis
 from tests.sim_site import import_site
 
 
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
-
-
 @pytest.fixture
 def users(settings: Settings) -> Iterator[ApiUsers]:
+    """Unlike the shared ``users``: jobs wait in the data dir's queue for a ``driftmap worker`` process."""
     made = api_users(settings, immediate=False)
     yield made
     made.client.close()

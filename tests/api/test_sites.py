@@ -2,26 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-
-from driftmap.config import Settings
-from tests.api.data_helpers import ApiUsers, api_users, create_site_with_survey, upload_zip
-from tests.jobs.mini_site import drive_folders, mini_site_dir, zip_folder
-
-
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return mini_site_dir(tmp_path_factory)
-
-
-@pytest.fixture
-def users(settings: Settings) -> Iterator[ApiUsers]:
-    made = api_users(settings)
-    yield made
-    made.client.close()
+from tests.api.data_helpers import ApiUsers, create_site_with_survey, upload_zip
+from tests.jobs.mini_site import drive_folders, zip_folder
 
 
 class TestSiteCrud:

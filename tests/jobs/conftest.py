@@ -1,9 +1,9 @@
-"""Fixtures of the job tests: the mini site, a job runtime on the test's storage, and its queues."""
+"""Fixtures of the job tests: a job runtime on the test's storage, and its queues (``mini_site`` is in
+tests/conftest.py)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -11,13 +11,6 @@ from driftmap.config import Settings
 from driftmap.jobs.queue import JobQueue
 from driftmap.jobs.runtime import JobRuntime
 from driftmap.store.storage import Storage
-from tests.jobs.mini_site import mini_site_dir
-
-
-@pytest.fixture(scope="session")
-def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The mini simulated site (100 frames per drive), made once per test process."""
-    return mini_site_dir(tmp_path_factory)
 
 
 @pytest.fixture

@@ -25,6 +25,8 @@ from driftmap.services.localisation import RecordedDrive
 from driftmap.store.storage import Storage
 from tests.localisation_site import SITE, tiny_map_settings
 
+pytestmark = pytest.mark.db  # reads the session's stored tiny map (tests/localisation_site.py)
+
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 MIN_HMM_AUC = 0.7  # HMM methods on the tiny site's clean drive
 MAX_MATCHED_ERROR_M = 5.0  # mean node-centre error of the HMM's matched frames, metres

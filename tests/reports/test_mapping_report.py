@@ -21,7 +21,8 @@ GAIN_OVER_ODOMETRY = 3.0  # the full system is far better than odometry alone
 @pytest.fixture(scope="module")
 def report(small_site_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> MappingReport:
     out = tmp_path_factory.mktemp("mapping-report")
-    storage = Storage.open(Settings(data_dir=out / "data"))
+    # the report reads its drives through a store: the embedded SQLite file on every run (not a db test)
+    storage = Storage.open(Settings(data_dir=out / "data", database_url=None))
     try:
         import_site(storage, small_site_dir, "small")
         with storage.db.session() as session:

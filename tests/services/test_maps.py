@@ -15,7 +15,6 @@ from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.models import Drive, Frame, Grounding, MapNode, MapNodeFrame, MapPose, MapVersion
 from driftmap.store.storage import Storage
-from tests.jobs.mini_site import mini_site_dir
 from tests.sim_site import import_site
 
 MAP_ERROR_TOLERANCE_M = 3.0  # mean distance to truth of the tiny site's optimised map, metres
@@ -101,9 +100,9 @@ class TestBuild:
 
 class TestWorkerProcesses:
     def test_drives_prepared_in_worker_processes_give_the_same_version(
-        self, storage: Storage, tmp_path_factory: pytest.TempPathFactory
+        self, storage: Storage, mini_site: Path
     ) -> None:
-        import_site(storage, mini_site_dir(tmp_path_factory))
+        import_site(storage, mini_site)
         versions = []
         for workers in (1, 2):  # 2: two spawned processes open the same SQLite file and blob store
             with storage.blobs.batch() as batch, storage.db.session() as session:
