@@ -1,4 +1,4 @@
-"""The CSV files driftmap writes and reads besides ``frames.csv`` (``shared/formats.md``).
+"""The CSV files driftmap writes and reads besides ``frames.csv`` (``docs/formats.md``).
 
 Each table has a ``*_text`` serialiser, a ``write_*`` that writes atomically, and a ``parse_*``/``read_*``
 pair that validates (header, cell count, types, finite numbers) and raises :class:`BadInputError`

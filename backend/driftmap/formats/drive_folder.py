@@ -1,4 +1,4 @@
-"""Reading and writing a drive folder (``shared/formats.md``)::
+"""Reading and writing a drive folder (``docs/formats.md``)::
 
     <drive>/drive.json  frames.csv  frames/000000.png ...  [groundings.csv]
 

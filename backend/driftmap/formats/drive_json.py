@@ -1,4 +1,4 @@
-"""``drive.json`` and the ``camera`` block it shares with video calibration files (``shared/formats.md``).
+"""``drive.json`` and the ``camera`` block it shares with video calibration files (``docs/formats.md``).
 
 Parsing is strict about what the format names (types, ranges, the format string) and ignores keys it
 does not know. JSON errors and bad values name the file, the 1-based line and the key.

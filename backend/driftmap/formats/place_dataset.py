@@ -1,4 +1,4 @@
-"""A place-recognition dataset folder (``shared/formats.md``)::
+"""A place-recognition dataset folder (``docs/formats.md``)::
 
     <dataset>/db/      reference images (any names; sorted name order = route order)
     <dataset>/query/   query images

@@ -1,4 +1,4 @@
-"""Image folders of place-recognition data (``shared/formats.md``): list, decode, check sizes, read gt.
+"""Image folders of place-recognition data (``docs/formats.md``): list, decode, check sizes, read gt.
 
 A folder given to ``driftmap vpr match`` (``--db`` or ``--query``) holds images in any of
 :data:`driftmap.formats.place_dataset.IMAGE_SUFFIXES`; sorted name order is route (or traversal) order.

@@ -1,4 +1,4 @@
-"""Plain records of one drive as the drive-folder format carries it (``shared/formats.md``).
+"""Plain records of one drive as the drive-folder format carries it (``docs/formats.md``).
 
 These are what the readers return and the writers take; the store and the simulator use them too.
 Units: seconds, metres, radians; positions in the survey frame (x east, y north).

@@ -1,4 +1,4 @@
-"""The site survey plan: a DXF in mine-grid plane metres (``shared/formats.md``), parsed into layers.
+"""The site survey plan: a DXF in mine-grid plane metres (``docs/formats.md``), parsed into layers.
 
 Every drawable entity becomes a GeoJSON-like feature in plane metres (x east, y north, z dropped):
 

@@ -1,4 +1,4 @@
-"""Small CSV tables with a fixed header, as every driftmap CSV is (``shared/formats.md``).
+"""Small CSV tables with a fixed header, as every driftmap CSV is (``docs/formats.md``).
 
 Reading keeps 1-based line numbers (the header is line 1) so that every error names the file, the line
 and the column. Numbers are parsed strictly: decimal notation only, finite values only (no ``nan``,

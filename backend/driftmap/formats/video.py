@@ -1,6 +1,6 @@
 """A drive recorded as a video file (mp4, avi, anything OpenCV's FFmpeg backend reads) plus a calibration.
 
-The calibration JSON holds the ``camera`` block of ``drive.json`` (``shared/formats.md``), either as the
+The calibration JSON holds the ``camera`` block of ``drive.json`` (``docs/formats.md``), either as the
 whole object or under a ``"camera"`` key, and an optional ``"fps"`` that overrides the frame rate the
 video container claims. Frames become PNG files: grey when the video is grey, colour otherwise.
 

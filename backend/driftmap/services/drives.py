@@ -77,7 +77,7 @@ def import_drive(
         session: open session; the caller commits.
         batch: tracks new blobs so that the caller can remove them if the import fails.
         site: the site receiving the drive.
-        path: a drive folder (``shared/formats.md``) or an mp4/avi/mov/mkv video file.
+        path: a drive folder (``docs/formats.md``) or an mp4/avi/mov/mkv video file.
         progress: called with the fraction of frames done, 0..1.
         calibration: for a video, the JSON file with the camera block (required).
         name: for a video, the drive name (default: the file stem).

@@ -4,7 +4,7 @@ Output layout::
 
     OUT/survey.dxf            the surveyed map (layers WALLS, CENTRELINE, DRAWPOINTS, LABELS)
     OUT/site.json             summary: seed, size, tunnel length, graph, drives (format driftmap-sim-site/1)
-    OUT/drives/<name>/        drive folders (shared/formats.md) with ground truth
+    OUT/drives/<name>/        drive folders (docs/formats.md) with ground truth
         map-01, map-02, ...   mapping drives (one per face of the centreline graph), with groundings.csv
         loc-01, loc-02, ...   localisation drives (LHD duty cycles)
         loc-01-dust1, ...     obscured copies of each localisation drive (dust1, dust2, water1, water2)

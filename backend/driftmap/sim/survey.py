@@ -1,4 +1,4 @@
-"""The surveyed mine map of a synthetic site as a DXF (``shared/formats.md``: site survey map).
+"""The surveyed mine map of a synthetic site as a DXF (``docs/formats.md``: site survey map).
 
 Layers: WALLS (closed LWPOLYLINE per wall ring), CENTRELINE (LWPOLYLINE per graph edge), DRAWPOINTS
 (POINT and a 1 m CIRCLE at each drawpoint face and the dump), LABELS (TEXT: drawpoint names, DUMP,
