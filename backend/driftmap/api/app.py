@@ -20,6 +20,7 @@ from driftmap.api.hub import InMemoryHub, LiveHub, RedisHub
 from driftmap.api.latest_frames import LatestFrames, MemoryFrames, RedisFrames
 from driftmap.api.live_service import LiveService
 from driftmap.api.routes import ROUTERS
+from driftmap.api.schemas_live import add_to_openapi
 from driftmap.config import Settings, get_settings
 from driftmap.errors import DriftmapError
 from driftmap.services.security import secret_key
@@ -61,6 +62,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
     for router in ROUTERS:
         app.include_router(router, prefix="/api")
+    add_to_openapi(app)  # the /api/live messages (FastAPI documents no WebSocket)
     if FRONTEND_DIST.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIST, html=True), name="ui")
     return app

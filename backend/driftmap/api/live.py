@@ -12,7 +12,8 @@ message is one frame: ``t`` as an 8-byte big-endian IEEE float64 (seconds), then
 server answers each frame with one JSON text message, a FrameEstimate, or ``{"status": "error", "t",
 "code", "detail", "field"}`` for a frame it cannot use (the stream stays open).
 
-``/api/live`` (WebSocket, any logged-in user; ``?token=`` for browsers without the cookie): first
+``/api/live`` (WebSocket, any logged-in user; ``?token=`` for browsers without the cookie; the messages are
+the models of :mod:`driftmap.api.schemas_live`, in the OpenAPI components as ``LiveMessage``): first
 ``{"type": "snapshot", "seq", "stale_after_s", "vehicles": [...]}``, every vehicle with its last position;
 with ``?since=SEQ`` then every ``{"type": "position", ...}`` after SEQ up to the snapshot (to resume after a
 reconnect); then live ``position`` messages, and ``{"type": "stale", "vehicle_id", "received_at"}`` when a
@@ -42,7 +43,8 @@ from driftmap.api.deps import (
 )
 from driftmap.api.error_handlers import error_body, status_of
 from driftmap.api.live_service import LiveService, position_message
-from driftmap.api.schemas_access import FrameEstimate
+from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
+from driftmap.api.schemas_live import LiveSnapshot, LiveStale
 from driftmap.errors import BadRequestError, DriftmapError, NotFoundError, PayloadTooLargeError
 from driftmap.services import positions as position_service
 from driftmap.services import vehicles as vehicle_service
@@ -194,23 +196,14 @@ async def vehicle_stream(websocket: WebSocket, vehicle_id: int) -> None:
             await asyncio.gather(*pending, return_exceptions=True)
 
 
-def _snapshot(websocket: WebSocket) -> tuple[dict[str, Any], int]:
+def _snapshot(websocket: WebSocket) -> LiveSnapshot:
     storage = websocket.app.state.storage
     stale_after_s = websocket.app.state.settings.stale_after_s
     with storage.db.session() as session:
         seq = position_service.last_seq(session)
         vehicles = position_service.latest(session, stale_after_s)
-    rows = [
-        {
-            "vehicle_id": v.vehicle_id,
-            "vehicle": v.vehicle,
-            "site_id": v.site_id,
-            "stale": v.stale,
-            "position": position_message(v.position) if v.position is not None else None,
-        }
-        for v in vehicles
-    ]
-    return {"type": "snapshot", "seq": seq, "stale_after_s": stale_after_s, "vehicles": rows}, seq
+    rows = [VehicleLatestRead.model_validate(v) for v in vehicles]
+    return LiveSnapshot(seq=seq, stale_after_s=stale_after_s, vehicles=rows)
 
 
 def _since(websocket: WebSocket, seq: int, upto: int | None = None) -> list[dict[str, Any]]:
@@ -229,13 +222,13 @@ async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
     subscription = live.hub.subscribe()
     receiver = asyncio.create_task(_until_disconnect(websocket))
     try:
-        snapshot, floor = await asyncio.to_thread(_snapshot, websocket)
-        await websocket.send_json(snapshot)
-        heard: dict[int, datetime] = {}
-        for row in snapshot["vehicles"]:
-            if row["position"] is not None:
-                heard[row["vehicle_id"]] = datetime.fromisoformat(row["position"]["received_at"])
-        stale = {row["vehicle_id"] for row in snapshot["vehicles"] if row["stale"]}
+        snapshot = await asyncio.to_thread(_snapshot, websocket)
+        floor = snapshot.seq
+        await websocket.send_json(snapshot.model_dump(mode="json"))
+        heard: dict[int, datetime] = {
+            row.vehicle_id: row.position.received_at for row in snapshot.vehicles if row.position is not None
+        }
+        stale = {row.vehicle_id for row in snapshot.vehicles if row.stale}
         if since is not None:
             for message in await asyncio.to_thread(_since, websocket, since, floor):
                 await websocket.send_json(message)
@@ -263,7 +256,7 @@ async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
                 if vehicle_id not in stale and (now - as_utc(at)).total_seconds() > stale_after_s:
                     stale.add(vehicle_id)
                     await websocket.send_json(
-                        {"type": "stale", "vehicle_id": vehicle_id, "received_at": at.isoformat()}
+                        LiveStale(vehicle_id=vehicle_id, received_at=at).model_dump(mode="json")
                     )
     except (WebSocketDisconnect, RuntimeError):
         pass

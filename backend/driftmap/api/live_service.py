@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 
 from driftmap.api.hub import InMemoryHub, LiveHub, Message
 from driftmap.api.latest_frames import LatestFrames, MemoryFrames
+from driftmap.api.schemas_live import LivePosition
 from driftmap.config import Settings
 from driftmap.formats.frame_images import check_complete
 from driftmap.services.live import FrameOutcome, FrameStatus
@@ -60,35 +61,8 @@ class _Lane:
 
 
 def position_message(view: PositionView) -> Message:
-    """The ``/api/live`` message of one position (the fields of
-    :class:`~driftmap.api.schemas_access.PositionRead`, ``type`` and ``stale``)."""
-    return {
-        "type": "position",
-        "seq": view.seq,
-        "vehicle_id": view.vehicle_id,
-        "vehicle": view.vehicle,
-        "site_id": view.site_id,
-        "t": view.t,
-        "node": view.node,
-        "x": view.x,
-        "y": view.y,
-        "yaw": view.yaw,
-        "speed_mps": view.speed_mps,
-        "moving": view.moving,
-        "odometry": view.odometry,
-        "confidence": view.confidence,
-        "matched": view.matched,
-        "lost": view.lost,
-        "map_version": view.map_version,
-        "received_at": view.received_at.isoformat(),
-        "stale": False,
-        "obscured": view.obscured,
-        "obscured_reason": view.obscured_reason,
-        "salient": view.salient,
-        "sharpness": view.sharpness,
-        "speckle": view.speckle,
-        "flat_area": view.flat_area,
-    }
+    """The ``/api/live`` message of one position (a :class:`~driftmap.api.schemas_live.LivePosition`)."""
+    return LivePosition.model_validate(view).model_dump(mode="json")
 
 
 def _view(outcome: FrameOutcome) -> PositionView:

@@ -1971,6 +1971,109 @@ export interface components {
             /** Token */
             token: string;
         };
+        /**
+         * LiveMessage
+         * @description One message of the ``/api/live`` WebSocket, told apart by ``type``.
+         */
+        LiveMessage: components["schemas"]["LiveSnapshot"] | components["schemas"]["LivePosition"] | components["schemas"]["LiveStale"];
+        /**
+         * LivePosition
+         * @description A vehicle's new position.
+         */
+        LivePosition: {
+            /** Obscured */
+            obscured?: boolean | null;
+            /** Obscured Reason */
+            obscured_reason?: string | null;
+            /** Salient */
+            salient?: number | null;
+            /** Sharpness */
+            sharpness?: number | null;
+            /** Speckle */
+            speckle?: number | null;
+            /** Flat Area */
+            flat_area?: number | null;
+            /** Seq */
+            seq: number;
+            /** Vehicle Id */
+            vehicle_id: number;
+            /** Vehicle */
+            vehicle: string;
+            /** Site Id */
+            site_id: number;
+            /** T */
+            t: number;
+            /** Node */
+            node: number;
+            /** X */
+            x: number;
+            /** Y */
+            y: number;
+            /** Yaw */
+            yaw: number | null;
+            /** Speed Mps */
+            speed_mps?: number | null;
+            /** Moving */
+            moving?: boolean | null;
+            /**
+             * Odometry
+             * @default false
+             */
+            odometry: boolean;
+            /** Confidence */
+            confidence: number;
+            /** Matched */
+            matched: boolean;
+            /** Lost */
+            lost: boolean;
+            /** Map Version */
+            map_version: number | null;
+            /**
+             * Received At
+             * Format: date-time
+             */
+            received_at: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "position";
+        };
+        /**
+         * LiveSnapshot
+         * @description The first message: every vehicle with its last position (the rows of ``GET /api/positions/latest``).
+         */
+        LiveSnapshot: {
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "snapshot";
+            /** Seq */
+            seq: number;
+            /** Stale After S */
+            stale_after_s: number;
+            /** Vehicles */
+            vehicles: components["schemas"]["VehicleLatestRead"][];
+        };
+        /**
+         * LiveStale
+         * @description A vehicle stopped reporting for ``stale_after_s``.
+         */
+        LiveStale: {
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "stale";
+            /** Vehicle Id */
+            vehicle_id: number;
+            /**
+             * Received At
+             * Format: date-time
+             */
+            received_at: string;
+        };
     };
     responses: never;
     parameters: never;

@@ -8,6 +8,7 @@ const position = (seq: number, t: number, x: number, y: number, yaw: number | nu
   site_id: 1,
   t,
   node: 1,
+  odometry: false,
   x,
   y,
   yaw,

@@ -17,6 +17,7 @@ function position(
     site_id: 1,
     t,
     node: 1,
+    odometry: false,
     x,
     y: 0,
     yaw: 0,

@@ -8,6 +8,7 @@ const position = (seq: number, id: number, t: number, extra: Partial<PositionMsg
   site_id: 1,
   t,
   node: 1,
+  odometry: false,
   x: 0,
   y: 0,
   yaw: null,

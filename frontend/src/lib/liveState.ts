@@ -1,51 +1,15 @@
 // The monitoring view's model of the fleet, fed by /api/positions/latest and /api/live messages.
 
-export interface PositionMsg {
-  seq: number;
-  vehicle_id: number;
-  vehicle: string;
-  site_id: number;
-  t: number;
-  node: number;
-  /** Survey-frame metres east and north: continuous along the tunnels. */
-  x: number;
-  y: number;
-  /** Heading, radians counter-clockwise from east (survey frame); null when unknown. */
-  yaw: number | null;
-  /** Speed from the camera odometry, m/s (negative: reversing); null (or absent, older servers) when unknown. */
-  speed_mps?: number | null;
-  /** Whether the vehicle moves; null (or absent) when unknown. */
-  moving?: boolean | null;
-  /** The vehicle's camera odometry was used; false: appearance-only localisation (absent: not said). */
-  odometry?: boolean;
-  /** Calibrated probability, 0-1, that the position is right. */
-  confidence: number;
-  /** The confidence reaches the server's threshold and the vehicle is not lost. */
-  matched: boolean;
-  lost: boolean;
-  map_version: number | null;
-  received_at: string;
-  /** The camera looks obscured (dust or water on the lens, or a covered lens), judged by the server. */
-  obscured?: boolean | null;
-  obscured_reason?: string | null;
-  salient?: number | null;
-  sharpness?: number | null;
-  speckle?: number | null;
-  flat_area?: number | null;
-}
+import type { Schemas } from "../api/client";
 
-export interface VehicleRow {
-  vehicle_id: number;
-  vehicle: string;
-  site_id: number;
-  stale: boolean;
-  position: PositionMsg | null;
-}
+/** One stored position of a vehicle (``/api/positions/latest`` rows, the ``/api/live`` position messages). */
+export type PositionMsg = Schemas["PositionRead"];
 
-export type LiveMessage =
-  | { type: "snapshot"; seq: number; stale_after_s: number; vehicles: VehicleRow[] }
-  | ({ type: "position" } & PositionMsg)
-  | { type: "stale"; vehicle_id: number; received_at: string };
+/** A vehicle with its last position and stale flag (a row of ``/api/positions/latest`` and the snapshot). */
+export type VehicleRow = Schemas["VehicleLatestRead"];
+
+/** One ``/api/live`` message: ``snapshot``, ``position`` or ``stale`` (the server's models, generated types). */
+export type LiveMessage = Schemas["LiveMessage"];
 
 export interface TrailPoint {
   x: number;
