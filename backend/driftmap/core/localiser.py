@@ -266,7 +266,7 @@ class Localiser:
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
         raw = 0.0 if reported_lost else score * distinct
         confidence = 0.0 if reported_lost else hmm.calibrated(raw, p.calibration)
-        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, raw, still)
+        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, raw, still, s.node)
         if disagree:
             confidence = 0.0
         elif reported_lost and motion is not None and track.trusted:
@@ -342,6 +342,7 @@ class Localiser:
         best: int,
         raw: float,
         still: bool,
+        last_node: int = -1,
     ) -> tuple[TrackState, bool, bool]:
         """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre unless the
         frame is lost (``raw``, the uncalibrated ``score x distinct``, is 0), kept on the mapped tunnels around it
@@ -353,16 +354,28 @@ class Localiser:
         disagree = False
         if raw > 0.0 or not track.has_position:  # a lost frame's b(i) says nothing
             confident = raw >= tp.fix_min_confidence
+            travel_m = None if motion is None else abs(motion.dx_m)
             track, disagree = localiser_track.correct(
-                track, lm.centres_m[best], confident, motion is not None, tp
+                track, lm.centres_m[best], confident, motion is not None, tp, travel_m
             )
         if motion is not None:
             moving = not motion.stationary and abs(motion.dx_m) > tp.moving_mps * max(gap_s, 1e-3)
+            if (
+                moving
+                and raw > 0.0
+                and 0 <= last_node != best
+                and best in self._near(last_node, tp.check_step_m)
+            ):
+                sign = math.copysign(1.0, motion.dx_m)
+                track = localiser_track.check_heading(
+                    track, lm.centres_m[last_node], lm.centres_m[best], sign, tp
+                )
         else:
             moving = not still
         around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
         edges = lm.edges_near(np.r_[around, self._near(around, tp.snap_radius_m)])
-        return localiser_track.snap(track, lm.centres_m, edges, moving, tp), moving, disagree
+        snapped = localiser_track.snap(track, lm.centres_m, edges, moving, tp, steered=motion is not None)
+        return snapped, moving, disagree
 
     def _judge(
         self, best: int, compared: I64, d_all: NDArray[np.floating], far_m: float

@@ -9,19 +9,26 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
   ``free_speed_mps`` x the gap (a random walk), and heading is held.
 * **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i) of a frame that is not lost,
-  pulls the position with the Kalman gain ``var / (var + fix_sigma_m^2)`` (a node centre is within half a
-  node spacing of the vehicle: ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). A fix further
+  pulls the position with the Kalman gain ``var / (var + r)``, ``r = fix_sigma_m^2`` (a node centre is within
+  half a node spacing of the vehicle: ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). The
+  frames of one node give the same fix over and over, so with odometry a frame's fix counts as the share
+  ``travel / fix_spacing_m`` of an independent one (``r`` divided by it): none while the vehicle stands,
+  which would otherwise pull it to the centre of the node it stands in. A fix further
   than ``gate_m`` plus three standard deviations from the track re-anchors it there (a relocation, a
   restart; the heading becomes unknown again), unless the track is dead-reckoned by odometry and trusted (a
   confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
   (at most ``max_hold_frames`` in a row) and the frame, whose place and track disagree, gets no confidence.
 * **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
-  between directly driven node centres) around it when it lies beside one within ``snap_max_m``, so
+  between directly driven node centres) around it when it lies beside one within ``snap_max_m`` (with
+  odometry, only onto edges within ``snap_max_turn_rad`` of the measured heading: a vehicle turning into a
+  drawpoint or stub the map has no edge for leaves the tunnel it crossed), so
   positions and trails stay in the tunnels (past the end of every edge, at a dead end or a gap in the
   mapped edges, it is left as dead-reckoned); the
   heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
 * **heading**: an unknown heading (after an anchor) is set, once the vehicle moves beside a mapped edge, to
-  one of the edge's two directions; while moving, the fixes' innovations along the direction of travel are
+  one of the edge's two directions, and checked (:func:`check_heading`) when b(i) next steps to a
+  neighbouring node while odometry says the vehicle moves: a heading whose way of travel points against the
+  step is turned by pi. While moving, the fixes' innovations along the direction of travel are
   summed with decay (``flip_memory``): a heading the wrong way round makes the prediction run away from the
   fixes, the sum falls below ``-flip_m`` within a few frames and the heading is turned by pi. A right heading
   only sees the fixes' small lag; after a reversal the position variance is raised so the fixes pull the
@@ -42,7 +49,7 @@ from numpy.typing import NDArray
 from driftmap.core.odometry import compose
 from driftmap.core.odometry_step import OdometryStep
 
-__all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "correct", "predict", "snap"]
+__all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "check_heading", "correct", "predict", "snap"]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -67,6 +74,11 @@ class TrackParams:
     snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
     snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
     max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
+    check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path) checks a new heading's way
+    snap_max_turn_rad: float = 0.6  # ... and only to edges within this of the track's heading (either way)
+    fix_spacing_m: float = (
+        5.0  # with odometry, consecutive fixes are one independent fix per this much travel
+    )
 
     def __post_init__(self) -> None:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m"):
@@ -93,6 +105,9 @@ class TrackState:
             direction of travel, metres (negative: the fixes keep pulling the track back).
         trusted: a confident fix (or a known start) has confirmed the track since it was anchored; only a
             trusted dead-reckoned track holds its course against a doubtful far fix.
+        held: doubtful far fixes held against in a row.
+        heading_checked: the heading, one of an edge's two ways when it was set, has been checked against
+            the way b(i) stepped to a neighbouring node (:func:`check_heading`).
     """
 
     wT: F64
@@ -101,6 +116,7 @@ class TrackState:
     flip_m: float
     trusted: bool = False
     held: int = 0
+    heading_checked: bool = False
 
     @classmethod
     def empty(cls) -> TrackState:
@@ -122,17 +138,26 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(8,) float64 packed for the localiser's stored state."""
-        packed = np.r_[self.wT, self.var_m2, self.speed_mps, self.flip_m, float(self.trusted), self.held]
+        """(9,) float64 packed for the localiser's stored state."""
+        packed = np.r_[
+            self.wT,
+            self.var_m2,
+            self.speed_mps,
+            self.flip_m,
+            float(self.trusted),
+            self.held,
+            float(self.heading_checked),
+        ]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays` (anything but 8 values: no track)."""
+        """Inverse of :meth:`to_arrays` (8 values: stored before the heading check; other sizes: no track)."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size != 8:
+        if a.size not in (8, 9):
             return cls.empty()
-        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]))
+        checked = bool(a[8]) if a.size == 9 else True
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]), checked)
 
 
 def _wrap(angle_rad: float) -> float:
@@ -163,7 +188,12 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
 
 
 def correct(
-    state: TrackState, fix_m: F64, confident: bool, dead_reckoned: bool, params: TrackParams
+    state: TrackState,
+    fix_m: F64,
+    confident: bool,
+    dead_reckoned: bool,
+    params: TrackParams,
+    travel_m: float | None = None,
 ) -> tuple[TrackState, bool]:
     """Fuse the place fix (2,) ``fix_m`` (survey metres, b(i)'s centre of a frame not lost) into the track.
 
@@ -173,12 +203,19 @@ def correct(
     row (then the place recognition, consistently elsewhere, wins). The first fix anchors a track that has
     none.
 
+    ``travel_m`` is the distance driven since the last frame by odometry (None without odometry: every
+    frame's fix counts whole).
+
     Returns:
         The new track, and whether it disagrees with the fix (a doubtful far fix was not followed: the
         position reported is the track's, and the frame gets no confidence).
     """
     fix = np.asarray(fix_m, dtype=np.float64)
     r2 = params.fix_sigma_m**2
+    # the fixes of consecutive frames are one node's centre over and over: with odometry they count as one
+    # independent fix per fix_spacing_m driven (none while standing), else each frame's fix is pulled
+    # towards many times and the track drifts to the centre of the node it stands in
+    r2_pull = r2 if travel_m is None else r2 * params.fix_spacing_m / max(travel_m, 1e-9)
     if not state.has_position:
         return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident), False
     off = float(np.hypot(*(fix - state.wT[:2])))
@@ -188,7 +225,7 @@ def correct(
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
         return replace(anchored, speed_mps=state.speed_mps), False
     state = replace(state, trusted=state.trusted or confident, held=0)
-    gain = state.var_m2 / (state.var_m2 + r2)
+    gain = state.var_m2 / (state.var_m2 + max(r2_pull, r2))
     wT = state.wT.copy()
     innovation = fix - wT[:2]
     wT[:2] += gain * innovation
@@ -202,11 +239,47 @@ def correct(
     return replace(state, wT=wT, var_m2=var, flip_m=flip), False
 
 
-def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, float] | None:
+def check_heading(
+    state: TrackState, from_m: F64, to_m: F64, travel_sign: float, params: TrackParams
+) -> TrackState:
+    """Check an unchecked heading against b(i)'s step from the node centred at (2,) ``from_m`` to a
+    neighbour centred at ``to_m`` (survey metres) while the vehicle drove forwards (``travel_sign`` +1) or
+    backwards (-1): a heading whose way of travel points against the step is turned by pi and the position
+    variance raised, as a flip (:func:`correct`), so the fixes pull back what it ran the wrong way.
+
+    An edge gives a heading up to its two ways; waiting for the fixes' innovations to say it is the wrong
+    one takes a dozen frames of running the wrong way, one node step settles it. Only the first step after
+    the heading was set counts (later, b(i) lagging a node behind would look like a step backwards).
+    """
+    if state.heading_checked or not state.has_heading or travel_sign == 0.0:
+        return state
+    step = np.asarray(to_m, dtype=np.float64) - np.asarray(from_m, dtype=np.float64)
+    if not np.any(step):
+        return state
+    ahead = travel_sign * np.array([math.cos(state.wT[2]), math.sin(state.wT[2])])
+    if float(ahead @ step) >= 0.0:
+        return replace(state, heading_checked=True)
+    wT = state.wT.copy()
+    wT[2] = _wrap(wT[2] + math.pi)
+    var = max(state.var_m2, (2.0 * params.fix_sigma_m) ** 2)
+    return replace(state, wT=wT, var_m2=var, flip_m=0.0, heading_checked=True)
+
+
+def _axial_rad(a_rad: F64 | float, b_rad: F64 | float) -> F64:
+    """|a - b| between two undirected directions, radians in [0, pi/2]."""
+    d = np.abs(np.arctan2(np.sin(np.asarray(a_rad) - b_rad), np.cos(np.asarray(a_rad) - b_rad)))
+    return np.asarray(np.minimum(d, np.pi - d), dtype=np.float64)
+
+
+def _nearest_on_edges(
+    xy: F64, centres_m: F64, edges: I64, heading_rad: float = math.nan, max_turn_rad: float = math.pi
+) -> tuple[F64, float, float] | None:
     """The nearest point to ``xy`` on one of the segments ``edges`` (K, 2) of ``centres_m``
     (its foot of the perpendicular), its distance and the segment's direction (radians); None when ``xy``
     lies beside no segment (past the end of every one: a dead end, or a gap in the mapped edges, where
-    pulling it back to the end would stop it)."""
+    pulling it back to the end would stop it). With a finite ``heading_rad`` only segments whose direction
+    is within ``max_turn_rad`` of it (either way along the segment) count: a vehicle driving across a
+    tunnel's line (into a drawpoint or a stub the map has no edge for) is not on that tunnel."""
     if edges.size == 0:
         return None
     a, b = centres_m[edges[:, 0]], centres_m[edges[:, 1]]
@@ -214,6 +287,8 @@ def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, 
     length2 = np.einsum("ij,ij->i", ab, ab)
     t = np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0)
     beside = (t >= 0.0) & (t <= 1.0) & (length2 > 0)
+    if math.isfinite(heading_rad):
+        beside &= _axial_rad(np.arctan2(ab[:, 1], ab[:, 0]), heading_rad) <= max_turn_rad
     if not beside.any():
         return None
     points = a + t[:, None] * ab
@@ -222,18 +297,30 @@ def _nearest_on_edges(xy: F64, centres_m: F64, edges: I64) -> tuple[F64, float, 
     return points[k], float(dist[k]), math.atan2(float(ab[k, 1]), float(ab[k, 0]))
 
 
-def snap(state: TrackState, centres_m: F64, edges: I64, moving: bool, params: TrackParams) -> TrackState:
+def snap(
+    state: TrackState,
+    centres_m: F64,
+    edges: I64,
+    moving: bool,
+    params: TrackParams,
+    steered: bool = False,
+) -> TrackState:
     """Put the track on the nearest of the mapped ``edges`` (K, 2) int64 (node pairs, segments between
-    their ``centres_m`` (M, 2)) and pull its heading towards that edge while ``moving``."""
+    their ``centres_m`` (M, 2)) and pull its heading towards that edge while ``moving``. A ``steered`` track
+    (its heading turned by odometry this frame) goes only onto edges along its heading
+    (``snap_max_turn_rad``): one driving off a mapped tunnel into a stub without edges leaves it."""
     if not state.has_position:
         return state
     wT = state.wT.copy()
-    found = _nearest_on_edges(wT[:2], centres_m, edges)
+    heading = float(wT[2]) if steered else math.nan
+    found = _nearest_on_edges(wT[:2], centres_m, edges, heading, params.snap_max_turn_rad)
     edge_dir = math.nan
     if found is not None and found[1] <= params.snap_max_m:
         wT[:2], _dist, edge_dir = found
     if not np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
-        wT[2] = edge_dir  # one of the tunnel's two ways; the fixes flip it if it is the other (correct)
+        wT[2] = (
+            edge_dir  # one of the tunnel's two ways: check_heading or the fixes turn it if it is the other
+        )
     elif np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
         err = _wrap(edge_dir - wT[2])
         if abs(err) > math.pi / 2:
