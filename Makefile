@@ -77,11 +77,12 @@ typecheck: $(VENV)/.installed-dev
 imports: $(VENV)/.installed-dev
 	$(BIN)/lint-imports
 
-# The whole suite twice: on the embedded SQLite default, then on PostgreSQL (a private server per run); the
-# topology test (tests/topology) always runs on PostgreSQL + Redis, so once is enough.
+# Every test on the embedded SQLite default, then again on PostgreSQL (a private server) the tests marked `db`:
+# those that touch the database (tests/conftest.py marks them). The topology test (tests/topology) always runs
+# on PostgreSQL + Redis, so once is enough. Each run prints its 15 slowest steps.
 pytest: $(VENV)/.installed-dev frontend system-packages
-	$(BIN)/pytest -q --database sqlite
-	$(BIN)/pytest -q --database postgresql -m "not topology"
+	$(BIN)/pytest -q --durations=15 --database sqlite
+	$(BIN)/pytest -q --durations=15 --database postgresql -m "db and not topology"
 
 test: lint typecheck imports frontend-lint frontend-test pytest
 

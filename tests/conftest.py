@@ -176,11 +176,12 @@ def tiny_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def small_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The small simulated site (seed 7, obscured copies included), written once per test session."""
+    """The small simulated site (seed 7), written once per test session. No obscured copies: its tests use the
+    mapping drives, whose frames do not depend on them."""
     from driftmap.sim import simulate_site
 
     out = tmp_path_factory.mktemp("small-site") / "site"
-    simulate_site(out, seed=7, size="small")
+    simulate_site(out, seed=7, size="small", obscurants=False)
     return out
 
 
