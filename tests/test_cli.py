@@ -87,6 +87,7 @@ class TestSiteAndDrives:
 
 
 class TestMapping:
+    @pytest.mark.slow
     def test_build_show_export_and_table_one(
         self, data_dir: Path, tmp_path: Path, tiny_site_dir: Path
     ) -> None:

@@ -23,6 +23,8 @@ from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
 from tests.processes import alive, driftmap_env, start_server
 
+pytestmark = pytest.mark.slow  # real server and worker processes
+
 START_DEADLINE_S = 90.0
 STOP_DEADLINE_S = 60.0
 

@@ -39,6 +39,8 @@ from tests.jobs.mini_site import drive_folders, zip_folder
 from tests.redis_server import running_redis
 from tests.sim_site import import_site
 
+pytestmark = pytest.mark.slow  # real driftmap worker processes
+
 
 @pytest.fixture
 def users(settings: Settings) -> Iterator[ApiUsers]:

@@ -77,6 +77,7 @@ def _estimate(outcome: FrameOutcome) -> tuple[object, ...]:
     return outcome.t, outcome.node, outcome.x, outcome.y, outcome.confidence, outcome.matched, outcome.lost
 
 
+@pytest.mark.slow
 class TestTwoServicesOnOneDatabase:
     def test_frames_alternating_between_two_services_equal_one_service(
         self, built: Path, frames: list[RecordedFrame]
@@ -377,6 +378,7 @@ async def _post_and_watch(
     return answers, updates, delays
 
 
+@pytest.mark.slow
 class TestTwoServeProcesses:
     def test_a_watcher_on_one_server_sees_frames_posted_to_the_other(
         self, two_servers: Fleet, frames: list[RecordedFrame]
@@ -406,6 +408,7 @@ class TestTwoServeProcesses:
         assert latest.content == frames[10].data and float(latest.headers["x-frame-t"]) == frames[10].t
 
 
+@pytest.mark.slow
 class TestServeWorkers:
     def test_several_api_processes_without_redis_are_refused(self, tmp_path: Path) -> None:
         done = subprocess.run(

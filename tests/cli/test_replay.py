@@ -17,6 +17,8 @@ import pytest
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive
 from tests.processes import alive, driftmap_env, free_port, start_server, stop
 
+pytestmark = pytest.mark.slow  # a real server and replay processes
+
 PASSWORD = "replay-admin-password"
 START_DEADLINE_S = 120.0
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from numpy.typing import NDArray
 from playwright.sync_api import Page, Request, expect
 
@@ -23,6 +24,8 @@ from driftmap.core.obscurants import LEVELS, apply_level
 from driftmap.formats.frame_images import decode_gray, encode_png
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
+
+pytestmark = pytest.mark.slow  # a real server and a browser
 
 DEADLINE_S = 60.0
 FRAME_PERIOD_S = 0.1

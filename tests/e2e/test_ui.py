@@ -10,10 +10,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+import pytest
 from playwright.sync_api import Page, expect
 
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
+
+pytestmark = pytest.mark.slow  # a real server and a browser
 
 DEADLINE_S = 60.0
 FRAME_PERIOD_S = 0.1  # the posted frames' spacing in vehicle time, seconds

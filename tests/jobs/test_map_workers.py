@@ -10,6 +10,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
 from sqlalchemy import func, select
 
 from driftmap.config import Settings
@@ -79,6 +80,7 @@ def _counts(storage: Storage) -> tuple[int, int, int]:
         )
 
 
+@pytest.mark.slow
 class TestTwoWorkers:
     def test_both_workers_take_a_drive_of_one_build(
         self, settings: Settings, storage: Storage, mini_site: Path

@@ -14,6 +14,8 @@ from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
 from tests.sim_site import import_site
 
+pytestmark = pytest.mark.slow  # Table I: four mapping runs of the small site
+
 FULL_SYSTEM_MAX_M = 2.0  # the target for the full system (set for the medium site)
 GAIN_OVER_ODOMETRY = 3.0  # the full system is far better than odometry alone
 

@@ -27,6 +27,7 @@ def _build(storage: Storage) -> int:
         return version.id
 
 
+@pytest.mark.slow
 class TestBuild:
     def test_version_holds_poses_residuals_and_nodes(
         self, storage: Storage, tiny_site_dir: Path, tmp_path: Path

@@ -33,7 +33,7 @@ from tests.postgres_server import PostgresServer
 from tests.processes import driftmap_env, free_port, stop, wait_healthy
 from tests.redis_server import running_redis
 
-pytestmark = pytest.mark.topology
+pytestmark = [pytest.mark.topology, pytest.mark.slow]
 
 PASSWORD = "topology-admin-password"
 START_DEADLINE_S = 120.0
