@@ -33,7 +33,7 @@ import httpx
 import numpy as np
 
 from driftmap.config import Settings
-from driftmap.core.mapping import FAST
+from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.frame_images import decode_gray
@@ -67,7 +67,7 @@ def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]], dic
             drive_service.import_drive(session, batch, site_service.get_site(session, "bench"), folder)
     with storage.blobs.batch() as batch, storage.db.session() as session:
         map_service.build_site_map(
-            session, storage.blobs, batch, site_service.get_site(session, "bench"), FAST
+            session, storage.blobs, batch, site_service.get_site(session, "bench"), MAPPING_FAST
         )
         user_service.create_user(session, "bench", "bench-password", "admin")
     storage.close()

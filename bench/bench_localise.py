@@ -1,4 +1,4 @@
-"""Benchmark of the HMM localiser (driftmap.core.localiser) on one core: pruned filter vs full comparison.
+"""Benchmark of the HMM localiser (driftmap.core.localisation.localiser) on one core: pruned filter vs full comparison.
 
 A synthetic 2,000-node map (a 50 x 40 grid of tunnels, 5 m spacing, 3 frames a node, 64x32 patch-normalised
 thumbnails) is localised against a drive of a few hundred frames at 10 Hz snaking along the grid (about
@@ -33,13 +33,13 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from driftmap.core import hmm  # noqa: E402
-from driftmap.core.adjacency import shortest_paths  # noqa: E402
-from driftmap.core.images import patch_normalise  # noqa: E402
-from driftmap.core.localiser import Localiser  # noqa: E402
-from driftmap.core.localiser_map import LocaliserMap  # noqa: E402
-from driftmap.core.localiser_motion import OdometryFeed  # noqa: E402
-from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT  # noqa: E402
+from driftmap.core.imaging.images import patch_normalise  # noqa: E402
+from driftmap.core.localisation import hmm  # noqa: E402
+from driftmap.core.localisation.localiser import Localiser  # noqa: E402
+from driftmap.core.localisation.map import LocaliserMap  # noqa: E402
+from driftmap.core.localisation.motion import OdometryFeed  # noqa: E402
+from driftmap.core.sesame.masks import SESAME_DEFAULT  # noqa: E402
+from driftmap.core.topomap.distances import shortest_paths  # noqa: E402
 from driftmap.sim.rig import CameraRig  # noqa: E402
 
 COLS, ROWS = 50, 40  # grid nodes: 2,000

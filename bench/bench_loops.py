@@ -1,4 +1,4 @@
-"""Benchmark of loop closure (driftmap.core.loops): work and time as the number of keyframes grows.
+"""Benchmark of loop closure (driftmap.core.loop_closure.search): work and time as the number of keyframes grows.
 
 Synthetic site: a long strip of blurred random texture (a tunnel wall seen side-on), views of 64x32
 pixels every 32 pixels; four mapping drives, each a forward pass over a random half of the strip,
@@ -29,10 +29,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.images import patch_normalise, preprocess
-from driftmap.core.loops import LOOPS_DEFAULT, LOOPS_FAST, LOOPS_PAPER, LoopParams, LoopResult, detect_loops
-from driftmap.core.params import IMAGES_DEFAULT
-from driftmap.core.sad import sad_matrix
+from driftmap.core.imaging.images import patch_normalise, preprocess
+from driftmap.core.imaging.params import IMAGES_DEFAULT
+from driftmap.core.imaging.sad import sad_matrix
+from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_FAST, LOOPS_PAPER, LoopParams
+from driftmap.core.loop_closure.search import LoopResult, detect_loops
 from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.formats.frame_images import decode_gray
 

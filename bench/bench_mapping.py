@@ -1,4 +1,4 @@
-"""Benchmark of the whole mapping pipeline (driftmap.core.mapping.build_map) on simulated sites.
+"""Benchmark of the whole mapping pipeline (driftmap.core.mapping.pipeline.build_map) on simulated sites.
 
 Maps the mapping drives of a simulated site end to end -- visual odometry of every frame, keyframes,
 loop-closure search, pose graph with groundings, topological map -- exactly as ``driftmap map build``
@@ -33,11 +33,12 @@ from pathlib import Path
 import numpy as np
 
 from bench_loops import load_site
-from driftmap.core.drive_prep import PreparedSegment
-from driftmap.core.loops import LOOPS_DEFAULT, detect_loops
-from driftmap.core.mapping import (
-    FAST,
-    PAPER,
+from driftmap.core.loop_closure.params import LOOPS_DEFAULT
+from driftmap.core.loop_closure.search import detect_loops
+from driftmap.core.mapping.drive import PreparedSegment
+from driftmap.core.mapping.pipeline import (
+    MAPPING_FAST,
+    MAPPING_PAPER,
     MapBuild,
     MappingDrive,
     MappingParams,
@@ -58,7 +59,7 @@ from driftmap.sim import simulate_site
 
 OUT = Path(__file__).resolve().parent / "out"
 TARGET_S = 180.0  # the issue's target for the medium site
-PRESETS = {"paper": PAPER, "fast": FAST}
+PRESETS = {"paper": MAPPING_PAPER, "fast": MAPPING_FAST}
 
 
 def site_dir(size: str, seed: int) -> Path:

@@ -27,15 +27,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from driftmap.core.alignment import umeyama_2d
-from driftmap.core.posegraph import (
-    Grounding,
-    LoopClosure,
+from driftmap.core.graph.alignment import umeyama_2d
+from driftmap.core.graph.constraints import (
+    GroundingConstraint,
+    LoopConstraint,
     PoseGraphParams,
     PoseGraphResult,
-    PoseGraphSession,
-    optimise_pose_graph,
 )
+from driftmap.core.graph.posegraph import PoseGraphSession, optimise_pose_graph
 from driftmap.formats.g2o import read_g2o, read_pose_table, to_pose_graph
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "posegraphs"
@@ -63,16 +62,16 @@ def timed(run: Callable[[], PoseGraphResult], runs: int) -> tuple[PoseGraphResul
     return result, statistics.median(times)
 
 
-def false_closures(num_poses: int, count: int, infos: np.ndarray, seed: int) -> list[LoopClosure]:
+def false_closures(num_poses: int, count: int, infos: np.ndarray, seed: int) -> list[LoopConstraint]:
     """Random wrong closures by the protocol (both ends uniform, not neighbours)."""
     rng = np.random.default_rng(seed)
-    out: list[LoopClosure] = []
+    out: list[LoopConstraint] = []
     while len(out) < count:
         i, j = (int(v) for v in rng.integers(0, num_poses, 2))
         if abs(i - j) > 1:
             x, y, theta = rng.normal(0, 0.3), rng.normal(0, 0.3), rng.normal(0, np.deg2rad(10.0))
             info = infos[rng.integers(len(infos))]
-            out.append(LoopClosure((0, i), (0, j), (1.0, 1.0, 1.0), (x, y, theta), information=info))
+            out.append(LoopConstraint((0, i), (0, j), (1.0, 1.0, 1.0), (x, y, theta), information=info))
     return out
 
 
@@ -130,7 +129,7 @@ def warm_start(runs: int) -> None:
     chains, closures = to_pose_graph(read_g2o(DATA / "M3500_olson.g2o"))
     truth = read_pose_table(DATA / "M3500_olson_groundtruth_nodes.dat")
     frames = np.linspace(0, len(truth) - 1, 12).astype(int)
-    marks = [Grounding((0, int(f)), (float(truth[f, 0]), float(truth[f, 1])), 0.5) for f in frames]
+    marks = [GroundingConstraint((0, int(f)), (float(truth[f, 0]), float(truth[f, 1])), 0.5) for f in frames]
     warm_s, scratch_s, diffs = [], [], []
     for run in range(runs):
         session = PoseGraphSession(chains, closures, marks)

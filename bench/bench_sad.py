@@ -1,4 +1,4 @@
-"""Benchmark of the shifted SAD (driftmap.core.sad) against a naive per-pair Python loop.
+"""Benchmark of the shifted SAD (driftmap.core.imaging.sad) against a naive per-pair Python loop.
 
 Prints image comparisons per second (one query against M references, shifts +-4 x / +-2 y, median
 of several runs) for 64x32 and 32x24 patch-normalised images and M = 2,000 and 6,000, next to a
@@ -16,9 +16,9 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.images import patch_normalise
-from driftmap.core.params import SadParams
-from driftmap.core.sad import sad_matrix, sad_one_to_many
+from driftmap.core.imaging.images import patch_normalise
+from driftmap.core.imaging.params import SadParams
+from driftmap.core.imaging.sad import sad_matrix, sad_one_to_many
 
 MAX_DX, MAX_DY = 4, 2
 NAIVE_PAIRS = 300  # the naive loop is timed on this many references and scaled

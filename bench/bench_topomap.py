@@ -31,7 +31,8 @@ from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-from driftmap.core.topomap import PAPER, TopoMap, TopoMapParams, build_topomap
+from driftmap.core.topomap.build import build_topomap
+from driftmap.core.topomap.model import TOPOMAP_PAPER, TopoMap, TopoMapParams
 
 F64 = NDArray[np.float64]
 T = TypeVar("T")
@@ -233,8 +234,8 @@ def main() -> None:
     )
     checks = []
     for name, chains, km in sites:
-        ours_s, topo = timed(partial(build_topomap, chains, params=PAPER), args.runs)
-        naive_s, _ = timed(partial(naive_build, chains, PAPER), max(1, args.runs // 2))
+        ours_s, topo = timed(partial(build_topomap, chains, params=TOPOMAP_PAPER), args.runs)
+        naive_s, _ = timed(partial(naive_build, chains, TOPOMAP_PAPER), max(1, args.runs // 2))
         frames = sum(len(c) for c in chains)
         print(
             f"{name:>20} {len(chains):>6} {frames:>7} {topo.n_nodes:>6} {len(topo.edges):>6} "

@@ -5,7 +5,7 @@ first frame's true pose and prints distance travelled, final position error (abs
 percentage of the distance), final heading error and the median wall-clock time per step. Models:
 
 * ``birdseye``: the homography (bird's-eye) model with horizon and rotation-centre self-calibration, the
-  horizon tracked along the drive where it demonstrably changes (``core/odometry_pitch``; the default);
+  horizon tracked along the drive where it demonstrably changes (``core/odometry/pitch``; the default);
 * ``birdseye-one-horizon``: the same with one (median) horizon for the whole drive;
 * ``birdseye-fixed-yc``: the same with the rotation centre fixed at drive.json's ``y_c``;
 * ``birdseye-raw``: no self-calibration, i.e. the drive.json homography and ``y_c`` as given;
@@ -35,9 +35,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.camera import CameraModel
-from driftmap.core.odometry import DeadReckoning, compose, dead_reckon
-from driftmap.core.params import ODOMETRY_DEFAULT, ODOMETRY_PAPER, OdometryParams
+from driftmap.core.odometry.camera import CameraModel
+from driftmap.core.odometry.drive import DeadReckoning, compose, dead_reckon
+from driftmap.core.odometry.params import ODOMETRY_DEFAULT, ODOMETRY_PAPER, OdometryParams
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS: dict[str, OdometryParams] = {

@@ -3,7 +3,7 @@
 The three steps of the published method, with OpenSeqSLAM's defaults:
 
 1. **Difference matrix**: the mean absolute difference of patch-normalised 64x32 thumbnails. The caller
-   passes it in; ``bench/vpr_defaults.py`` gives it driftmap's (``core.vpr.distance_matrix``, preset
+   passes it in; ``bench/vpr_defaults.py`` gives it driftmap's (``core.place_recognition.single.distance_matrix``, preset
    ``route``: 64-px-wide thumbnails, 8-px patch normalisation, no shifts), so both methods see the same
    front end and differ only in what they do with it.
 2. **Local contrast enhancement**: each entry is normalised by the mean and standard deviation of the
@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.vpr import Matches
+from driftmap.core.place_recognition.single import Matches
 
 F64 = NDArray[np.float64]
 
@@ -52,7 +52,7 @@ def search(dd: F64, ds: int = 10, v_min: float = 0.8, v_max: float = 1.2, window
     OpenSeqSLAM's: ``m / ds`` references per query for every whole move m from ``v_min ds`` to ``v_max ds``.
 
     Returns:
-        :class:`~driftmap.core.vpr.Matches`: the matched reference of each query and ``1 - ratio``.
+        :class:`~driftmap.core.place_recognition.single.Matches`: the matched reference of each query and ``1 - ratio``.
     """
     n, q = dd.shape
     if q <= ds:

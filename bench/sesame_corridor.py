@@ -2,8 +2,8 @@
 
 Single-image matching of the 111 corridor queries against the 111 references (``../shared/data/corridor``),
 64x48 patch-normalised thumbnails, no shift search (the ``route`` preset; on the corridor the +-4/+-2 search
-changes no match). Every run uses the project's own masks (``core.saliency.sesame_masks``) and the project's
-SAD (``core.vpr.distance_matrix``, which applies the query's mask as eq. 6); the ablation rows that need a
+changes no match). Every run uses the project's own masks (``core.sesame.masks.sesame_masks``) and the project's
+SAD (``core.place_recognition.single.distance_matrix``, which applies the query's mask as eq. 6); the ablation rows that need a
 mask the implementation does not offer (both images' masks, random masks, the inverted mask) use the same
 mean absolute difference over the weighted pixels, computed here with numpy. Prints recall@1, AUC and the
 fraction of pixels each mask keeps:
@@ -29,15 +29,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core import metrics, saliency
-from driftmap.core.vpr import (
-    ROUTE,
+from driftmap.core.place_recognition import metrics
+from driftmap.core.place_recognition.single import (
+    VPR_ROUTE,
     VprParams,
     distance_matrix,
     match_single,
     prepare_images,
     thumbnail_params,
 )
+from driftmap.core.sesame import masks as saliency
 from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,14 +83,18 @@ def main() -> None:
     db_files, q_files = list_images(folder / "db"), list_images(folder / "query")
     gt = gt_matrix(read_gt_pairs(folder / "gt.csv", q_files, db_files), q_files, db_files)
     query, db = read_gray_stack(q_files), read_gray_stack(db_files)
-    pq, pd = prepare_images(query, "sad", ROUTE), prepare_images(db, "sad", ROUTE)
-    r1, auc = score(distance_matrix(pq, pd, ROUTE), gt)
+    pq, pd = prepare_images(query, "sad", VPR_ROUTE), prepare_images(db, "sad", VPR_ROUTE)
+    r1, auc = score(distance_matrix(pq, pd, VPR_ROUTE), gt)
     print(f"{'run':<58} {'recall@1':>8} {'AUC':>6} {'kept':>5}")
     print(f"{'plain SAD (baseline)':<58} {r1:8.3f} {auc:6.3f} {1.0:5.2f}")
-    r1, auc = score(distance_matrix(*(prepare_images(x, "sesame", ROUTE) for x in (query, db)), ROUTE), gt)
-    kept = float(masks(query, ROUTE, saliency.DEFAULT).mean())
-    print(f"{'SESAME as shipped (DEFAULT, core.vpr)':<58} {r1:8.3f} {auc:6.3f} {kept:5.2f}")
-    paper_size = replace(ROUTE, thumb_width_px=160, patch_px=5)  # Table 1: R_x 160, L_norm 5
+    r1, auc = score(
+        distance_matrix(*(prepare_images(x, "sesame", VPR_ROUTE) for x in (query, db)), VPR_ROUTE), gt
+    )
+    kept = float(masks(query, VPR_ROUTE, saliency.SESAME_DEFAULT).mean())
+    print(
+        f"{'SESAME as shipped (DEFAULT, core.place_recognition.single)':<58} {r1:8.3f} {auc:6.3f} {kept:5.2f}"
+    )
+    paper_size = replace(VPR_ROUTE, thumb_width_px=160, patch_px=5)  # Table 1: R_x 160, L_norm 5
     for method in ("sad", "sesame"):
         prep = [prepare_images(x, method, paper_size) for x in (query, db)]
         r1, auc = score(distance_matrix(*prep, paper_size), gt)
@@ -99,11 +104,11 @@ def main() -> None:
         )
     rng = np.random.default_rng(0)
     for mask_w in (160, 64):
-        params = replace(ROUTE, mask_width_px=mask_w)
+        params = replace(VPR_ROUTE, mask_width_px=mask_w)
         for bins in (256, 32):
             for hierarchy in ("union", "intersection"):
                 for r in (0.1, 0.3, 0.5, 0.7):
-                    ses = replace(saliency.DEFAULT, bins=bins, r_threshold=r)
+                    ses = replace(saliency.SESAME_DEFAULT, bins=bins, r_threshold=r)
                     if hierarchy == "union":
                         mq, md = masks(query, params, ses), masks(db, params, ses)
                     else:  # eq. 10 read literally: salient at every scale

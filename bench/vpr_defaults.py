@@ -2,7 +2,7 @@
 
 Nordland-1000 (``../shared/data/nordland-1000``: summer references, winter queries, gt +-1 frame) is split in
 two routes of its own: **tune** = frames 0-499 (references and queries), **held out** = frames 500-999. Every
-setting of ``core.vpr_route`` (and the calibration knots of ``ROUTE_DEFAULT``) was chosen on the tuning
+setting of ``core.place_recognition.route`` (and the calibration knots of ``ROUTE_DEFAULT``) was chosen on the tuning
 part only; the held-out part and the corridor (111 x 111 indoor frames, gt +-2, out of domain) are only
 measured. Sections, each printed as a table (the tables of ``docs/evaluation/place_recognition.md``):
 
@@ -15,7 +15,7 @@ measured. Sections, each printed as a table (the tables of ``docs/evaluation/pla
 * ``score``: the window posterior against it times the matched reference's distinctness along the
   sequence (the mine localiser's ``score x distinct``), smoothed and causal, on the tuning part.
 * ``calibration``: the logistic fit on the tuning part that gives ``ROUTE_DEFAULT.calibration``, against
-  the raw posterior and an isotonic fit (``core.metrics.fit_calibration``), by ECE on every part.
+  the raw posterior and an isotonic fit (``core.place_recognition.metrics.fit_calibration``), by ECE on every part.
 * ``sensitivity``: AUC / recall at 100 % precision over gain x mix x score window and over reach, on the
   tuning part (the choice) and the held-out part (for the record, not the choice).
 * ``speed``: the query traversal at 0.5x, 1.5x and 2x the references' speed (every 2nd reference; 2 of
@@ -43,9 +43,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from driftmap.core import metrics, vpr, vpr_route
-from driftmap.core.vpr import Matches
-from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams
+from driftmap.core.place_recognition import metrics
+from driftmap.core.place_recognition import route as vpr_route
+from driftmap.core.place_recognition import single as vpr
+from driftmap.core.place_recognition.route_filter import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams
+from driftmap.core.place_recognition.single import Matches
 from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
 from seqslam import seqslam
 
@@ -78,9 +80,9 @@ def load(folder: Path) -> tuple[U8, U8, BoolArr]:
 
 
 def part(name: str, query: U8, db: U8, gt: BoolArr) -> Part:
-    pq, pd = vpr.prepare_images(query, "sad", vpr.ROUTE), vpr.prepare_images(db, "sad", vpr.ROUTE)
-    m, s = vpr_route.reference_model(pd, vpr.ROUTE)
-    return Part(name, query, db, gt, vpr.distance_matrix(pq, pd, vpr.ROUTE), m, s)
+    pq, pd = vpr.prepare_images(query, "sad", vpr.VPR_ROUTE), vpr.prepare_images(db, "sad", vpr.VPR_ROUTE)
+    m, s = vpr_route.reference_model(pd, vpr.VPR_ROUTE)
+    return Part(name, query, db, gt, vpr.distance_matrix(pq, pd, vpr.VPR_ROUTE), m, s)
 
 
 def parts(data: Path) -> list[Part]:
@@ -107,27 +109,27 @@ def timed(run: Callable[[], Matches]) -> tuple[Matches, float]:
 
 
 def run_seqslam(p: Part) -> Matches:
-    pq, pd = vpr.prepare_images(p.query, "sad", vpr.ROUTE), vpr.prepare_images(p.db, "sad", vpr.ROUTE)
-    return seqslam(vpr.distance_matrix(pq, pd, vpr.ROUTE))
+    pq, pd = vpr.prepare_images(p.query, "sad", vpr.VPR_ROUTE), vpr.prepare_images(p.db, "sad", vpr.VPR_ROUTE)
+    return seqslam(vpr.distance_matrix(pq, pd, vpr.VPR_ROUTE))
 
 
 def table(ps: list[Part]) -> dict[str, dict[str, tuple[Matches, metrics.PrCurve]]]:
     runs: dict[str, Callable[[Part], Matches]] = {
         "old defaults (sesame, mine, filter)": lambda p: vpr_route.recognise_places(
-            p.query, p.db, "sesame", temporal=True, params=vpr.DEFAULT, route=OLD
+            p.query, p.db, "sesame", temporal=True, params=vpr.VPR_DEFAULT, route=OLD
         ),
         "--method sad --preset route (filter)": lambda p: vpr_route.recognise_places(
-            p.query, p.db, "sad", temporal=True, params=vpr.ROUTE, route=OLD
+            p.query, p.db, "sad", temporal=True, params=vpr.VPR_ROUTE, route=OLD
         ),
         "new defaults": lambda p: vpr_route.recognise_places(
-            p.query, p.db, "sad", temporal=True, params=vpr.ROUTE, route=ROUTE_DEFAULT
+            p.query, p.db, "sad", temporal=True, params=vpr.VPR_ROUTE, route=ROUTE_DEFAULT
         ),
         "SeqSLAM (bench/seqslam.py)": run_seqslam,
         "new defaults with --method sesame": lambda p: vpr_route.recognise_places(
-            p.query, p.db, "sesame", temporal=True, params=vpr.ROUTE, route=ROUTE_DEFAULT
+            p.query, p.db, "sesame", temporal=True, params=vpr.VPR_ROUTE, route=ROUTE_DEFAULT
         ),
         "new defaults with --any-speed": lambda p: vpr_route.recognise_places(
-            p.query, p.db, "sad", temporal=True, params=vpr.ROUTE, route=ROUTE_ANY_SPEED
+            p.query, p.db, "sad", temporal=True, params=vpr.VPR_ROUTE, route=ROUTE_ANY_SPEED
         ),
     }
     kept: dict[str, dict[str, tuple[Matches, metrics.PrCurve]]] = {}
@@ -314,7 +316,7 @@ def speed(ps: list[Part]) -> None:
                     m = seqslam(d)
                 else:
                     ref_median, ref_scale = vpr_route.reference_model(
-                        vpr.prepare_images(p.db[dj], "sad", vpr.ROUTE), vpr.ROUTE, routes[label]
+                        vpr.prepare_images(p.db[dj], "sad", vpr.VPR_ROUTE), vpr.VPR_ROUTE, routes[label]
                     )
                     m = vpr_route.match_distances(d, ref_median, ref_scale, routes[label])
                 r, _, _ = scored(m, gt)

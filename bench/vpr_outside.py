@@ -3,9 +3,9 @@
 Datasets (``../shared/data``, see its README): ``corridor`` (111 vs 111 indoor images, gt +-2 frames) and
 ``nordland-1000`` (summer references vs winter queries, first 1,000 of the 64x32 sample, gt +-1 frame).
 For each, in one process: the baseline (plain patch-normalised SAD, single image), SESAME single image,
-``--temporal`` (the route HMM of ``driftmap.core.vpr_route``, smoothed over the whole query sequence) with SAD
+``--temporal`` (the route HMM of ``driftmap.core.place_recognition.route``, smoothed over the whole query sequence) with SAD
 and with SESAME, the same with ``--online`` (the causal filter) and with ``--any-speed``, the paper's HMM
-exactly as the mine localiser runs it (``core.localiser.Localiser`` on a chain map, eq. 8 observation), and
+exactly as the mine localiser runs it (``core.localisation.localiser.Localiser`` on a chain map, eq. 8 observation), and
 SeqSLAM (``bench/seqslam.py``, OpenSeqSLAM's defaults on the SAD difference matrix) for comparison. A second
 table drops every other query (the query traversal then runs twice as fast as the references') to show the
 speed prior of the default HMM. Prints
@@ -13,7 +13,7 @@ recall@1, AUC, recall at 100 % precision and wall seconds (images decoded before
 distances and the filter counted), the ratio of each to the baseline, and the reference figures measured
 outside this project. Writes ``docs/vpr_corridor.png`` and ``docs/vpr_nordland.png``.
 
-Presets (``driftmap.core.vpr.PRESETS``): ``mine`` searches shifts of +-4/+-2 px like the mine localiser;
+Presets (``driftmap.core.place_recognition.single.VPR_PRESETS``): ``mine`` searches shifts of +-4/+-2 px like the mine localiser;
 ``route`` does not search shifts (a camera on a fixed path). Nordland's single-image runs use ``route``
 only, ``--mine-nordland`` adds the ``mine`` ones (about a minute each on a busy 2-core machine).
 
@@ -36,16 +36,24 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csr_array
 
-from driftmap.core import hmm, metrics
-from driftmap.core.localiser import Localiser
-from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.vpr import PRESETS, Matches, VprMethod, VprParams, distance_matrix, prepare_images
-from driftmap.core.vpr_route import (
+from driftmap.core.localisation import hmm
+from driftmap.core.localisation.localiser import Localiser
+from driftmap.core.localisation.map import LocaliserMap
+from driftmap.core.place_recognition import metrics
+from driftmap.core.place_recognition.route import recognise_places
+from driftmap.core.place_recognition.route_filter import (
     ROUTE_ANY_SPEED,
     ROUTE_DEFAULT,
     ROUTE_ONLINE,
     RouteParams,
-    recognise_places,
+)
+from driftmap.core.place_recognition.single import (
+    VPR_PRESETS,
+    Matches,
+    VprMethod,
+    VprParams,
+    distance_matrix,
+    prepare_images,
 )
 from driftmap.formats.place_images import gt_matrix, list_images, read_gray_stack, read_gt_pairs
 from seqslam import seqslam
@@ -110,7 +118,7 @@ def speed_runs() -> list[Run]:
 
 
 def chain_localiser(query: NDArray[np.uint8], db: NDArray[np.uint8], params: VprParams) -> Matches:
-    """The mine localiser (paper eq. 4-12 as in ``core.localiser``) over the references as a chain map."""
+    """The mine localiser (paper eq. 4-12 as in ``core.localisation.localiser``) over the references as a chain map."""
     pq, pd = prepare_images(query, "sad", params), prepare_images(db, "sad", params)
     n, k_max = pd.thumbs.shape[0], 64
     rows, cols, vals = [], [], []
@@ -152,9 +160,9 @@ def execute(
     for run in runs_:
         t0 = time.perf_counter()
         if run.localiser:
-            m = chain_localiser(query, db, PRESETS[run.preset])
+            m = chain_localiser(query, db, VPR_PRESETS[run.preset])
         elif run.seqslam:
-            params = PRESETS[run.preset]
+            params = VPR_PRESETS[run.preset]
             pq, pd = prepare_images(query, "sad", params), prepare_images(db, "sad", params)
             m = seqslam(distance_matrix(pq, pd, params))
         else:
@@ -163,7 +171,7 @@ def execute(
                 db,
                 run.method,
                 temporal=run.temporal,
-                params=PRESETS[run.preset],
+                params=VPR_PRESETS[run.preset],
                 route=run.route,
                 workers=workers,
             )

@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 

@@ -7,8 +7,8 @@ import math
 import cv2
 import numpy as np
 
-from driftmap.core.camera import CameraModel
-from driftmap.core.odometry import compose, shift_horizon
+from driftmap.core.odometry.camera import CameraModel
+from driftmap.core.odometry.drive import compose, shift_horizon
 
 SEED = 11
 TEX_RES_M = 0.005  # floor texture, metres per texel

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from driftmap.config import Settings
-from driftmap.core.mapping import FAST
+from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
@@ -36,7 +36,7 @@ def tiny_map_settings(tmp_path_factory: pytest.TempPathFactory, site_dir: Path) 
             import_site(storage, site_dir, SITE, kinds=("mapping", "localisation"))
             with storage.blobs.batch() as batch, storage.db.session() as session:
                 site = site_service.get_site(session, SITE)
-                map_service.build_site_map(session, storage.blobs, batch, site, FAST)
+                map_service.build_site_map(session, storage.blobs, batch, site, MAPPING_FAST)
         finally:
             storage.close()
         _BUILT[site_dir] = settings

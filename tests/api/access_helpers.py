@@ -17,7 +17,7 @@ from fastapi.testclient import TestClient
 
 from driftmap.api.app import create_app
 from driftmap.config import Settings
-from driftmap.core.mapping import FAST
+from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.services import users as user_service
@@ -45,7 +45,7 @@ def built_tiny_data(base: Path, site_dir: Path) -> Path:
         import_site(storage, site_dir)
         with storage.blobs.batch() as batch, storage.db.session() as session:
             map_service.build_site_map(
-                session, storage.blobs, batch, site_service.get_site(session, "tiny"), FAST
+                session, storage.blobs, batch, site_service.get_site(session, "tiny"), MAPPING_FAST
             )
         storage.close()
         _built[site_dir] = data

@@ -13,9 +13,9 @@ from fastapi.testclient import TestClient
 
 from driftmap.api.app import create_app
 from driftmap.config import Settings
-from driftmap.core.obscurants import LEVELS, apply_level
-from driftmap.core.obscured import OBSCURED_DEFAULT
+from driftmap.core.localisation.camera_check import OBSCURED_DEFAULT
 from driftmap.formats.frame_images import decode_gray, encode_png
+from driftmap.sim.obscurants import LEVELS, apply_level
 from tests.api.access_helpers import (
     Actors,
     RecordedFrame,

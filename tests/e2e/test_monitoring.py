@@ -20,8 +20,8 @@ import pytest
 from numpy.typing import NDArray
 from playwright.sync_api import Page, Request, expect
 
-from driftmap.core.obscurants import LEVELS, apply_level
 from driftmap.formats.frame_images import decode_gray, encode_png
+from driftmap.sim.obscurants import LEVELS, apply_level
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 
 WIDTH_PX, HEIGHT_PX = 32, 24

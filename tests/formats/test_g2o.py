@@ -9,8 +9,9 @@ import pytest
 
 from driftmap.errors import BadInputError
 from driftmap.formats.g2o import parse_g2o, read_g2o, read_pose_table, to_pose_graph
+from tests.outside_data import SHARED_DATA
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "posegraphs"
+DATA = SHARED_DATA / "posegraphs"
 
 G2O = """\
 # a square with one loop closure

@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
-from driftmap.core import map_prepare, place_database
-from driftmap.core.mapping import FAST, MAP_PRESETS, build_map
+from driftmap.core.mapping import prepare as map_prepare
+from driftmap.core.mapping.pipeline import MAP_PRESETS, MAPPING_FAST, build_map
+from driftmap.core.topomap import database as place_database
 from driftmap.jobs import loop_tasks, map_tasks
 from driftmap.jobs.map_tasks import map_build
 from driftmap.jobs.queue import JobQueue
@@ -53,7 +54,10 @@ class TestFanOut:
         for module in (place_database, map_prepare):
             monkeypatch.setattr(module, "STATS_CHUNK", 32)
         params = replace(
-            FAST, keyframe_spacing_m=0.25, loops=replace(FAST.loops, coarse_block=8), segment_frames=64
+            MAPPING_FAST,
+            keyframe_spacing_m=0.25,
+            loops=replace(MAPPING_FAST.loops, coarse_block=8),
+            segment_frames=64,
         )
         monkeypatch.setitem(MAP_PRESETS, "fast", params)
         monkeypatch.setattr(loop_tasks, "QUERIES_PER_TASK", 32)

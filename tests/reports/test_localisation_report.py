@@ -9,15 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
+from driftmap.core.localisation.map import LocaliserMap
+from driftmap.core.sesame.masks import SESAME_DEFAULT
 from driftmap.errors import BadInputError
-from driftmap.reports.localisation_report import (
-    DEFAULT_METHOD,
-    METHODS,
-    condition_of,
-    run_localisation_report,
-)
+from driftmap.reports.localisation_report import run_localisation_report
+from driftmap.reports.localisation_results import DEFAULT_METHOD, METHODS, condition_of
 from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service

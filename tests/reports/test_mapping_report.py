@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from driftmap.config import Settings
-from driftmap.core.mapping import FAST
+from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.reports.mapping_report import MappingReport, run_mapping_report
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
@@ -32,7 +32,12 @@ def report(small_site_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Ma
             loaded = map_service.load_site_drives(session, storage.blobs, site)
             plan = site_service.latest_survey_map(session, site).layers
         return run_mapping_report(
-            loaded.inputs, loaded.truth, FAST, plan_layers=plan, figure_path=out / "mapping.png", workers=2
+            loaded.inputs,
+            loaded.truth,
+            MAPPING_FAST,
+            plan_layers=plan,
+            figure_path=out / "mapping.png",
+            workers=2,
         )
     finally:
         storage.close()

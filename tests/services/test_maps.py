@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from sqlalchemy import delete, func, select
 
-from driftmap.core.mapping import FAST
+from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import read_poses_csv, write_poses_csv
 from driftmap.services import maps as map_service
@@ -23,7 +23,7 @@ MAP_ERROR_TOLERANCE_M = 3.0  # mean distance to truth of the tiny site's optimis
 def _build(storage: Storage) -> int:
     with storage.blobs.batch() as batch, storage.db.session() as session:
         site = site_service.get_site(session, "tiny")
-        version, _build = map_service.build_site_map(session, storage.blobs, batch, site, FAST)
+        version, _build = map_service.build_site_map(session, storage.blobs, batch, site, MAPPING_FAST)
         return version.id
 
 
@@ -109,7 +109,7 @@ class TestWorkerProcesses:
             with storage.blobs.batch() as batch, storage.db.session() as session:
                 site = site_service.get_site(session, "tiny")
                 version, build = map_service.build_site_map(
-                    session, storage.blobs, batch, site, FAST, workers=workers
+                    session, storage.blobs, batch, site, MAPPING_FAST, workers=workers
                 )
                 versions.append((version.id, build))
         with storage.db.session() as session:

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from driftmap.core.obscurants import water_diameter_px
 from driftmap.errors import BadInputError, ConflictError
 from driftmap.formats.drive_folder import DriveFolder, read_drive_folder
 from driftmap.sim import SitePlan, simulate_site
+from driftmap.sim.obscurants import water_diameter_px
 from driftmap.sim.rig import CameraRig
 from tests.sim.conftest import SEED, WRITTEN_FRAMES, WrittenSite
 

@@ -86,8 +86,8 @@ def _import_one(
 ) -> None:
     with stage_progress(f"import {path.name}") as stage_report:
 
-        def report(fraction: float) -> None:
-            stage_report(f"import {path.name}", fraction)
+        def report(stage: str, fraction: float) -> None:
+            stage_report(f"{stage} {path.name}", fraction)
 
         with storage.blobs.batch() as batch, storage.db.session() as session:
             site = site_service.get_site(session, site_name)

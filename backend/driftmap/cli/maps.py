@@ -13,9 +13,9 @@ from rich.table import Table
 
 from driftmap.cli.common import console, open_storage, stage_progress, user_errors
 from driftmap.config import get_settings
-from driftmap.core.mapping import MAP_PRESETS, MappingParams
-from driftmap.core.odometry import dead_reckon
-from driftmap.core.params import ODOMETRY_DEFAULT, OdometryModel
+from driftmap.core.mapping.pipeline import MAP_PRESETS, MappingParams
+from driftmap.core.odometry.drive import dead_reckon
+from driftmap.core.odometry.params import ODOMETRY_DEFAULT, OdometryModel
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import PoseRow, write_poses_csv
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder

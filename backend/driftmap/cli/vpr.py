@@ -11,9 +11,10 @@ import typer
 from rich.table import Table
 
 from driftmap.cli.common import console, user_errors
-from driftmap.core import metrics
-from driftmap.core.vpr import METHODS, PRESETS, VprMethod
-from driftmap.core.vpr_route import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams, recognise_places
+from driftmap.core.place_recognition import metrics
+from driftmap.core.place_recognition.route import recognise_places
+from driftmap.core.place_recognition.route_filter import ROUTE_ANY_SPEED, ROUTE_DEFAULT, RouteParams
+from driftmap.core.place_recognition.single import METHODS, VPR_PRESETS, VprMethod
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import PlaceMatchRow, write_place_matches_csv
 from driftmap.formats.place_images import find_gt_csv, gt_matrix, list_images, read_gray_stack, read_gt_pairs
@@ -83,8 +84,10 @@ def vpr_match(
         preset = preset if preset is not None else ("route" if temporal else "mine")
         if (any_speed or online) and not temporal:
             raise BadInputError("needs --temporal", field="--any-speed" if any_speed else "--online")
-        if preset not in PRESETS:
-            raise BadInputError(f"unknown preset {preset!r}; choose {', '.join(PRESETS)}", field="--preset")
+        if preset not in VPR_PRESETS:
+            raise BadInputError(
+                f"unknown preset {preset!r}; choose {', '.join(VPR_PRESETS)}", field="--preset"
+            )
         db_files, query_files = list_images(db), list_images(query)
         gt_path = gt if gt is not None else find_gt_csv(db, query)
         pairs = read_gt_pairs(gt_path, query_files, db_files) if gt_path is not None else None
@@ -95,7 +98,7 @@ def vpr_match(
             db_images,
             vpr_method,
             temporal=temporal,
-            params=PRESETS[preset],
+            params=VPR_PRESETS[preset],
             route=_route(any_speed, online),
             workers=workers,
         )

@@ -12,7 +12,7 @@ import re
 from pathlib import Path
 from typing import Any, cast
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
 from driftmap.formats.records import DRIVE_FORMAT, DRIVE_KINDS, DriveKind, DriveMeta
 

@@ -5,7 +5,7 @@ MIT Killian). A vertex is a pose [x, y, theta] (metres, radians) in the file's w
 ``i j dx dy dtheta`` is the measured pose of vertex j in vertex i with an information matrix given by its
 upper triangle, in g2o order ``I11 I12 I13 I22 I23 I33`` or TORO order ``xx xy yy tt xt yt``. Every error
 names the file, the 1-based line and the field at fault. :func:`to_pose_graph` turns a graph into the
-odometry chains and loop closures of :mod:`driftmap.core.posegraph`.
+odometry chains and loop closures of :mod:`driftmap.core.graph.posegraph`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.posegraph import LoopClosure, OdometryChain
+from driftmap.core.graph.constraints import LoopConstraint, OdometryChain
 from driftmap.errors import BadInputError
 
 _VERTEX_FIELDS = ("id", "x", "y", "theta")
@@ -191,7 +191,7 @@ def read_pose_table(path: str | Path) -> NDArray[np.float64]:
     return np.array(rows, dtype=np.float64).reshape(-1, 3)
 
 
-def to_pose_graph(graph: G2oGraph) -> tuple[list[OdometryChain], list[LoopClosure]]:
+def to_pose_graph(graph: G2oGraph) -> tuple[list[OdometryChain], list[LoopConstraint]]:
     """Split a benchmark graph into odometry chains and loop closures for the pose-graph core.
 
     The first edge from vertex row r to row r+1 is odometry; where there is none the chain breaks, so the
@@ -225,7 +225,7 @@ def to_pose_graph(graph: G2oGraph) -> tuple[list[OdometryChain], list[LoopClosur
     for k in np.flatnonzero(is_closure):
         x, y, theta = (float(v) for v in graph.iTj[k])
         closures.append(
-            LoopClosure(
+            LoopConstraint(
                 ref[ij[k, 0]], ref[ij[k, 1]], (1.0, 1.0, 1.0), (x, y, theta), information=graph.information[k]
             )
         )

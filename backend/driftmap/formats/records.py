@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 
 DRIVE_FORMAT = "driftmap-drive/1"
 DriveKind = Literal["mapping", "localisation"]

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
 from driftmap.formats.drive_json import load_json, parse_camera_block
 from driftmap.formats.frame_images import encode_png

@@ -1,11 +1,11 @@
 """A map build's loop-closure search as ``map.loops`` subtasks, one per block of query keyframes.
 
 After the drives' odometry (``map.drive`` subtasks), the ``map.build`` parent plans the search once
-(:func:`driftmap.core.loop_scores.plan_search`: descriptors, background, thresholds), stores the plan as a
+(:func:`driftmap.core.loop_closure.blocks.plan_search`: descriptors, background, thresholds), stores the plan as a
 blob and queues one ``map.loops`` job per block of about :data:`QUERIES_PER_TASK` query keyframes (args
 ``search_sha256``, ``q0``, ``q1``, ``preset``). Any worker, the waiting parent included
 (:mod:`driftmap.jobs.subtasks`), scores a block and stores its scores as a blob. The parent then decides
-the closures query by query (:func:`driftmap.core.loops.decide_loops`): the same closures as one
+the closures query by query (:func:`driftmap.core.loop_closure.search.decide_loops`): the same closures as one
 process's search, whatever the split and whoever ran it. A re-run of the parent reuses its plan and the
 blocks already scored.
 """
@@ -15,10 +15,16 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
-from driftmap.core.drive_prep import PreparedDrive
-from driftmap.core.loop_scores import LoopSearch, QueryScores, plan_search, score_queries, split_queries
-from driftmap.core.loops import LoopClosure, decide_loops
-from driftmap.core.map_prepare import MappingDrive, MappingParams, loop_inputs
+from driftmap.core.loop_closure.blocks import (
+    LoopSearch,
+    QueryScores,
+    plan_search,
+    score_queries,
+    split_queries,
+)
+from driftmap.core.loop_closure.search import LoopMatch, decide_loops
+from driftmap.core.mapping.drive import PreparedDrive
+from driftmap.core.mapping.prepare import MappingDrive, MappingParams, loop_inputs
 from driftmap.errors import NotFoundError
 from driftmap.jobs.presets import preset_params
 from driftmap.jobs.runtime import JobContext
@@ -53,7 +59,7 @@ def find_loops(
     pieces: Sequence[PreparedDrive],
     drives: Sequence[MappingDrive],
     params: MappingParams,
-) -> tuple[tuple[LoopClosure, ...], float, list[str]]:
+) -> tuple[tuple[LoopMatch, ...], float, list[str]]:
     """The closures of the build's keyframes, searched in ``map.loops`` subtasks.
 
     Returns:

@@ -24,9 +24,9 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.drive_prep import PreparedDrive, PreparedSegment
-from driftmap.core.loops import LoopClosure
-from driftmap.core.mapping import (
+from driftmap.core.loop_closure.search import LoopMatch
+from driftmap.core.mapping.drive import PreparedDrive, PreparedSegment
+from driftmap.core.mapping.pipeline import (
     MappingDrive,
     MappingParams,
     build_segments,
@@ -75,7 +75,7 @@ def map_drive(ctx: JobContext) -> None:
         if drive is None:
             raise NotFoundError(f"job {ctx.job.id}: drive {ctx.args['drive_id']} does not exist (any more)")
         loaded = map_drives.load_mapping_drive(session, storage.blobs, drive)
-    piece = prepare_segment(loaded.input, params, flat, span, lambda f: ctx.report("odometry", f))
+    piece = prepare_segment(loaded.input, params, flat, span, ctx.report)
     data = map_drives.piece_bytes(piece)
     with storage.blobs.batch() as batch, storage.db.session() as session:
         result = {
@@ -142,7 +142,7 @@ def map_build(ctx: JobContext) -> None:
             inputs = _site_drives(ctx, session, drives).inputs
         pieces = _pieces(ctx, results, params, inputs)
         odometry_s = time.monotonic() - start
-        loops: tuple[tuple[LoopClosure, ...], float] | None = None
+        loops: tuple[tuple[LoopMatch, ...], float] | None = None
         loop_blobs: list[str] = []
         if params.use_loop_closures:
             closures, loop_s, loop_blobs = find_loops(ctx, pieces, inputs, params)

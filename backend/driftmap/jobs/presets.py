@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from driftmap.core.mapping import MAP_PRESETS, MappingParams
+from driftmap.core.mapping.pipeline import MAP_PRESETS, MappingParams
 from driftmap.errors import BadInputError
 
 

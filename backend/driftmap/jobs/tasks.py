@@ -113,7 +113,7 @@ def _import_upload(ctx: JobContext) -> None:
                 batch,
                 _site(ctx, session),
                 source,
-                progress=lambda fraction: ctx.report("import", fraction),
+                progress=ctx.report,
                 calibration=calibration,
                 name=args.get("name"),
                 kind=str(args.get("kind", "mapping")),

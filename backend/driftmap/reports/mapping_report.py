@@ -16,8 +16,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.mapping import MapBuild, MappingDrive, MappingParams, prepare_drives, solve_map, variant
-from driftmap.core.place_database import DATABASE_OFF
+from driftmap.core.mapping.pipeline import (
+    MapBuild,
+    MappingDrive,
+    MappingParams,
+    prepare_drives,
+    solve_map,
+    variant,
+)
+from driftmap.core.topomap.database import DATABASE_OFF
 from driftmap.errors import BadInputError
 from driftmap.reports.plots import draw_plan, new_figure, save
 

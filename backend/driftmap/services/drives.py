@@ -7,13 +7,14 @@ frame leaves neither rows nor orphan blobs once the caller's ``with`` blocks unw
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from sqlalchemy import func, insert, select
 from sqlalchemy.orm import Session
 
+from driftmap.core.types import ProgressFn
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder, write_drive_folder
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
@@ -22,7 +23,6 @@ from driftmap.formats.video import read_video_drive
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import Drive, Frame, Grounding, Site
 
-ProgressFn = Callable[[float], None]
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
 
 
@@ -78,7 +78,7 @@ def import_drive(
         batch: tracks new blobs so that the caller can remove them if the import fails.
         site: the site receiving the drive.
         path: a drive folder (``docs/formats.md``) or an mp4/avi/mov/mkv video file.
-        progress: called with the fraction of frames done, 0..1.
+        progress: called with ``("import", fraction of frames done)``.
         calibration: for a video, the JSON file with the camera block (required).
         name: for a video, the drive name (default: the file stem).
         kind: for a video, ``mapping`` or ``localisation``.
@@ -147,11 +147,11 @@ def _store_drive(
             }
         )
         if progress is not None and done % step == 0:
-            progress(done / len(rows))
+            progress("import", done / len(rows))
     # Rows are written only now, so the database is locked for writing only briefly (SQLite) and
     # progress callbacks above may write to the database from other connections.
     if progress is not None:
-        progress(1.0)
+        progress("import", 1.0)
     session.add(drive)
     session.flush()
     if frame_rows:

@@ -18,7 +18,8 @@ from driftmap.formats.csv_exports import groundings_text, parse_groundings_rows
 from driftmap.formats.records import GroundingRow
 from driftmap.formats.tables import decode_text
 from driftmap.services.drives import grounding_rows
-from driftmap.store.models import Drive, Frame, Grounding, MapGroundingResidual, MapVersion
+from driftmap.store.models import Drive, Frame, Grounding, MapGroundingResidual
+from driftmap.store.queries import latest_map_version
 
 
 @dataclass(frozen=True)
@@ -92,18 +93,11 @@ def delete_grounding(session: Session, grounding: Grounding) -> None:
     session.flush()
 
 
-def latest_version(session: Session, site_id: int) -> MapVersion | None:
-    """The newest map version of a site, if any."""
-    return session.scalar(
-        select(MapVersion).where(MapVersion.site_id == site_id).order_by(MapVersion.version.desc()).limit(1)
-    )
-
-
 def list_groundings(
     session: Session, site_id: int, drive_id: int | None = None, offset: int = 0, limit: int = 1000
 ) -> tuple[list[GroundingView], int]:
     """A site's groundings (or one drive's) in drive then frame order, with latest-map residuals."""
-    version = latest_version(session, site_id)
+    version = latest_map_version(session, site_id)
     residuals: dict[int, float] = {}
     if version is not None:
         residuals = {

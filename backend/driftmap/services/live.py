@@ -6,7 +6,7 @@ vehicle's site, stores the estimate as a :class:`~driftmap.store.access_models.V
 localiser's belief in the vehicle's :class:`~driftmap.store.access_models.VehicleLiveState`, whose version
 counter makes two processes that advance the same vehicle fail instead of double-processing a frame.
 A frame whose ``t`` is not after the last processed one is refused and counted, never processed.
-Each processed frame is also judged for an obscured camera (:mod:`driftmap.core.obscured`); that judgement's
+Each processed frame is also judged for an obscured camera (:mod:`driftmap.core.localisation.camera_check`); that judgement's
 memory of the recent frames is kept in the same stored state (``obscured_*`` arrays of the ``.npz``).
 
 A vehicle with a calibrated camera (:func:`driftmap.services.vehicles.vehicle_camera`) is localised with its
@@ -26,14 +26,13 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
-from driftmap.core.localiser import Estimate, Localiser, LocaliserState
-from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.obscured import ObscuredState, frame_measures, judge_obscured
+from driftmap.core.localisation.camera_check import ObscuredState, frame_measures, judge_obscured
+from driftmap.core.localisation.localiser import Estimate, Localiser, LocaliserState
+from driftmap.core.localisation.map import LocaliserMap
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
 from driftmap.services.vehicles import vehicle_camera
@@ -41,6 +40,7 @@ from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosit
 from driftmap.store.blobs import BlobStore
 from driftmap.store.db import Database
 from driftmap.store.models import MapVersion, Site, utc_now
+from driftmap.store.queries import latest_map_version
 
 FrameStatus = Literal["processed", "skipped", "out_of_order"]
 STALE_RETRIES = 3  # attempts when another process changed the vehicle's state between read and write
@@ -156,11 +156,9 @@ def encode_state(state: LocaliserState, obscured: ObscuredState) -> bytes:
     return buffer.getvalue()
 
 
-def latest_map_version(session: Session, site_id: int) -> MapVersion:
+def require_map_version(session: Session, site_id: int) -> MapVersion:
     """The newest map version of a site; ConflictError when the site has none yet."""
-    version = session.scalars(
-        select(MapVersion).where(MapVersion.site_id == site_id).order_by(MapVersion.version.desc()).limit(1)
-    ).first()
+    version = latest_map_version(session, site_id)
     if version is None:
         site = session.get(Site, site_id)
         name = site.name if site is not None else str(site_id)
@@ -285,7 +283,7 @@ def _localise_once(
         vehicle = session.get(Vehicle, vehicle_id)
         if vehicle is None:
             raise NotFoundError(f"no vehicle with id {vehicle_id}")
-        version = latest_map_version(session, vehicle.site_id)
+        version = require_map_version(session, vehicle.site_id)
         state = live_state_row(session, vehicle_id)
         state.skipped += unsaved_counts[0]
         state.out_of_order += unsaved_counts[1]

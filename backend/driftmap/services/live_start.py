@@ -17,10 +17,10 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
-from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.obscured import ObscuredState
+from driftmap.core.localisation.camera_check import ObscuredState
+from driftmap.core.localisation.map import LocaliserMap
 from driftmap.errors import BadInputError, ConflictError
-from driftmap.services.live import LiveMaps, encode_state, latest_map_version, live_state_row
+from driftmap.services.live import LiveMaps, encode_state, live_state_row, require_map_version
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
 from driftmap.services.vehicles import get_vehicle, vehicle_camera
 from driftmap.store.blobs import BlobStore
@@ -87,7 +87,7 @@ def seed_known_start(
     """
     _check_start(x, y, radius_m)
     vehicle = get_vehicle(session, vehicle_id)
-    version = latest_map_version(session, vehicle.site_id)
+    version = require_map_version(session, vehicle.site_id)
     lmap = (
         maps.get(session, blobs, version)
         if maps is not None

@@ -1,9 +1,9 @@
 """Localisation against a stored map version: load the localiser's map, run recorded frames through it.
 
 The batch CLI (``driftmap localise``), the evaluation report and the live server share these functions:
-:func:`load_localiser_map` turns a stored map version into a :class:`~driftmap.core.localiser_map.LocaliserMap`
+:func:`load_localiser_map` turns a stored map version into a :class:`~driftmap.core.localisation.map.LocaliserMap`
 (reference thumbnails of every node's chosen frames, node centres, sparse adjacency), :func:`make_localiser`
-configures a :class:`~driftmap.core.localiser.Localiser` (SESAME masks and the temporal filter switchable)
+configures a :class:`~driftmap.core.localisation.localiser.Localiser` (SESAME masks and the temporal filter switchable)
 and :func:`localise_frames` runs a sequence of frames through it.
 
 Reference thumbnails come from the version's localisation database blob when the build stored one (its
@@ -24,14 +24,14 @@ from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core import hmm
-from driftmap.core.camera import CameraModel
-from driftmap.core.images import preprocess
-from driftmap.core.localiser import Estimate, Localiser
-from driftmap.core.localiser_map import LocaliserMap
-from driftmap.core.params import IMAGES_DEFAULT, ImageParams
-from driftmap.core.saliency import DEFAULT as SESAME_DEFAULT
-from driftmap.core.saliency import SesameParams
+from driftmap.core.imaging.images import preprocess
+from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.localisation import hmm
+from driftmap.core.localisation.localiser import Estimate, Localiser
+from driftmap.core.localisation.map import LocaliserMap
+from driftmap.core.odometry.camera import CameraModel
+from driftmap.core.sesame.masks import SESAME_DEFAULT, SesameParams
+from driftmap.core.types import ProgressFn
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import LocalisationRow
 from driftmap.formats.drive_json import parse_camera_block
@@ -58,8 +58,6 @@ log = logging.getLogger(__name__)
 
 #: a known start further than this from every node is a mistake (wrong site or coordinates), metres
 START_MAX_OFF_MAP_M = 50.0
-
-ProgressFn = Callable[[str, float], None]
 
 
 def _tuples(value: Any) -> Any:

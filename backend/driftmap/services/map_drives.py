@@ -1,6 +1,6 @@
 """A site's mapping drives for the pipeline: load one, run stage 1 on its segments, carry the results.
 
-A map build's stage 1 (visual odometry, thumbnails, frame statistics, :func:`driftmap.core.mapping.prepare_segment`)
+A map build's stage 1 (visual odometry, thumbnails, frame statistics, :func:`driftmap.core.mapping.pipeline.prepare_segment`)
 is the bulk of its time and independent per drive segment. A ``map.drive`` job runs one segment of a stored
 drive (:func:`load_mapping_drive` streams just its frames); :func:`prepare_in_processes` runs them all in worker
 processes of this machine (what ``driftmap map build`` does: the odometry is Python-bound, so threads share
@@ -25,8 +25,8 @@ from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.drive_prep import PreparedDrive, PreparedSegment
-from driftmap.core.mapping import (
+from driftmap.core.mapping.drive import PreparedDrive, PreparedSegment
+from driftmap.core.mapping.pipeline import (
     MappingDrive,
     MappingParams,
     build_segments,
@@ -34,14 +34,13 @@ from driftmap.core.mapping import (
     join_segments,
     prepare_segment,
 )
+from driftmap.core.types import ProgressFn
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import drive_meta, frame_rows
 from driftmap.store.blobs import BlobStore
 from driftmap.store.db import Database
 from driftmap.store.models import Drive, Grounding, Site
-
-ProgressFn = Callable[[str, float], None]
 
 
 def _frame_range(blobs: BlobStore, shas: list[str]) -> Callable[[int, int], Iterator[NDArray[np.uint8]]]:

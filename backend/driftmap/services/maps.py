@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import io
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,8 +13,8 @@ from numpy.typing import NDArray
 from sqlalchemy import func, insert, select
 from sqlalchemy.orm import Session
 
-from driftmap.core.mapping import (
-    PAPER,
+from driftmap.core.mapping.pipeline import (
+    MAPPING_PAPER,
     MapBuild,
     MappingDrive,
     MappingParams,
@@ -23,7 +22,8 @@ from driftmap.core.mapping import (
     join_drives,
     solve_map,
 )
-from driftmap.core.topomap import TopoMap
+from driftmap.core.topomap.model import TopoMap
+from driftmap.core.types import ProgressFn
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_in_processes
@@ -40,8 +40,8 @@ from driftmap.store.models import (
     MapVersion,
     Site,
 )
+from driftmap.store.queries import latest_map_version
 
-ProgressFn = Callable[[str, float], None]
 LOCALISER_DB_KEY = "localiser_db_sha256"
 """``MapVersion.stats`` key of the localisation database blob: an ``.npz`` of ``thumbs`` (S, h, w) float16
 reference thumbnails of every node's chosen frames, node by node, and ``node_ptr`` (M + 1,) int64 offsets;
@@ -103,7 +103,8 @@ def store_map_version(
     """Write ``build`` as the next immutable map version of ``site``."""
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **build.topomap.to_arrays())  # type: ignore[arg-type]
-    latest = session.scalar(select(func.max(MapVersion.version)).where(MapVersion.site_id == site.id)) or 0
+    previous = latest_map_version(session, site.id)
+    latest = previous.version if previous is not None else 0
     stats = json_safe(build.stats)
     if build.reference_thumbs is not None:
         database = io.BytesIO()
@@ -195,7 +196,7 @@ def build_site_map(
     blobs: BlobStore,
     batch: BlobBatch,
     site: Site,
-    params: MappingParams = PAPER,
+    params: MappingParams = MAPPING_PAPER,
     progress: ProgressFn | None = None,
     created_by: str = "cli",
     workers: int = 1,
@@ -225,13 +226,11 @@ def build_site_map(
 
 def get_map_version(session: Session, site: Site, version: int | None = None) -> MapVersion:
     """Version ``version`` of ``site``'s map, or the latest when None."""
-    query = select(MapVersion).where(MapVersion.site_id == site.id)
-    query = (
-        query.where(MapVersion.version == version)
-        if version is not None
-        else query.order_by(MapVersion.version.desc())
-    )
-    found = session.scalars(query.limit(1)).first()
+    if version is None:
+        found = latest_map_version(session, site.id)
+    else:
+        query = select(MapVersion).where(MapVersion.site_id == site.id, MapVersion.version == version)
+        found = session.scalars(query.limit(1)).first()
     if found is None:
         what = f"version {version}" if version is not None else "map version yet"
         raise NotFoundError(f"site {site.name!r} has no {what}; run `driftmap map build {site.name}`")

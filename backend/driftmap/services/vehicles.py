@@ -12,7 +12,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
 from driftmap.services.security import new_vehicle_token, token_sha256

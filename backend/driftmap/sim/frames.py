@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from driftmap.core.obscurants import LEVELS, apply_level
 from driftmap.sim.geometry import FloatArray
+from driftmap.sim.obscurants import LEVELS, apply_level
 from driftmap.sim.render import Renderer
 from driftmap.sim.ride import apply_ride
 

@@ -22,7 +22,7 @@ from functools import cached_property
 
 import numpy as np
 
-from driftmap.core.camera import CameraModel
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.params import RIG_DEFAULT, CameraRigParams
 

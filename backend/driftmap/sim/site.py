@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 
-from driftmap.core.obscurants import LEVELS, water_centre, water_diameter_px
 from driftmap.errors import BadInputError, ConflictError
 from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.drive_json import camera_to_json
@@ -37,6 +36,7 @@ from driftmap.sim import frames as frame_worker
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.layout import Layout, generate_layout
 from driftmap.sim.motion import DrivePlan, plan_localisation, plan_mapping
+from driftmap.sim.obscurants import LEVELS, water_centre, water_diameter_px
 from driftmap.sim.params import VEHICLE_DEFAULT, site_size
 from driftmap.sim.render import Renderer
 from driftmap.sim.ride import RIDE_DEFAULT, RideParams, calibrated_rig, floor_px_per_m, ride_motion

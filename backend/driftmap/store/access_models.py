@@ -84,7 +84,7 @@ class VehiclePosition(Base):
     matched: Mapped[bool] = mapped_column(Boolean)
     lost: Mapped[bool] = mapped_column(Boolean)
     received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    # the obscured-camera judgement after this frame (driftmap.core.obscured); None on older rows
+    # the obscured-camera judgement after this frame (driftmap.core.localisation.camera_check); None on older rows
     obscured: Mapped[bool | None] = mapped_column(Boolean, nullable=True)
     obscured_reason: Mapped[str | None] = mapped_column(String(16), nullable=True)
     """``dust``, ``water`` or ``covered`` when obscured."""
@@ -105,7 +105,7 @@ class VehicleLiveState(Base):
 
     ``revision`` is SQLAlchemy's version counter: two processes that both advance the same vehicle cannot
     both commit, so frames are never double-processed. ``state_npz`` is the ``.npz`` of
-    :meth:`driftmap.core.localiser.LocaliserState.to_arrays` for ``map_version_id``.
+    :meth:`driftmap.core.localisation.localiser.LocaliserState.to_arrays` for ``map_version_id``.
     """
 
     __tablename__ = "vehicle_live_states"

@@ -1,0 +1,303 @@
+"""The pose-graph back end of Semi-Supervised SLAM (paper III-A): odometry, loop closures, groundings.
+
+Every mapping drive is an odometry chain of Pose2 frames; loop closures join any two frames of any drives
+under a robust kernel (false closures from look-alike tunnels must not bend the map); groundings pin
+frames to surveyed positions (position only, no heading). Frames are addressed by ``(chain, frame)``.
+Poses are [x_m, y_m, yaw_rad] rows; ``wTi`` is frame i in the survey (world) frame, ``aTb`` frame b in
+frame a. Before optimising, every drive is moved rigidly into the survey frame (:mod:`~driftmap.core.graph.alignment`), then
+Levenberg-Marquardt solves the graph (optionally after iSAM2 fed frame by frame, which escapes local
+minima that stop batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information
+makes LM take zero steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
+last solution when only groundings change. The default kernel, DCS with Phi = 1, keeps M3500 within
+0.005 m of its outlier-free map with 20 % or 50 % random false closures, where plain least squares,
+Huber and Cauchy end 20-30 m off (``bench/bench_posegraph.py``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import gtsam
+import numpy as np
+
+from driftmap.core.graph.alignment import Anchor, dead_reckon, initial_guess
+from driftmap.core.graph.constraints import (
+    POSEGRAPH_DEFAULT,
+    FrameRef,
+    GroundingConstraint,
+    LoopConstraint,
+    OdometryChain,
+    PoseGraphParams,
+    PoseGraphResult,
+)
+from driftmap.core.types import F64
+from driftmap.errors import BadInputError
+
+__all__ = ["PoseGraphSession", "optimise_pose_graph"]
+
+_FREE_SIGMA_M = 1e3  # position sigma of a heading-only anchor, metres
+_NM = gtsam.noiseModel
+_M = _NM.mEstimator
+_ESTIMATORS: dict[str, Callable[[float], Any]] = {  # kernel name -> m-estimator factory
+    "huber": _M.Huber.Create,
+    "cauchy": _M.Cauchy.Create,
+    "dcs": _M.DCS.Create,
+    "geman_mcclure": _M.GemanMcClure.Create,
+}
+
+
+def _fail(message: str, field: str) -> BadInputError:
+    return BadInputError(message, field=field)
+
+
+def _sigmas(values: object, count: int, field: str) -> F64:
+    s = np.array(values, dtype=np.float64)
+    if s.shape == (3,):
+        s = np.tile(s, (count, 1))
+    if s.shape != (count, 3) or not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise _fail(f"sigmas must be ({count}, 3) or (3,), finite and positive", field)
+    return s
+
+
+def _noise_models(
+    sigmas: F64, information: F64 | None, params: PoseGraphParams, field: str
+) -> list[gtsam.noiseModel.Base]:
+    """Gaussian noise models with sigmas clamped to the minimum (information to the matching maximum)."""
+    floor = np.array([params.min_sigma_m, params.min_sigma_m, params.min_sigma_rad])
+    if information is None:
+        return [_NM.Diagonal.Sigmas(row) for row in np.maximum(sigmas, floor)]
+    info = np.asarray(information, dtype=np.float64)
+    if info.shape != (sigmas.shape[0], 3, 3) or not np.all(np.isfinite(info)):
+        raise _fail(f"information must be ({sigmas.shape[0]}, 3, 3) and finite", field)
+    scaled = floor[:, None] * info * floor[None, :]  # information in units of the floor
+    w, V = np.linalg.eigh(0.5 * (scaled + scaled.transpose(0, 2, 1)))
+    if np.any(w <= 0):
+        raise _fail(f"matrix {int(np.flatnonzero((w <= 0).any(axis=1))[0])} is not positive definite", field)
+    clamped = np.einsum("kij,kj,klj->kil", V, np.minimum(w, 1.0), V) / floor[:, None] / floor[None, :]
+    return [_NM.Gaussian.Information(m) for m in clamped]
+
+
+class PoseGraphSession:
+    """A pose graph that keeps its odometry and closures and re-solves after grounding edits.
+
+    The first :meth:`solve` starts from the aligned dead-reckoning; later ones start from the previous
+    solution (LM warm start) unless the gauge anchors changed, which reaches the same optimum faster.
+
+    Args:
+        chains: the drives' odometry, chain c has N_c frames.
+        closures: loop closures between frames of any chains.
+        groundings: initial groundings; they get ids 0..G-1.
+        params: how to build and solve the graph.
+    """
+
+    def __init__(
+        self,
+        chains: Sequence[OdometryChain],
+        closures: Sequence[LoopConstraint],
+        groundings: Sequence[GroundingConstraint] = (),
+        params: PoseGraphParams = POSEGRAPH_DEFAULT,
+    ) -> None:
+        if not chains:
+            raise _fail("a pose graph needs at least one odometry chain", "chains")
+        self.params = params
+        self._sizes = [c.num_frames for c in chains]
+        self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).astype(np.int64)
+        self._graph = gtsam.NonlinearFactorGraph()  # odometry, then closures; groundings added per solve
+        self._steps: list[F64] = []
+        self._chain_init: list[F64] = []  # dead-reckoned, or given in the survey frame
+        for c, chain in enumerate(chains):
+            steps = np.asarray(chain.iTj, dtype=np.float64)
+            if steps.ndim != 2 or steps.shape[1] != 3 or not np.all(np.isfinite(steps)):
+                raise _fail("iTj must be (N-1, 3) and finite", f"chains[{c}].iTj")
+            sigmas = _sigmas(chain.sigmas, steps.shape[0], f"chains[{c}].sigmas")
+            models = _noise_models(sigmas, chain.information, params, f"chains[{c}].information")
+            first = self.key((c, 0))
+            for i, model in enumerate(models):
+                self._graph.add(
+                    gtsam.BetweenFactorPose2(first + i, first + i + 1, gtsam.Pose2(*steps[i]), model)
+                )
+            init = chain.wTi_init
+            if init is not None and (np.shape(init) != (len(steps) + 1, 3) or not np.all(np.isfinite(init))):
+                raise _fail(f"wTi_init must be ({len(steps) + 1}, 3) and finite", f"chains[{c}].wTi_init")
+            self._steps.append(steps)
+            self._chain_init.append(dead_reckon(steps) if init is None else np.array(init, dtype=np.float64))
+        self._given = [c.wTi_init is not None for c in chains]
+        self._first_closure = self._graph.size()
+        self._closure_frames = np.zeros((len(closures), 4), dtype=np.int64)
+        self._closure_aTb = np.zeros((len(closures), 3))
+        self._closures: list[tuple[gtsam.BetweenFactorPose2, gtsam.noiseModel.Base]] = []  # Gaussian part
+        for k, lc in enumerate(closures):
+            field = f"closures[{k}]"
+            a, b = self._check_ref(lc.a, field + ".a"), self._check_ref(lc.b, field + ".b")
+            self._closure_frames[k], self._closure_aTb[k] = (*a, *b), lc.aTb
+            info = None if lc.information is None else np.asarray(lc.information)[None]
+            sigmas = _sigmas(lc.sigmas, 1, field + ".sigmas")
+            base = _noise_models(sigmas, info, params, field + ".information")[0]
+            kernel = _ESTIMATORS.get(params.loop_kernel)
+            model = base if kernel is None else _NM.Robust.Create(kernel(params.kernel_width), base)
+            factor = gtsam.BetweenFactorPose2(self.key(a), self.key(b), gtsam.Pose2(*lc.aTb), model)
+            self._graph.add(factor)
+            self._closures.append((factor, base))
+        self._groundings: dict[int, GroundingConstraint] = {}
+        self._next_id = 0
+        for g in groundings:
+            self.add_grounding(g)
+        self._previous: gtsam.Values | None = None
+        self._previous_gauge: list[tuple[int, int, bool]] = []
+
+    def key(self, ref: FrameRef) -> int:
+        """The GTSAM key of frame ``(chain, frame)``."""
+        return int(self._offsets[ref[0]] + ref[1])
+
+    def _check_ref(self, ref: FrameRef, field: str) -> FrameRef:
+        c, i = int(ref[0]), int(ref[1])
+        if not (0 <= c < len(self._sizes) and 0 <= i < self._sizes[c]):
+            raise _fail(f"no frame {tuple(ref)} (there are {len(self._sizes)} chains)", field)
+        return c, i
+
+    @property
+    def groundings(self) -> dict[int, GroundingConstraint]:
+        """The current groundings by id."""
+        return dict(self._groundings)
+
+    def add_grounding(self, grounding: GroundingConstraint) -> int:
+        """Add a grounding and return its id."""
+        gid, self._next_id = self._next_id, self._next_id + 1  # ids are never reused
+        self._set(gid, grounding)
+        return gid
+
+    def move_grounding(
+        self, grounding_id: int, xy_m: tuple[float, float], sigma_m: float | None = None
+    ) -> None:
+        """Give grounding ``grounding_id`` a new surveyed position (and optionally sigma), metres."""
+        old = self._groundings[grounding_id]
+        self._set(
+            grounding_id, GroundingConstraint(old.frame, xy_m, old.sigma_m if sigma_m is None else sigma_m)
+        )
+
+    def remove_grounding(self, grounding_id: int) -> None:
+        """Drop grounding ``grounding_id``."""
+        del self._groundings[grounding_id]
+
+    def _set(self, gid: int, g: GroundingConstraint) -> None:
+        field = f"groundings[{gid}]"
+        frame = self._check_ref(g.frame, field + ".frame")
+        xy = (float(g.xy_m[0]), float(g.xy_m[1]))
+        if not (math.isfinite(xy[0]) and math.isfinite(xy[1]) and math.isfinite(g.sigma_m) and g.sigma_m > 0):
+            raise _fail("position must be finite and sigma positive", field)
+        self._groundings[gid] = GroundingConstraint(frame, xy, float(g.sigma_m))
+
+    def solve(self) -> PoseGraphResult:
+        """Optimise the graph with the current groundings; see :class:`PoseGraphResult`."""
+        p, ids = self.params, sorted(self._groundings)
+        g_frames = np.array([self._groundings[i].frame for i in ids], dtype=np.int64).reshape(-1, 2)
+        g_xy = np.array([self._groundings[i].xy_m for i in ids], dtype=np.float64).reshape(-1, 2)
+        poses, anchors = initial_guess(
+            self._chain_init, self._given, self._closure_frames, self._closure_aTb, g_frames, g_xy,
+            p.placement_inlier_m, p.align_min_baseline_m,
+        )  # fmt: skip
+        graph = gtsam.NonlinearFactorGraph(self._graph)
+        for a in anchors:
+            xy_sigma = _FREE_SIGMA_M if a.heading_only else p.anchor_sigma_m
+            model = _NM.Diagonal.Sigmas(np.array([xy_sigma, xy_sigma, p.anchor_sigma_rad]))
+            graph.add(gtsam.PriorFactorPose2(self.key((a.chain, a.frame)), gtsam.Pose2(*a.wTi), model))
+        for i in ids:
+            g = self._groundings[i]
+            model = _NM.Isotropic.Sigma(2, max(g.sigma_m, p.min_sigma_m))
+            graph.add(gtsam.PoseTranslationPrior2D(self.key(g.frame), np.array(g.xy_m), model))
+        initial = gtsam.Values()
+        for key, pose in enumerate(np.concatenate(poses)):
+            initial.insert(key, gtsam.Pose2(*pose))
+        gauge = [(a.chain, a.frame, a.heading_only) for a in anchors]
+        t0 = time.perf_counter()
+        if self._previous is not None and gauge == self._previous_gauge:
+            start = self._previous  # warm start: only groundings changed
+        else:
+            start = self._isam2(graph, initial, anchors) if p.solver == "isam2" else initial
+        values, iterations, weights = self._batch(graph, start)
+        elapsed = time.perf_counter() - t0
+        self._previous, self._previous_gauge = values, gauge
+        all_wTi = gtsam.utilities.extractPose2(values)
+        whitened = np.array([m.whiten(f.unwhitenedError(values)) for f, m in self._closures]).reshape(-1, 3)
+        if weights is None and p.loop_kernel in _ESTIMATORS:
+            kernel = _ESTIMATORS[p.loop_kernel](p.kernel_width)
+            weights = np.array([kernel.weight(float(n)) for n in np.linalg.norm(whitened, axis=1)])
+        d = all_wTi[[self.key(self._groundings[i].frame) for i in ids], :2] - g_xy
+        return PoseGraphResult(
+            wTi=tuple(all_wTi[a:b].copy() for a, b in itertools.pairwise(self._offsets)),
+            closure_whitened_error=whitened,
+            closure_weight=np.ones(len(self._closures)) if weights is None else weights,
+            closure_accepted=(whitened**2).sum(axis=1) < p.accept_chi2,
+            grounding_ids=tuple(ids),
+            grounding_residual_m=np.column_stack([d, np.hypot(d[:, 0], d[:, 1])]),
+            initial_error=float(graph.error(initial)),
+            final_error=float(graph.error(values)),
+            iterations=iterations,
+            solve_time_s=elapsed,
+        )
+
+    def _batch(
+        self, graph: gtsam.NonlinearFactorGraph, start: gtsam.Values
+    ) -> tuple[gtsam.Values, int, F64 | None]:
+        """Levenberg-Marquardt, or GNC-TLS over it; returns values, iterations and GNC's closure weights."""
+        p = self.params
+        lm = gtsam.LevenbergMarquardtParams()
+        lm.setMaxIterations(p.max_iterations)
+        lm.setRelativeErrorTol(p.relative_error_tol)
+        lm.setAbsoluteErrorTol(p.absolute_error_tol)
+        if p.loop_kernel != "gnc_tls":
+            optimizer = gtsam.LevenbergMarquardtOptimizer(graph, start, lm)
+            return optimizer.optimize(), int(optimizer.iterations()), None
+        closures = range(self._first_closure, self._first_closure + len(self._closures))
+        gnc = gtsam.GncLMParams(lm)
+        gnc.setLossType(gtsam.GncLossType.TLS)
+        gnc.setKnownInliers([i for i in range(graph.size()) if i not in closures])  # factor indices
+        gnc_optimizer = gtsam.GncLMOptimizer(graph, start, gnc)
+        gnc_optimizer.setInlierCostThresholds(p.gnc_inlier_cost)
+        values = gnc_optimizer.optimize()
+        weights = np.asarray(gnc_optimizer.getWeights(), dtype=np.float64)
+        return values, 0, weights[closures.start : closures.stop]
+
+    def _isam2(
+        self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, anchors: list[Anchor]
+    ) -> gtsam.Values:
+        """Feed the frames in key order to iSAM2 (QR factorisation survives long weak chains).
+
+        A factor joins when its last frame arrives; each chain's first frame is held by a temporary prior
+        at its initial guess (not in ``graph``, so the LM polish that follows drops it).
+        """
+        p = self.params
+        isam_params = gtsam.ISAM2Params()
+        isam_params.setFactorization("QR")
+        isam = gtsam.ISAM2(isam_params)
+        due = [gtsam.NonlinearFactorGraph() for _ in range(int(self._offsets[-1]))]
+        for i in range(graph.size()):
+            due[max(graph.at(i).keys())].add(graph.at(i))
+        anchored = {self.key((a.chain, a.frame)) for a in anchors if not a.heading_only}
+        hold = _NM.Diagonal.Sigmas(np.array([p.anchor_sigma_m, p.anchor_sigma_m, p.anchor_sigma_rad]))
+        for c, size in enumerate(self._sizes):
+            for i in range(size):
+                key, values = self.key((c, i)), gtsam.Values()
+                if i > 0:  # dead-reckon from the current estimate of the previous frame
+                    step = gtsam.Pose2(*self._steps[c][i - 1])
+                    values.insert(key, isam.calculateEstimatePose2(key - 1).compose(step))
+                else:
+                    values.insert(key, initial.atPose2(key))
+                    if key not in anchored:
+                        due[key].add(gtsam.PriorFactorPose2(key, initial.atPose2(key), hold))
+                isam.update(due[key], values)
+        return isam.calculateEstimate()
+
+
+def optimise_pose_graph(
+    chains: Sequence[OdometryChain],
+    closures: Sequence[LoopConstraint],
+    groundings: Sequence[GroundingConstraint] = (),
+    params: PoseGraphParams = POSEGRAPH_DEFAULT,
+) -> PoseGraphResult:
+    """Build and solve the pose graph of several drives; see :class:`PoseGraphSession` for the arguments."""
+    return PoseGraphSession(chains, closures, groundings, params).solve()

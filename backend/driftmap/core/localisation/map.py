@@ -1,0 +1,136 @@
+"""The map a localiser runs on (paper 000 III-B): each node's reference thumbnails, centre and adjacency.
+
+:class:`LocaliserMap` is what :class:`driftmap.core.localisation.localiser.Localiser` reads of a stored map;
+:func:`build_localiser_map` makes one from a :class:`~driftmap.core.topomap.build.TopoMap` and the thumbnails of its
+frames. It is immutable and shared: several localisers (one per vehicle) can run on one map, each with its own
+:class:`~driftmap.core.localisation.hmm.HmmParams`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_array
+
+from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.localisation import hmm
+from driftmap.core.localisation.turns import TurnParams, map_turns
+from driftmap.core.topomap.model import TopoMap
+from driftmap.core.types import F64, I64
+from driftmap.errors import BadInputError
+
+__all__ = ["LocaliserMap", "build_localiser_map"]
+
+
+@dataclass(frozen=True, eq=False)
+class LocaliserMap:
+    """What the localiser needs of a stored map.
+
+    Attributes:
+        thumbs: (S, H, W) float32 pre-processed reference thumbnails, node j's in ``node_ptr[j]:node_ptr[j+1]``.
+        node_ptr: (M + 1,) int64 offsets of each node's thumbnails.
+        centres_m: (M, 2) float64 node centres, survey frame, metres.
+        adjacency_m: (M, M) float64 symmetric sparse shortest-path lengths A(x, y), metres.
+        max_adjacency_m: longest path stored in ``adjacency_m``, metres.
+        image_params: the pre-processing that made ``thumbs``; query frames get the same.
+        edges: (E, 2) int64 node pairs driven between directly (the tunnels as segments between centres);
+            the continuous track follows them (:func:`driftmap.core.localisation.track.snap`); (0, 2): none.
+    """
+
+    thumbs: NDArray[np.float32]
+    node_ptr: I64
+    centres_m: F64
+    adjacency_m: csr_array
+    max_adjacency_m: float
+    image_params: ImageParams = IMAGES_DEFAULT
+    edges: I64 = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
+    _turns: dict[TurnParams, F64] = field(default_factory=dict, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        m = self.centres_m.shape[0]
+        if self.thumbs.ndim != 3 or self.thumbs.dtype != np.float32:
+            raise BadInputError(f"thumbs must be (S, H, W) float32, got {self.thumbs.shape}", field="thumbs")
+        if self.centres_m.shape != (m, 2) or m == 0:
+            raise BadInputError(
+                f"centres_m must be (M, 2), M > 0, got {self.centres_m.shape}", field="centres_m"
+            )
+        if self.node_ptr.shape != (m + 1,):
+            raise BadInputError(f"node_ptr must be ({m + 1},), got {self.node_ptr.shape}", field="node_ptr")
+        hmm.check_node_ptr(self.node_ptr, self.thumbs.shape[0])
+        if self.adjacency_m.shape != (m, m):
+            raise BadInputError(f"adjacency_m must be ({m}, {m})", field="adjacency_m")
+        edges = np.asarray(self.edges)
+        if edges.ndim != 2 or edges.shape[1] != 2 or (edges.size and (edges.min() < 0 or edges.max() >= m)):
+            raise BadInputError(f"edges must be (E, 2) node indices below {m}", field="edges")
+
+    def edges_near(self, nodes: I64) -> I64:
+        """(K, 2) int64 the edges with an end among ``nodes``."""
+        if self.edges.size == 0:
+            return self.edges
+        keep = np.isin(self.edges, nodes).any(axis=1)
+        return np.asarray(self.edges[keep], dtype=np.int64)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes M."""
+        return int(self.centres_m.shape[0])
+
+    def nearest_node(self, x_m: float, y_m: float) -> int:
+        """The node whose centre is nearest the survey point (x_m, y_m), metres."""
+        if not (np.isfinite(x_m) and np.isfinite(y_m)):
+            raise BadInputError(f"need a finite survey point, got ({x_m}, {y_m})", field="start")
+        return int(np.argmin(np.hypot(self.centres_m[:, 0] - x_m, self.centres_m[:, 1] - y_m)))
+
+    def turns(self, params: TurnParams) -> F64:
+        """(M, K) float64 each node's mapped heading changes over ``params.window_m`` of path, radians
+        (:func:`driftmap.core.localisation.turns.map_turns`, computed once per window)."""
+        if params not in self._turns:
+            self._turns[params] = map_turns(self.centres_m, self.edges, params)
+        return self._turns[params]
+
+    def long_steps(self, from_m: float) -> I64:
+        """(K, 2) int64 direct steps between nodes at least ``from_m`` long (computed once per length).
+
+        See :func:`driftmap.core.localisation.hmm.long_steps`; the transition model lets the belief take each in one frame.
+        ``from_m`` is the filter's minimum reach (``HmmParams.min_a_t_m``), so localisers with other
+        parameters on one shared map each get their own steps.
+        """
+        if from_m not in self._long_steps:
+            self._long_steps[from_m] = hmm.long_steps(self.adjacency_m, from_m)
+        return self._long_steps[from_m]
+
+
+def build_localiser_map(
+    topomap: TopoMap,
+    thumbs_by_flat_frame_index: NDArray[np.float32],
+    image_params: ImageParams = IMAGES_DEFAULT,
+) -> LocaliserMap:
+    """The localiser's map from a :class:`TopoMap` and the thumbnails of its frames.
+
+    Args:
+        topomap: the stored map; each node's chosen frames become its references.
+        thumbs_by_flat_frame_index: (F, H, W) float32 pre-processed thumbnails indexed by the map's flat
+            frame index (every frame of every chain; only the chosen ones are read).
+        image_params: the pre-processing that made the thumbnails.
+
+    Returns:
+        The :class:`LocaliserMap`.
+    """
+    thumbs = np.asarray(thumbs_by_flat_frame_index, dtype=np.float32)
+    if thumbs.ndim != 3 or thumbs.shape[0] != topomap.frame_ids.shape[0]:
+        raise BadInputError(
+            f"need ({topomap.frame_ids.shape[0]}, H, W) thumbnails, got {thumbs.shape}",
+            field="thumbs_by_flat_frame_index",
+        )
+    return LocaliserMap(
+        thumbs=np.ascontiguousarray(thumbs[topomap.chosen]),
+        node_ptr=np.asarray(topomap.chosen_ptr, dtype=np.int64),
+        centres_m=np.asarray(topomap.centres_m, dtype=np.float64),
+        adjacency_m=topomap.adjacency_m,
+        max_adjacency_m=float(topomap.params.max_adjacency_m),
+        image_params=image_params,
+        edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
+    )

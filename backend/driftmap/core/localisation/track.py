@@ -1,0 +1,326 @@
+"""A localising vehicle's continuous position and heading along the mapped tunnels (beyond paper 000).
+
+The HMM (:mod:`driftmap.core.localisation.hmm`) answers *which place*: a node every N metres. Between and beyond node
+centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_rad)`` in the survey frame
+(x east, y north, yaw counter-clockwise from +x: the way the vehicle faces) with a position variance:
+
+* **predict** (:func:`predict`): with a usable odometry step (eq. 1-2, :mod:`driftmap.core.localisation.motion`)
+  the pose is composed with the step's ``prev_T_curr`` (rear-axle arc) and the variance grows with the step's
+  ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
+  ``free_speed_mps`` x the gap (a random walk), and heading is held.
+* **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i) of a frame that is not lost,
+  pulls the position with the Kalman gain ``var / (var + r)``, ``r = fix_sigma_m^2`` (a node centre is within
+  half a node spacing of the vehicle: ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). The
+  frames of one node give the same fix over and over, so with odometry a frame's fix counts as the share
+  ``travel / fix_spacing_m`` of an independent one (``r`` divided by it): none while the vehicle stands,
+  which would otherwise pull it to the centre of the node it stands in. A fix further
+  than ``gate_m`` plus three standard deviations from the track re-anchors it there (a relocation, a
+  restart; the heading becomes unknown again), unless the track is dead-reckoned by odometry and trusted (a
+  confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
+  (at most ``max_hold_frames`` in a row) and the frame, whose place and track disagree, gets no confidence.
+* **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
+  between directly driven node centres) around it when it lies beside one within ``snap_max_m`` (with
+  odometry, only onto edges within ``snap_max_turn_rad`` of the measured heading: a vehicle turning into a
+  drawpoint or stub the map has no edge for leaves the tunnel it crossed), so
+  positions and trails stay in the tunnels (past the end of every edge, at a dead end or a gap in the
+  mapped edges, it is left as dead-reckoned); the
+  heading is pulled towards the edge's direction (whichever of its two ways is nearer) while moving.
+* **heading**: an unknown heading (after an anchor) is set, once the vehicle moves beside a mapped edge, to
+  one of the edge's two directions, and checked (:func:`check_heading`) when b(i) next steps to a
+  neighbouring node while odometry says the vehicle moves: a heading whose way of travel points against the
+  step is turned by pi. While moving, the fixes' innovations along the direction of travel are
+  summed with decay (``flip_memory``): a heading the wrong way round makes the prediction run away from the
+  fixes, the sum falls below ``-flip_m`` within a few frames and the heading is turned by pi. A right heading
+  only sees the fixes' small lag; after a reversal the position variance is raised so the fixes pull the
+  track back quickly.
+
+Speed comes from the odometry steps (signed metres over the frame gap, exponentially averaged); without
+odometry it is unknown (NaN).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from driftmap.core.odometry.drive import compose
+from driftmap.core.odometry.step import OdometryStep
+from driftmap.core.types import F64, I64
+
+__all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "check_heading", "correct", "predict", "snap"]
+
+
+@dataclass(frozen=True)
+class TrackParams:
+    """The continuous track's noise model and gates."""
+
+    fix_sigma_m: float = 3.0  # standard deviation of a place fix (b(i)'s centre) about the vehicle, metres
+    step_sigma_frac: float = 0.03  # odometry position sd per metre driven, on top of the step's own sigma
+    free_speed_mps: float = 3.0  # without odometry: position sd grows by this x the frame gap
+    gate_m: float = 10.0  # a fix further than this + 3 sd from the track re-anchors it, metres
+    flip_memory: float = 0.9  # per fix, the share of the heading-reversal evidence kept
+    flip_m: float = 25.0  # the heading is reversed when that evidence falls below minus this, metres
+    heading_pull: float = 0.05  # per moving frame, the share of the gap to the edge direction closed
+    speed_memory: float = 0.5  # weight of the newest step in the running speed
+    moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
+    fix_min_confidence: float = (
+        0.3  # a far fix re-anchors a trusted track at this raw confidence (X x distinct)
+    )
+    snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
+    snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
+    max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
+    check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path) checks a new heading's way
+    snap_max_turn_rad: float = 0.6  # ... and only to edges within this of the track's heading (either way)
+    fix_spacing_m: float = (
+        5.0  # with odometry, consecutive fixes are one independent fix per this much travel
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"TrackParams.{name} must be positive, got {getattr(self, name)}")
+        for name in ("heading_pull", "speed_memory", "flip_memory"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise ValueError(f"TrackParams.{name} must be in (0, 1], got {getattr(self, name)}")
+
+
+TRACK_DEFAULT = TrackParams()
+
+
+@dataclass(frozen=True, eq=False)
+class TrackState:
+    """The continuous track between frames.
+
+    Attributes:
+        wT: (3,) float64 ``[x_m, y_m, yaw_rad]`` survey frame; x, y NaN before the first fix, yaw NaN while
+            unknown.
+        var_m2: position variance (isotropic), square metres.
+        speed_mps: signed running speed from odometry (negative: reversing); NaN when not measured.
+        flip_m: evidence that the heading is reversed: the decaying sum of the fixes' innovations along the
+            direction of travel, metres (negative: the fixes keep pulling the track back).
+        trusted: a confident fix (or a known start) has confirmed the track since it was anchored; only a
+            trusted dead-reckoned track holds its course against a doubtful far fix.
+        held: doubtful far fixes held against in a row.
+        heading_checked: the heading, one of an edge's two ways when it was set, has been checked against
+            the way b(i) stepped to a neighbouring node (:func:`check_heading`).
+    """
+
+    wT: F64
+    var_m2: float
+    speed_mps: float
+    flip_m: float
+    trusted: bool = False
+    held: int = 0
+    heading_checked: bool = False
+
+    @classmethod
+    def empty(cls) -> TrackState:
+        """No track yet."""
+        return cls(np.full(3, np.nan), math.inf, math.nan, 0.0)
+
+    @classmethod
+    def at(cls, xy_m: tuple[float, float], sigma_m: float, trusted: bool = False) -> TrackState:
+        """A track anchored at the survey point ``xy_m`` with sd ``sigma_m`` metres, heading unknown."""
+        xy = np.asarray(xy_m, dtype=np.float64)
+        return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, trusted)
+
+    @property
+    def has_position(self) -> bool:
+        return bool(np.isfinite(self.wT[0]))
+
+    @property
+    def has_heading(self) -> bool:
+        return bool(np.isfinite(self.wT[2]))
+
+    def to_arrays(self) -> F64:
+        """(9,) float64 packed for the localiser's stored state."""
+        packed = np.r_[
+            self.wT,
+            self.var_m2,
+            self.speed_mps,
+            self.flip_m,
+            float(self.trusted),
+            self.held,
+            float(self.heading_checked),
+        ]
+        return np.asarray(packed, dtype=np.float64)
+
+    @classmethod
+    def from_arrays(cls, packed: F64) -> TrackState:
+        """Inverse of :meth:`to_arrays` (8 values: stored before the heading check; other sizes: no track)."""
+        a = np.asarray(packed, dtype=np.float64).ravel()
+        if a.size not in (8, 9):
+            return cls.empty()
+        checked = bool(a[8]) if a.size == 9 else True
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]), checked)
+
+
+def _wrap(angle_rad: float) -> float:
+    return math.atan2(math.sin(angle_rad), math.cos(angle_rad))
+
+
+def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: TrackParams) -> TrackState:
+    """Move the track by one frame: by the odometry ``step`` when given, else a random walk.
+
+    Args:
+        state: the track after the previous frame.
+        step: the usable odometry step between the frames, or None.
+        gap_s: the frame gap, seconds.
+        params: noise model.
+    """
+    if not state.has_position:
+        return state
+    gap = max(gap_s, 0.0)
+    if step is None:
+        var = state.var_m2 + (params.free_speed_mps * gap) ** 2
+        return replace(state, var_m2=var, speed_mps=math.nan)
+    sd = step.sigma_xy_m + params.step_sigma_frac * abs(step.dx_m)
+    speed = step.dx_m / gap if gap > 0 else 0.0
+    a = params.speed_memory
+    speed = speed if not math.isfinite(state.speed_mps) else (1 - a) * state.speed_mps + a * speed
+    wT = np.asarray(compose(state.wT, step.prev_T_curr) if state.has_heading else state.wT.copy())
+    return replace(state, wT=wT, var_m2=state.var_m2 + sd * sd, speed_mps=speed)
+
+
+def correct(
+    state: TrackState,
+    fix_m: F64,
+    confident: bool,
+    dead_reckoned: bool,
+    params: TrackParams,
+    travel_m: float | None = None,
+) -> tuple[TrackState, bool]:
+    """Fuse the place fix (2,) ``fix_m`` (survey metres, b(i)'s centre of a frame not lost) into the track.
+
+    Within the gate the fix pulls the track with the Kalman gain (a ``confident`` fix makes the track
+    trusted). Beyond it the track re-anchors at the fix unless the track is trusted and ``dead_reckoned`` by
+    odometry and the frame is doubtful: such a track keeps its course, for at most ``max_hold_frames`` in a
+    row (then the place recognition, consistently elsewhere, wins). The first fix anchors a track that has
+    none.
+
+    ``travel_m`` is the distance driven since the last frame by odometry (None without odometry: every
+    frame's fix counts whole).
+
+    Returns:
+        The new track, and whether it disagrees with the fix (a doubtful far fix was not followed: the
+        position reported is the track's, and the frame gets no confidence).
+    """
+    fix = np.asarray(fix_m, dtype=np.float64)
+    r2 = params.fix_sigma_m**2
+    # the fixes of consecutive frames are one node's centre over and over: with odometry they count as one
+    # independent fix per fix_spacing_m driven (none while standing), else each frame's fix is pulled
+    # towards many times and the track drifts to the centre of the node it stands in
+    r2_pull = r2 if travel_m is None else r2 * params.fix_spacing_m / max(travel_m, 1e-9)
+    if not state.has_position:
+        return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident), False
+    off = float(np.hypot(*(fix - state.wT[:2])))
+    if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + r2):
+        if dead_reckoned and state.trusted and not confident and state.held < params.max_hold_frames:
+            return replace(state, held=state.held + 1), True
+        anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
+        return replace(anchored, speed_mps=state.speed_mps), False
+    state = replace(state, trusted=state.trusted or confident, held=0)
+    gain = state.var_m2 / (state.var_m2 + max(r2_pull, r2))
+    wT = state.wT.copy()
+    innovation = fix - wT[:2]
+    wT[:2] += gain * innovation
+    var, flip = (1.0 - gain) * state.var_m2, state.flip_m
+    if state.has_heading and math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps:
+        ahead = math.copysign(1.0, state.speed_mps) * np.array([math.cos(wT[2]), math.sin(wT[2])])
+        flip = params.flip_memory * flip + float(innovation @ ahead)
+        if flip < -params.flip_m:  # the fixes keep pulling the track back: it faces the other way
+            wT[2], flip = _wrap(wT[2] + math.pi), 0.0
+            var = max(var, (2.0 * params.fix_sigma_m) ** 2)  # it ran the wrong way: let the fixes pull
+    return replace(state, wT=wT, var_m2=var, flip_m=flip), False
+
+
+def check_heading(
+    state: TrackState, from_m: F64, to_m: F64, travel_sign: float, params: TrackParams
+) -> TrackState:
+    """Check an unchecked heading against b(i)'s step from the node centred at (2,) ``from_m`` to a
+    neighbour centred at ``to_m`` (survey metres) while the vehicle drove forwards (``travel_sign`` +1) or
+    backwards (-1): a heading whose way of travel points against the step is turned by pi and the position
+    variance raised, as a flip (:func:`correct`), so the fixes pull back what it ran the wrong way.
+
+    An edge gives a heading up to its two ways; waiting for the fixes' innovations to say it is the wrong
+    one takes a dozen frames of running the wrong way, one node step settles it. Only the first step after
+    the heading was set counts (later, b(i) lagging a node behind would look like a step backwards).
+    """
+    if state.heading_checked or not state.has_heading or travel_sign == 0.0:
+        return state
+    step = np.asarray(to_m, dtype=np.float64) - np.asarray(from_m, dtype=np.float64)
+    if not np.any(step):
+        return state
+    ahead = travel_sign * np.array([math.cos(state.wT[2]), math.sin(state.wT[2])])
+    if float(ahead @ step) >= 0.0:
+        return replace(state, heading_checked=True)
+    wT = state.wT.copy()
+    wT[2] = _wrap(wT[2] + math.pi)
+    var = max(state.var_m2, (2.0 * params.fix_sigma_m) ** 2)
+    return replace(state, wT=wT, var_m2=var, flip_m=0.0, heading_checked=True)
+
+
+def _axial_rad(a_rad: F64 | float, b_rad: F64 | float) -> F64:
+    """|a - b| between two undirected directions, radians in [0, pi/2]."""
+    d = np.abs(np.arctan2(np.sin(np.asarray(a_rad) - b_rad), np.cos(np.asarray(a_rad) - b_rad)))
+    return np.asarray(np.minimum(d, np.pi - d), dtype=np.float64)
+
+
+def _nearest_on_edges(
+    xy: F64, centres_m: F64, edges: I64, heading_rad: float = math.nan, max_turn_rad: float = math.pi
+) -> tuple[F64, float, float] | None:
+    """The nearest point to ``xy`` on one of the segments ``edges`` (K, 2) of ``centres_m``
+    (its foot of the perpendicular), its distance and the segment's direction (radians); None when ``xy``
+    lies beside no segment (past the end of every one: a dead end, or a gap in the mapped edges, where
+    pulling it back to the end would stop it). With a finite ``heading_rad`` only segments whose direction
+    is within ``max_turn_rad`` of it (either way along the segment) count: a vehicle driving across a
+    tunnel's line (into a drawpoint or a stub the map has no edge for) is not on that tunnel."""
+    if edges.size == 0:
+        return None
+    a, b = centres_m[edges[:, 0]], centres_m[edges[:, 1]]
+    ab = b - a
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    t = np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0)
+    beside = (t >= 0.0) & (t <= 1.0) & (length2 > 0)
+    if math.isfinite(heading_rad):
+        beside &= _axial_rad(np.arctan2(ab[:, 1], ab[:, 0]), heading_rad) <= max_turn_rad
+    if not beside.any():
+        return None
+    points = a + t[:, None] * ab
+    dist = np.where(beside, np.hypot(*(points - xy).T), np.inf)
+    k = int(np.argmin(dist))
+    return points[k], float(dist[k]), math.atan2(float(ab[k, 1]), float(ab[k, 0]))
+
+
+def snap(
+    state: TrackState,
+    centres_m: F64,
+    edges: I64,
+    moving: bool,
+    params: TrackParams,
+    steered: bool = False,
+) -> TrackState:
+    """Put the track on the nearest of the mapped ``edges`` (K, 2) int64 (node pairs, segments between
+    their ``centres_m`` (M, 2)) and pull its heading towards that edge while ``moving``. A ``steered`` track
+    (its heading turned by odometry this frame) goes only onto edges along its heading
+    (``snap_max_turn_rad``): one driving off a mapped tunnel into a stub without edges leaves it."""
+    if not state.has_position:
+        return state
+    wT = state.wT.copy()
+    heading = float(wT[2]) if steered else math.nan
+    found = _nearest_on_edges(wT[:2], centres_m, edges, heading, params.snap_max_turn_rad)
+    edge_dir = math.nan
+    if found is not None and found[1] <= params.snap_max_m:
+        wT[:2], _dist, edge_dir = found
+    if not np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
+        wT[2] = (
+            edge_dir  # one of the tunnel's two ways: check_heading or the fixes turn it if it is the other
+        )
+    elif np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
+        err = _wrap(edge_dir - wT[2])
+        if abs(err) > math.pi / 2:
+            err = _wrap(err + math.pi)  # the edge's other way is nearer
+        wT[2] = _wrap(wT[2] + params.heading_pull * err)
+    return replace(state, wT=wT)

@@ -1,0 +1,213 @@
+"""Eq. 3 on arbitrary pairs of frames, a cache of those scores, and sequence scores of diagonals.
+
+The loop-closure search (:mod:`driftmap.core.loop_closure.blocks`) computes the shifted SAD of eq. 3 only on the
+pairs its coarse candidates (:mod:`driftmap.core.loop_closure.descriptors`) and their sequence checks ask for:
+:func:`sad_pairs` scores any list of pairs in batches, :class:`PairCache` keeps each pair's score so no pair
+is computed twice, and :class:`DiagonalScorer` scores short diagonals of the confusion matrix from it
+(SeqSLAM on full-resolution frames).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from driftmap.core.imaging.params import SAD_DEFAULT, SadParams
+from driftmap.core.imaging.sad import SadResult
+
+__all__ = ["DiagonalScorer", "PairCache", "sad_pairs"]
+
+
+def sad_pairs(
+    frames: NDArray,
+    qi: NDArray,
+    rj: NDArray,
+    params: SadParams = SAD_DEFAULT,
+) -> SadResult:
+    """Eq. 3 for arbitrary pairs: shift-minimised, overlap-normalised SAD of ``frames[qi[p]]``
+    against ``frames[rj[p]]``, with the conventions of :func:`driftmap.core.imaging.sad.sad_one_to_many`.
+
+    Pairs are gathered in chunks of about ``params.chunk_bytes`` and laid out as two tall images, so
+    each shift costs one ``cv2.absdiff`` and one sum per pair whatever the pairs are. A pair's result
+    does not depend on the other pairs of its call (so a search split over processes scores alike).
+
+    Args:
+        frames: ``(N, H, W)`` float32 patch-normalised frames.
+        qi: ``(P,)`` int query frame indices.
+        rj: ``(P,)`` int reference frame indices.
+        params: shift ranges ``+-max_shift_x_px``, ``+-max_shift_y_px`` and the chunk memory bound.
+
+    Returns:
+        :class:`~driftmap.core.imaging.sad.SadResult` with ``d`` ``(P,)`` and ``shift_px`` ``(P, 2)``:
+        query pixel ``(x, y)`` matches reference pixel ``(x + dx, y + dy)``.
+
+    Raises:
+        ValueError: bad shapes or indices, or a shift range leaving no overlap.
+    """
+    f = np.ascontiguousarray(frames, dtype=np.float32)
+    qi = np.asarray(qi, dtype=np.int64)
+    rj = np.asarray(rj, dtype=np.int64)
+    if f.ndim != 3 or qi.ndim != 1 or qi.shape != rj.shape:
+        raise ValueError(
+            f"frames (N, H, W), qi (P,), rj (P,) expected, got {f.shape}, {qi.shape}, {rj.shape}"
+        )
+    n, height, width = f.shape
+    if qi.size and (min(qi.min(), rj.min()) < 0 or max(qi.max(), rj.max()) >= n):
+        raise ValueError(f"pair indices must lie in 0 .. {n - 1}")
+    mx, my = params.max_shift_x_px, params.max_shift_y_px
+    if mx >= width or my >= height:
+        raise ValueError(f"shifts +-{mx}, +-{my} leave no overlap in a {width}x{height} image")
+    shifts = [(dx, dy) for dy in range(-my, my + 1) for dx in range(-mx, mx + 1)]
+    best = np.full(qi.size, np.inf, dtype=np.float32)
+    best_k = np.zeros(qi.size, dtype=np.int64)
+    chunk = max(1, params.chunk_bytes // (height * width * 4))
+    diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
+    for c0 in range(0, qi.size, chunk):
+        c1 = min(qi.size, c0 + chunk)
+        m = c1 - c0
+        a = f[qi[c0:c1]].reshape(m * height, width)
+        b = f[rj[c0:c1]].reshape(m * height, width)
+        for k, (dx, dy) in enumerate(shifts):
+            qy = slice(max(0, -dy), height - max(0, dy))
+            qx = slice(max(0, -dx), width - max(0, dx))
+            rx = slice(qx.start + dx, qx.stop + dx)
+            k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
+            cols = qx.stop - qx.start
+            diff = diff_buf[: m * height * cols].reshape(m * height, cols)
+            cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff[k0:k1])
+            # Each pair's overlap is one contiguous run of the buffer, summed on its own (numpy's pairwise
+            # sum): a pair's d is the same whatever else its batch holds (a BLAS row sum is not).
+            overlap = diff.reshape(m, height, cols)[:, qy, :].reshape(m, -1)
+            score = np.add.reduce(overlap, axis=1)
+            score *= np.float32(1.0 / ((qy.stop - qy.start) * cols))
+            better = score < best[c0:c1]
+            best[c0:c1][better] = score[better]
+            best_k[c0:c1][better] = k
+    shift_arr = np.asarray(shifts, dtype=np.int16).reshape(-1, 2)
+    return SadResult(d=best, shift_px=shift_arr[best_k])
+
+
+class PairCache:
+    """Eq. 3 scores of frame pairs, computed in batches on demand and kept.
+
+    Args:
+        frames: ``(N, H, W)`` float32 patch-normalised frames, addressed by global index.
+        params: the SAD shift ranges.
+    """
+
+    def __init__(self, frames: NDArray[np.float32], params: SadParams = SAD_DEFAULT) -> None:
+        self.frames, self.params = frames, params
+        self.n = frames.shape[0]
+        self.entries: dict[int, tuple[float, int, int]] = {}  # i * n + j -> (d, dx, dy)
+        self.n_computed = 0  # full SAD comparisons made so far
+
+    def fetch(self, qi: NDArray[np.int64], rj: NDArray[np.int64]) -> NDArray[np.float32]:
+        """d of each pair ``(qi[p], rj[p])`` (any shape), computing the missing ones in one batch."""
+        keys = (np.asarray(qi, dtype=np.int64) * self.n + np.asarray(rj, dtype=np.int64)).ravel()
+        missing = np.array(sorted({k for k in keys.tolist() if k not in self.entries}), dtype=np.int64)
+        if missing.size:
+            res = sad_pairs(self.frames, missing // self.n, missing % self.n, self.params)
+            self.n_computed += missing.size
+            for k, d, (dx, dy) in zip(missing.tolist(), res.d.tolist(), res.shift_px.tolist(), strict=True):
+                self.entries[k] = (d, dx, dy)
+        out = np.array([self.entries[k][0] for k in keys.tolist()], dtype=np.float32)
+        return out.reshape(np.shape(qi))
+
+    def get(self, i: int, j: int) -> tuple[float, int, int]:
+        """``(d, dx, dy)`` of a pair already fetched."""
+        return self.entries[i * self.n + j]
+
+    def background(self, limit: NDArray[np.int64], n_pairs: int, seed: int) -> tuple[float, float]:
+        """Median and robust sigma (1.4826 MAD) of d over random eligible pairs.
+
+        Args:
+            limit: ``(N,)`` exclusive end of each query's eligible references (see
+                :func:`coarse_candidates`); pairs are drawn uniformly from all eligible pairs.
+            n_pairs: pairs drawn (at most the number of eligible pairs), with replacement.
+            seed: of the draw.
+        """
+        q = np.flatnonzero(limit > 0)
+        rng = np.random.default_rng(seed)
+        gq = rng.choice(q, size=int(min(n_pairs, limit.sum())), p=limit[q] / limit[q].sum())
+        rj = np.minimum((rng.random(gq.size) * limit[gq]).astype(np.int64), limit[gq] - 1)
+        d = self.fetch(gq, rj)
+        median = float(np.median(d))
+        return median, 1.4826 * float(np.median(np.abs(d - median)))
+
+
+class DiagonalScorer:
+    """SeqSLAM-style scores of short diagonals of the confusion matrix, from a :class:`PairCache`.
+
+    Query frame ``i - l`` (``l = 0 .. seq_len - 1``) pairs with reference ``j - round(v l)`` for each
+    slope ``v`` (reference frames per query frame; negative: the reference drive passed the other
+    way, e.g. reversing with the same heading). Every pair must lie inside the two chains and be
+    eligible (``r < limit[i - l]``). Slopes +-1 (keyframes at equal spacing) are tried first; the
+    others only where those do not already give a mean below ``d_t`` with ``min_hits`` hits.
+
+    Args:
+        cache: eq. 3 scores.
+        chain: ``(N,)`` chain of each frame; ``pos``: ``(N,)`` index in its chain; ``limit``:
+            ``(N,)`` exclusive end of the eligible references of each query.
+        seq_len: frames in a diagonal.
+        slopes: the slopes ``v`` tried; the best one counts.
+        thresholds: ``(d_hit, d_t, min_hits)``: a pair with ``d < d_hit`` is a hit; a diagonal with
+            mean below ``d_t`` and ``min_hits`` hits needs no other slope.
+    """
+
+    def __init__(
+        self,
+        cache: PairCache,
+        chain: NDArray[np.int64],
+        pos: NDArray[np.int64],
+        limit: NDArray[np.int64],
+        seq_len: int,
+        slopes: tuple[float, ...],
+        thresholds: tuple[float, float, int],
+    ) -> None:
+        self.cache, self.chain, self.pos, self.limit = cache, chain, pos, limit
+        self.seq_len, self.n = seq_len, chain.size
+        self.d_hit, self.d_t, self.min_hits = thresholds
+        lags = np.arange(seq_len)
+        offsets = np.unique(np.rint(np.outer(slopes, lags)).astype(np.int64), axis=0)
+        unit = np.all(np.abs(offsets) == lags, axis=1)
+        if not unit.any():
+            unit[:] = True
+        self.first: NDArray[np.int64] = offsets[unit]
+        self.rest: NDArray[np.int64] = offsets[~unit]
+
+    def scores(
+        self, qi: NDArray[np.int64], rj: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        """Best mean d over the slopes of the diagonals ending at ``(qi[m], rj[m])``, and its hits.
+
+        Missing scores are computed in batches. Returns ``(M,)`` float32 means (inf when no
+        diagonal fits) and ``(M,)`` int64 hits of the best slope.
+        """
+        mean, hits = self._scores(qi, rj, self.first)
+        redo = np.flatnonzero(~((mean < self.d_t) & (hits >= self.min_hits)))
+        if self.rest.size and redo.size:
+            mean2, hits2 = self._scores(qi[redo], rj[redo], self.rest)
+            better = mean2 < mean[redo]
+            mean[redo[better]], hits[redo[better]] = mean2[better], hits2[better]
+        return mean, hits
+
+    def _scores(
+        self, qi: NDArray[np.int64], rj: NDArray[np.int64], offsets: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        lags = np.arange(self.seq_len)
+        q, r = np.broadcast_arrays(qi[:, None, None] - lags, rj[:, None, None] - offsets)  # (M, S, L)
+        r_in = np.clip(r, 0, self.n - 1)
+        fits = (
+            (r >= 0)
+            & (r < self.limit[np.clip(q, 0, self.n - 1)])
+            & (self.chain[r_in] == self.chain[rj][:, None, None])
+        )
+        ok = (self.pos[qi] >= self.seq_len - 1)[:, None] & fits.all(axis=2)
+        d = np.full(r.shape, np.inf, dtype=np.float32)
+        d[ok] = self.cache.fetch(q[ok], r[ok])
+        mean = d.mean(axis=2)
+        best = np.argmin(mean, axis=1)
+        take = np.arange(qi.size)
+        hits = (d[take, best] < self.d_hit).sum(axis=1)
+        return mean[take, best].astype(np.float32), hits.astype(np.int64)

@@ -1,0 +1,7 @@
+"""Ground-plane visual odometry (paper 000 III-A-1, eq. 1-2): a drive's steps from its camera frames.
+
+Modules: ``params`` (parameters, presets), ``camera`` (the calibrated camera), ``grid`` (the matching
+grid, linear or bird's-eye), ``step`` (one step between two frames), ``drive`` (a drive's steps,
+self-calibration and dead reckoning), ``pitch`` (the slowly varying horizon) and ``rotation_centre``
+(the rotation-centre fit).
+"""

@@ -1,0 +1,109 @@
+"""The loop-closure search split into query blocks (driftmap.core.loop_closure.blocks) decides like one run.
+
+A map build scores blocks of queries in ``map.loops`` subtasks on any worker and decides at the join;
+the closures must be exactly those of :func:`detect_loops` on one machine. The world: three passes over
+one stretch of a textured tunnel wall (the strip of test_loops), 900 keyframes, four query blocks.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from driftmap.core.imaging.images import patch_normalise
+from driftmap.core.loop_closure.blocks import (
+    LoopSearch,
+    QueryScores,
+    plan_search,
+    score_queries,
+    split_queries,
+)
+from driftmap.core.loop_closure.descriptors import coarse_candidates, query_blocks
+from driftmap.core.loop_closure.pair_scores import sad_pairs
+from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams
+from driftmap.core.loop_closure.search import decide_loops, detect_loops
+from tests.core.loop_closure.test_search import make_strip, views
+
+N_VIEWS = 300
+F32 = NDArray[np.float32]
+
+
+@pytest.fixture(scope="module")
+def three_passes() -> list[F32]:
+    rng = np.random.default_rng(3)
+    strip = make_strip(N_VIEWS + 2, rng)
+    return [views(strip, np.arange(N_VIEWS), rng, phase_px=k) for k in range(3)]
+
+
+def plan(chains: list[F32], params: LoopParams) -> LoopSearch:
+    search = plan_search(chains, params)
+    assert search is not None
+    return search
+
+
+def npz_round_trip(arrays: dict[str, NDArray]) -> dict[str, NDArray]:
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)  # type: ignore[arg-type]
+    with np.load(io.BytesIO(buffer.getvalue())) as loaded:
+        return {k: loaded[k] for k in loaded.files}
+
+
+@pytest.mark.parametrize("params", [LOOPS_DEFAULT, LOOPS_PAPER], ids=["default", "paper"])
+def test_blocks_scored_apart_decide_exactly_like_one_run(three_passes: list[F32], params: LoopParams) -> None:
+    one_run = detect_loops(three_passes, params)
+    search = plan(three_passes, params)
+    ranges = split_queries(search, params, 256)
+    assert len(ranges) == 4 and ranges[0][0] == 0 and ranges[-1][1] == search.n
+    # Each block in its own fresh state, through the bytes a blob store keeps, joined in reverse order.
+    shipped = LoopSearch.from_arrays(npz_round_trip(search.to_arrays()))
+    blocks = [
+        QueryScores.from_arrays(npz_round_trip(score_queries(shipped, params, q0, q1).to_arrays()))
+        for q0, q1 in reversed(ranges)
+    ]
+    split = decide_loops(search, blocks, params)
+    assert len(one_run.closures) > 300  # passes 2 and 3 close on the earlier ones
+    assert split.closures == one_run.closures
+    assert split.stats.d_t == one_run.stats.d_t
+    assert split.stats.n_full_candidates == one_run.stats.n_full_candidates
+    assert split.stats.n_coarse == one_run.stats.n_coarse
+
+
+def test_blocks_that_miss_or_repeat_queries_are_refused(three_passes: list[F32]) -> None:
+    search = plan(three_passes, LOOPS_DEFAULT)
+    (a0, a1), (b0, b1), *_ = split_queries(search, LOOPS_DEFAULT, 256)
+    first, second = score_queries(search, LOOPS_DEFAULT, a0, a1), score_queries(search, LOOPS_DEFAULT, b0, b1)
+    for blocks in ([first, second], [first, first], [second]):
+        with pytest.raises(ValueError, match="do not cover"):
+            decide_loops(search, blocks, LOOPS_DEFAULT)
+
+
+def test_query_ranges_off_the_block_grid_are_refused(three_passes: list[F32]) -> None:
+    search = plan(three_passes, LOOPS_DEFAULT)
+    grid = query_blocks(search.limit)
+    assert grid[0] == LOOPS_DEFAULT.recent_frames + 1 and grid[-1] == search.n
+    with pytest.raises(ValueError, match="off the block grid"):
+        score_queries(search, LOOPS_DEFAULT, grid[1] + 1, grid[2])
+    with pytest.raises(ValueError, match="off the block grid"):
+        coarse_candidates(search.desc, search.limit, search.pos, top_k=2, queries=(0, grid[1] - 3))
+
+
+def test_no_eligible_pair_plans_nothing() -> None:
+    rng = np.random.default_rng(0)
+    short = patch_normalise(rng.integers(0, 255, (5, 32, 64)).astype(np.uint8))
+    assert plan_search([short], LOOPS_DEFAULT) is None
+    assert detect_loops([short]).closures == []
+
+
+def test_a_pairs_score_does_not_depend_on_its_batch() -> None:
+    rng = np.random.default_rng(1)
+    frames = patch_normalise(rng.integers(0, 255, (300, 32, 64)).astype(np.uint8))
+    qi, rj = rng.integers(0, 300, 2000), rng.integers(0, 300, 2000)
+    whole = sad_pairs(frames, qi, rj)
+    parts = [sad_pairs(frames, qi[a : a + 37], rj[a : a + 37]) for a in range(0, 2000, 37)]
+    np.testing.assert_array_equal(whole.d, np.concatenate([p.d for p in parts]))
+    np.testing.assert_array_equal(whole.shift_px, np.concatenate([p.shift_px for p in parts]))
+    alone = [sad_pairs(frames, qi[a : a + 1], rj[a : a + 1]).d[0] for a in range(0, 2000, 10)]
+    np.testing.assert_array_equal(whole.d[::10], alone)
