@@ -12,7 +12,7 @@ from scipy.sparse import csr_array
 from driftmap.core.imaging.images import patch_normalise
 from driftmap.core.imaging.params import SadParams
 from driftmap.core.imaging.sad import sad_one_to_many
-from driftmap.core.localisation import hmm
+from driftmap.core.localisation import hmm, transitions
 from driftmap.core.topomap.distances import shortest_paths
 from driftmap.errors import BadInputError
 
@@ -99,7 +99,7 @@ class TestObservation:
 
 class TestTransitions:
     def test_columns_sum_to_one(self) -> None:
-        model = hmm.TransitionModel(chain_adjacency(12), 50.0, hmm.DEFAULT)
+        model = transitions.TransitionModel(chain_adjacency(12), 50.0, hmm.DEFAULT)
         for gap_s in (0.1, 1.0, 3.0, 6.0):
             pi = model.matrix(model.reach_m(gap_s))
             assert pi is not None
@@ -107,7 +107,7 @@ class TestTransitions:
 
     def test_gap_of_three_intervals_reaches_three_times_further(self) -> None:
         params = hmm.HmmParams(max_speed_mps=6.0, min_a_t_m=1.0)  # one 1 s interval: A_t = 6 m, one node
-        model = hmm.TransitionModel(chain_adjacency(20), 50.0, params)
+        model = transitions.TransitionModel(chain_adjacency(20), 50.0, params)
         start = np.zeros(20)
         start[10] = 1.0
         one = np.flatnonzero(model.predict(start, 1.0))
@@ -117,20 +117,20 @@ class TestTransitions:
 
     def test_cached_by_quantised_reach(self) -> None:
         params = hmm.HmmParams(max_speed_mps=7.0, min_a_t_m=1.0, a_t_quantum_m=1.0)
-        model = hmm.TransitionModel(chain_adjacency(10), 50.0, params)
+        model = transitions.TransitionModel(chain_adjacency(10), 50.0, params)
         belief = np.full(10, 0.1)
         for gap_s in (1.0, 0.99, 0.95, 1.0, 2.0):  # 7, 6.93, 6.65 -> 7 m; 14 m
             model.predict(belief, gap_s)
         assert model.cached == 2
 
     def test_reach_beyond_stored_paths_is_global(self) -> None:
-        model = hmm.TransitionModel(chain_adjacency(30, max_m=20.0), 20.0, hmm.DEFAULT)
+        model = transitions.TransitionModel(chain_adjacency(30, max_m=20.0), 20.0, hmm.DEFAULT)
         start = np.zeros(30)
         start[0] = 1.0
         np.testing.assert_allclose(model.predict(start, 60.0), 1.0 / 30)
 
     def test_stopping_keeps_mass_and_reversing_is_symmetric(self) -> None:
-        model = hmm.TransitionModel(chain_adjacency(5), 50.0, hmm.DEFAULT)
+        model = transitions.TransitionModel(chain_adjacency(5), 50.0, hmm.DEFAULT)
         pi = model.matrix(model.reach_m(0.0))
         assert pi is not None
         dense = pi.toarray()
@@ -148,16 +148,16 @@ class TestLongSteps:
         return shortest_paths(5, edges, np.diff(xs), 50.0)
 
     def test_only_direct_steps_are_found(self) -> None:
-        steps = hmm.long_steps(self.uneven_chain(), 7.5)
+        steps = transitions.long_steps(self.uneven_chain(), 7.5)
         np.testing.assert_array_equal(steps, [[2, 3]])  # 0-2 (10 m) and 1-3 (14 m) pass through a node
-        assert hmm.long_steps(self.uneven_chain(), 10.0).shape == (0, 2)
+        assert transitions.long_steps(self.uneven_chain(), 10.0).shape == (0, 2)
 
     def test_transitions_cross_a_long_step_in_one_frame(self) -> None:
         adj = self.uneven_chain()
         start = np.zeros(5)
         start[2] = 1.0
-        plain = hmm.TransitionModel(adj, 50.0, hmm.DEFAULT)  # A_t = 8 m < 9 m: a wall
-        crossing = hmm.TransitionModel(adj, 50.0, hmm.DEFAULT, steps=hmm.long_steps(adj, 7.5))
+        plain = transitions.TransitionModel(adj, 50.0, hmm.DEFAULT)  # A_t = 8 m < 9 m: a wall
+        crossing = transitions.TransitionModel(adj, 50.0, hmm.DEFAULT, steps=transitions.long_steps(adj, 7.5))
         assert plain.predict(start, 0.1)[3] == 0.0
         prior = crossing.predict(start, 0.1)
         assert prior[3] > 0 and prior[4] == 0.0  # the next node, not beyond it

@@ -9,31 +9,12 @@ continuous position and heading, speed, and the one calibrated confidence that `
 same way; the live server keeps :meth:`Localiser.state` in its shared store between frames and calls
 :meth:`Localiser.restore` on the next.
 
-Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i)) is below ``lost_confidence``
-or the believed place does not look distinctly better than somewhere else: d(i, b(i)) is above
-``lost_elsewhere_ratio`` times the least d of the compared nodes (evaluated nodes and a few rotating probe
-nodes) more than two frame reaches (2 A_t) of path away from b(i), or above ``lost_distinct_ratio`` times the
-median d of the compared nodes. The test is relative to other places of the same map, so it holds in mines
-where every tunnel looks much alike (d of the right place only a few per cent below an unrelated one's). A
-right track fails this test on single frames (on the medium simulated sites 7.6-8.8 % of all frames were right
-but failed it), so an estimate is reported lost only once ``lost_report_frames`` lost frames in a row are
-counted; after ``lost_frames`` the belief becomes uniform, so the next frame searches the whole map. A vehicle
-that stands where the map's views match poorly looks lost frame after frame, but it shows the same view again
-and again: a "still" frame (its view changed less than ``still_ratio`` times its least d to the map since the
-previous frame) adds no evidence of being elsewhere, so once the belief has followed ``confirm_frames`` moving
-frames since its last global start, still lost frames leave the count where it was (and are reported lost only
-if it had reached ``lost_report_frames``). With ``single_image=True`` there is no filter: every node is
+Lost detection and relocation (beyond the paper) judge b(i) against the other compared places: see
+:mod:`driftmap.core.localisation.evidence`. With ``single_image=True`` there is no filter: every node is
 compared and b(i) = argmin d.
 
-Relocation (beyond the paper): a compared far node (as above) whose d is at least ``relocate_ratio`` times
-below d(i, b(i)) gets ``relocate_share`` of the belief after the update, a second hypothesis that the next
-frames confirm or drop. It is then the belief's peak, and the frame reports it (eq. 11 on the belief the
-frame leaves, so the estimate and the stored state agree; the lost test and distinctness are those of the new
-b(i)). A belief stuck on a look-alike can fail the lost test on most frames and still never reach
-``lost_frames`` in a row; when a probe shows the true place clearly better, this moves it.
-
 Transitions (eq. 9-10) also let the belief take every direct step between two nodes in one frame, however
-long (:func:`driftmap.core.localisation.hmm.long_steps`): node spacing is uneven at junctions and merges, and a step
+long (:func:`driftmap.core.localisation.transitions.long_steps`): node spacing is uneven at junctions and merges, and a step
 longer than the reach A_t would otherwise be a wall the belief can never cross.
 
 SESAME (paper 001, eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
@@ -53,7 +34,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import preprocess
 from driftmap.core.imaging.params import SAD_DEFAULT, ImageParams, SadParams
-from driftmap.core.localisation import hmm
+from driftmap.core.localisation import evidence, hmm, transitions
 from driftmap.core.localisation import track as localiser_track
 from driftmap.core.localisation.map import LocaliserMap
 from driftmap.core.localisation.motion import OdometryFeed
@@ -119,7 +100,7 @@ class Localiser:
         self.image_params = lmap.image_params if image_params is None else image_params
         self.single_image = single_image
         self.sesame = sesame
-        self.transitions = hmm.TransitionModel(
+        self.transitions = transitions.TransitionModel(
             lmap.adjacency_m, lmap.max_adjacency_m, params, steps=lmap.long_steps(params.min_a_t_m)
         )
         self._all = np.arange(lmap.n_nodes, dtype=np.int64)
@@ -227,7 +208,7 @@ class Localiser:
         if self.single_image:
             d = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, self._all, self.sad_params, mask)
             best = int(np.argmin(d))
-            score = self._distinctness(d, float(d[best]))
+            score = evidence.distinctness(d, float(d[best]))
             self._state = LocaliserState(s.belief, t_s, 0, s.steps + 1)
             x_m, y_m = lm.centres_m[best]
             return self._estimate(
@@ -247,17 +228,17 @@ class Localiser:
         compared = np.r_[nodes, probes]
         far_m = 2.0 * self.transitions.reach_m(gap_s)
         best = int(np.argmax(belief))
-        typical, near, elsewhere, far_best = self._judge(best, compared, d_all, far_m)
+        typical, near, elsewhere, far_best = evidence.judge(lm.adjacency_m, best, compared, d_all, far_m)
         if p.relocate_ratio > 0 and elsewhere >= p.relocate_ratio:
             belief = hmm.add_hypothesis(belief, far_best, p.relocate_share)  # the next frames decide
             best = far_best  # now the belief's peak: eq. 11 on the belief this frame leaves
-            typical, near, elsewhere, far_best = self._judge(best, compared, d_all, far_m)
+            typical, near, elsewhere, far_best = evidence.judge(lm.adjacency_m, best, compared, d_all, far_m)
         score = float(belief[best])
         frame_distinct = min(max(1.0 - max(typical, elsewhere), 0.0), 1.0)
-        distinct = self._track_distinct(s, best, frame_distinct, near)
+        distinct = evidence.track_distinct(s.node, s.distinct, best, frame_distinct, near, p.distinct_memory)
         not_distinct = typical > p.lost_distinct_ratio or elsewhere > p.lost_elsewhere_ratio
         lost = p.lost_frames > 0 and (score < p.lost_confidence or not_distinct)
-        still = self._is_still(query, s.last_query, float(np.min(d_all, initial=np.inf)))
+        still = evidence.is_still(query, s.last_query, float(np.min(d_all, initial=np.inf)), p.still_ratio)
         moving = s.moving + (0 if still else 1)
         if lost and still and moving >= p.confirm_frames:
             lost_count = s.lost_count  # the same view again: no new evidence of being elsewhere
@@ -364,7 +345,7 @@ class Localiser:
                 moving
                 and raw > 0.0
                 and 0 <= last_node != best
-                and best in self._near(last_node, tp.check_step_m)
+                and best in evidence.near(lm.adjacency_m, last_node, tp.check_step_m)
             ):
                 sign = math.copysign(1.0, motion.dx_m)
                 track = localiser_track.check_heading(
@@ -373,67 +354,12 @@ class Localiser:
         else:
             moving = not still
         around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
-        edges = lm.edges_near(np.r_[around, self._near(around, tp.snap_radius_m)])
-        snapped = localiser_track.snap(track, lm.centres_m, edges, moving, tp, steered=motion is not None)
+        edges = lm.edges_near(np.r_[around, evidence.near(lm.adjacency_m, around, tp.snap_radius_m)])
+        turning = motion is not None and abs(motion.dtheta_rad) > tp.turning_rad_per_m * max(
+            abs(motion.dx_m), 0.05
+        )
+        snapped = localiser_track.snap(track, lm.centres_m, edges, moving, tp, motion is not None, turning)
         return snapped, moving, disagree
-
-    def _judge(
-        self, best: int, compared: I64, d_all: NDArray[np.floating], far_m: float
-    ) -> tuple[float, I64, float, int]:
-        """How ``best`` compares with the other compared nodes: (d(b) / median d, the nodes within ``far_m``
-        metres of path of it, :meth:`_elsewhere`'s ratio and far node)."""
-        at_best = d_all[compared == best]
-        d_here = float(at_best[0]) if at_best.size else float(np.min(d_all, initial=np.inf))
-        near = self._near(best, far_m)
-        elsewhere, far_best = self._elsewhere(compared, d_all, best, d_here, near)
-        return 1.0 - self._distinctness(d_all, d_here), near, elsewhere, far_best
-
-    def _near(self, best: int, far_m: float) -> I64:
-        """(k,) int64 the nodes within ``far_m`` metres of path of ``best`` (two frame reaches: the same place)."""
-        adj = self.map.adjacency_m
-        row = slice(adj.indptr[best], adj.indptr[best + 1])
-        return np.asarray(adj.indices[row][adj.data[row] <= far_m], dtype=np.int64)
-
-    def _track_distinct(self, s: LocaliserState, best: int, distinct: float, near: I64) -> float:
-        """The running distinctness of the track that ends at ``best``: this frame's ``distinct`` averaged
-        exponentially (weight ``distinct_memory``) with the last frame's running value when the last b(i) is
-        ``best`` or one of its ``near`` nodes; with 0 after a jump or a global start (a new track earns its
-        confidence frame by frame)."""
-        a = self.params.distinct_memory
-        same_track = s.node >= 0 and (best == s.node or s.node in near)
-        return (1.0 - a) * (s.distinct if same_track else 0.0) + a * distinct
-
-    @staticmethod
-    def _elsewhere(
-        compared: I64, d: NDArray[np.floating], best: int, d_here: float, near: I64
-    ) -> tuple[float, int]:
-        """(d(b(i)) / least d of the compared nodes that are neither ``best`` nor ``near`` it, that node);
-        (0, -1) if there is none."""
-        far = ~np.isin(compared, near) & (compared != best) & np.isfinite(d)
-        if not far.any():
-            return 0.0, -1
-        k = int(np.argmin(np.where(far, d, np.inf)))
-        d_far = float(d[k])
-        ratio = d_here / d_far if d_far > 0 and np.isfinite(d_here) else float("inf")
-        return ratio, int(compared[k])
-
-    def _is_still(self, query: NDArray[np.float32], last: NDArray[np.float32], d_least: float) -> bool:
-        """True when the view barely changed since the last frame: mean |query - last| below ``still_ratio``
-        x the least d of this frame to the map (the vehicle stands; a moving camera changes its view about as
-        much as it differs from the best reference)."""
-        ratio = self.params.still_ratio
-        if ratio <= 0 or last.shape != query.shape or not np.isfinite(d_least):
-            return False
-        return float(np.mean(np.abs(query - last))) < ratio * d_least
-
-    @staticmethod
-    def _distinctness(d: NDArray[np.floating], d_best: float) -> float:
-        """1 - d_best / median of the finite scores: 0 when the best is typical, near 1 when it stands out."""
-        finite = d[np.isfinite(d)]
-        if finite.size == 0 or not np.isfinite(d_best):
-            return 0.0
-        med = float(np.median(finite))
-        return 1.0 - d_best / med if med > 0 else 0.0
 
     def _estimate(
         self,

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_array
 
 from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
-from driftmap.core.localisation import hmm
+from driftmap.core.localisation import hmm, transitions
 from driftmap.core.localisation.turns import TurnParams, map_turns
 from driftmap.core.topomap.model import TopoMap
 from driftmap.core.types import F64, I64
@@ -94,12 +94,12 @@ class LocaliserMap:
     def long_steps(self, from_m: float) -> I64:
         """(K, 2) int64 direct steps between nodes at least ``from_m`` long (computed once per length).
 
-        See :func:`driftmap.core.localisation.hmm.long_steps`; the transition model lets the belief take each in one frame.
+        See :func:`driftmap.core.localisation.transitions.long_steps`; the transition model lets the belief take each in one frame.
         ``from_m`` is the filter's minimum reach (``HmmParams.min_a_t_m``), so localisers with other
         parameters on one shared map each get their own steps.
         """
         if from_m not in self._long_steps:
-            self._long_steps[from_m] = hmm.long_steps(self.adjacency_m, from_m)
+            self._long_steps[from_m] = transitions.long_steps(self.adjacency_m, from_m)
         return self._long_steps[from_m]
 
 

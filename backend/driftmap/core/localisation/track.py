@@ -72,6 +72,9 @@ class TrackParams:
     snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
     max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
     check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path) checks a new heading's way
+    turning_rad_per_m: float = (
+        0.03  # odometry turning sharper than this (curvature) is a turn: no heading pull
+    )
     snap_max_turn_rad: float = 0.6  # ... and only to edges within this of the track's heading (either way)
     fix_spacing_m: float = (
         5.0  # with odometry, consecutive fixes are one independent fix per this much travel
@@ -301,11 +304,14 @@ def snap(
     moving: bool,
     params: TrackParams,
     steered: bool = False,
+    turning: bool = False,
 ) -> TrackState:
     """Put the track on the nearest of the mapped ``edges`` (K, 2) int64 (node pairs, segments between
     their ``centres_m`` (M, 2)) and pull its heading towards that edge while ``moving``. A ``steered`` track
     (its heading turned by odometry this frame) goes only onto edges along its heading
-    (``snap_max_turn_rad``): one driving off a mapped tunnel into a stub without edges leaves it."""
+    (``snap_max_turn_rad``): one driving off a mapped tunnel into a stub without edges leaves it. While
+    odometry says the vehicle is ``turning`` the heading is not pulled (the pull corrects drift on the
+    straight; in a turn it would take part of the turn away)."""
     if not state.has_position:
         return state
     wT = state.wT.copy()
@@ -318,7 +324,7 @@ def snap(
         wT[2] = (
             edge_dir  # one of the tunnel's two ways: check_heading or the fixes turn it if it is the other
         )
-    elif np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
+    elif np.isfinite(wT[2]) and moving and not turning and math.isfinite(edge_dir):
         err = _wrap(edge_dir - wT[2])
         if abs(err) > math.pi / 2:
             err = _wrap(err + math.pi)  # the edge's other way is nearer
