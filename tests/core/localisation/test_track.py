@@ -1,0 +1,109 @@
+"""The continuous track's own rules on hand-made cases: fixes while standing, edges across the heading, a
+guessed heading checked by b(i)'s step, coasting over an unusable step."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from driftmap.core.localisation.track import TRACK_DEFAULT, TrackState, check_heading, correct, predict, snap
+from driftmap.core.odometry.step import OdometryStep
+
+CENTRES = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]])  # an east-west tunnel, nodes 5 m apart
+EDGES = np.array([[0, 1], [1, 2]], dtype=np.int64)
+TOL_M = 0.05
+
+
+def step(dx_m: float, dtheta_rad: float = 0.0) -> OdometryStep:
+    return OdometryStep(
+        dx_m=dx_m,
+        dtheta_rad=dtheta_rad,
+        shift_px=(0.0, dx_m * 100),
+        confidence=0.9,
+        stationary=dx_m == 0.0,
+        sigma_xy_m=0.01 + 0.03 * abs(dx_m),
+        sigma_theta_rad=0.002,
+        prev_T_curr=(dx_m, 0.0, dtheta_rad),
+        model="linear",
+    )
+
+
+def heading(state: TrackState, yaw_rad: float) -> TrackState:
+    return replace(state, wT=np.r_[state.wT[:2], yaw_rad])
+
+
+class TestFixesWhileStanding:
+    def test_a_standing_vehicle_is_not_dragged_to_the_node_centre(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((7.0, 0.0), 1.0, trusted=True), 0.0)
+        for _ in range(200):  # 20 s standing 2 m from b(i)'s centre
+            track = predict(track, step(0.0), 0.1, p)
+            track, _ = correct(track, CENTRES[1], True, True, p, travel_m=0.0)
+        assert track.wT[0] == pytest.approx(7.0, abs=TOL_M)
+
+    def test_without_odometry_every_fix_counts(self) -> None:
+        p = TRACK_DEFAULT
+        track = TrackState.at((7.0, 0.0), 1.0, trusted=True)
+        for _ in range(200):
+            track = predict(track, None, 0.1, p)
+            track, _ = correct(track, CENTRES[1], True, False, p)
+        assert track.wT[0] == pytest.approx(5.0, abs=TOL_M)
+
+
+class TestEdgesAcrossTheHeading:
+    def test_a_vehicle_turned_into_a_stub_leaves_the_tunnel(self) -> None:
+        track = heading(TrackState.at((5.0, -1.5), 1.0), -math.pi / 2)  # facing south, 1.5 m off the tunnel
+        off = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True)
+        assert off.wT[1] == pytest.approx(-1.5)
+
+    def test_a_vehicle_along_the_tunnel_is_put_on_it(self) -> None:
+        track = heading(TrackState.at((5.0, -1.5), 1.0), 0.1)
+        on = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True)
+        assert on.wT[1] == pytest.approx(0.0)
+
+    def test_no_heading_pull_while_turning(self) -> None:
+        track = heading(TrackState.at((5.0, 0.0), 1.0), 0.4)
+        turning = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True, turning=True)
+        straight = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True)
+        assert turning.wT[2] == pytest.approx(0.4)
+        assert straight.wT[2] < 0.4
+
+
+class TestHeadingCheck:
+    def test_a_wrong_guess_is_turned_by_the_first_step(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((5.0, 0.0), 1.0), math.pi)  # guessed west; b(i) steps east
+        checked = check_heading(track, CENTRES[1], CENTRES[2], 1.0, p)
+        assert math.cos(checked.wT[2]) == pytest.approx(1.0)
+        assert checked.heading_checked and checked.var_m2 >= (2 * p.fix_sigma_m) ** 2
+        again = check_heading(checked, CENTRES[2], CENTRES[1], 1.0, p)  # later steps back: b(i) lagging
+        assert again.wT[2] == checked.wT[2]
+
+    def test_reversing_is_checked_the_other_way(self) -> None:
+        track = heading(TrackState.at((5.0, 0.0), 1.0), math.pi)  # faces west, reverses east
+        checked = check_heading(track, CENTRES[1], CENTRES[2], -1.0, TRACK_DEFAULT)
+        assert checked.wT[2] == pytest.approx(math.pi)
+
+    def test_stored_without_the_flag_counts_as_checked(self) -> None:
+        track = heading(TrackState.at((5.0, 0.0), 1.0), 0.0)
+        assert TrackState.from_arrays(track.to_arrays()[:8]).heading_checked
+        assert not TrackState.from_arrays(track.to_arrays()).heading_checked
+
+
+class TestCoasting:
+    def test_an_unusable_step_coasts_at_the_fading_running_speed(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 1.0), 0.0)
+        for _ in range(5):
+            track = predict(track, step(0.2), 0.1, p)  # 2 m/s east
+        x_before = float(track.wT[0])
+        coasted = predict(track, None, 0.1, p)
+        assert coasted.wT[0] - x_before == pytest.approx(0.2, abs=0.02)
+        assert coasted.speed_mps == pytest.approx(track.speed_mps * p.coast_memory)
+
+    def test_without_a_running_speed_it_stands(self) -> None:
+        track = heading(TrackState.at((0.0, 0.0), 1.0), 0.0)
+        assert predict(track, None, 0.1, TRACK_DEFAULT).wT[0] == 0.0
