@@ -1,8 +1,10 @@
-"""The tiny simulated site with its localisation drive imported and one FAST map built, once per session.
+"""The tiny simulated site with one FAST map built and its localisation drives imported, once per session.
 
-Tests of localisation only read this store (they write their outputs elsewhere), so one build serves the
-service, report and CLI tests. On a PostgreSQL run its rows live in a database of their own that outlives
-each test (the per-test databases are dropped), named by the returned settings.
+The map is the one the API tests copy (:func:`tests.api.access_helpers.built_tiny_data`, mapping drives only):
+its data directory is copied once and the localisation drives are imported into the copy, so the session
+builds the tiny map once. Tests of localisation only read this store (they write their outputs elsewhere), so
+one copy serves the service, report and CLI tests. On a PostgreSQL run its rows live in a database of their
+own that outlives each test (the per-test databases are dropped), named by the returned settings.
 """
 
 from __future__ import annotations
@@ -12,12 +14,9 @@ from pathlib import Path
 import pytest
 
 from driftmap.config import Settings
-from driftmap.core.mapping.pipeline import MAPPING_FAST
-from driftmap.services import maps as map_service
-from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
-from tests.postgres_server import active_server
-from tests.sim_site import import_site
+from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
+from tests.sim_site import import_drives
 
 SITE = "tiny"
 _BUILT: dict[Path, Settings] = {}
@@ -26,17 +25,14 @@ _BUILT: dict[Path, Settings] = {}
 def tiny_map_settings(tmp_path_factory: pytest.TempPathFactory, site_dir: Path) -> Settings:
     """Settings of a store holding the tiny site (mapping + localisation drives) and map version 1 (FAST)."""
     if site_dir not in _BUILT:
-        server = active_server()
-        settings = Settings(
-            data_dir=tmp_path_factory.mktemp("tiny-map") / "data",
-            database_url=None if server is None else server.snapshot()[1],  # None: the SQLite file
+        data, database_url = copy_data_to_new_database(
+            built_tiny_data(tmp_path_factory.getbasetemp(), site_dir),
+            tmp_path_factory.mktemp("tiny-map") / "data",
         )
+        settings = Settings(data_dir=data, database_url=database_url)  # None: the copied SQLite file
         storage = Storage.open(settings)
         try:
-            import_site(storage, site_dir, SITE, kinds=("mapping", "localisation"))
-            with storage.blobs.batch() as batch, storage.db.session() as session:
-                site = site_service.get_site(session, SITE)
-                map_service.build_site_map(session, storage.blobs, batch, site, MAPPING_FAST)
+            import_drives(storage, site_dir, SITE, kinds=("localisation",))
         finally:
             storage.close()
         _BUILT[site_dir] = settings

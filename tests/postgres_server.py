@@ -13,6 +13,7 @@ from __future__ import annotations
 import glob
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -26,6 +27,7 @@ from tests.processes import free_port, stop
 
 USER = "driftmap"
 TEMPLATE = "driftmap_template"
+STOP_DEADLINE_S = 30.0
 _active: PostgresServer | None = None
 
 
@@ -140,9 +142,13 @@ class PostgresServer:
         return name, self.create_database(name, template=TEMPLATE)
 
     def stop(self) -> None:
-        """Stop the server (fast shutdown) and wait for it."""
+        """Stop the server (fast shutdown: sessions still open are ended, not waited for) and wait for it."""
         if self._process is not None:
-            stop(self._process)
+            self._process.send_signal(signal.SIGINT)  # SIGTERM would wait for every client to disconnect
+            try:
+                self._process.wait(STOP_DEADLINE_S)
+            except subprocess.TimeoutExpired:
+                stop(self._process)
             self._process = None
         shutil.rmtree(self.root, ignore_errors=True)
 

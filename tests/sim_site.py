@@ -27,6 +27,11 @@ def import_site(
         site_service.add_survey_map(
             session, batch, site, (site_dir / "survey.dxf").read_bytes(), "survey.dxf"
         )
+    import_drives(storage, site_dir, name, kinds)
+
+
+def import_drives(storage: Storage, site_dir: Path, name: str, kinds: tuple[str, ...]) -> None:
+    """Import ``site_dir``'s drives of the given kinds (``mapping``, ``localisation``) into site ``name``."""
     for folder in drive_service.drive_folders_in(site_dir / "drives"):
         kind = "mapping" if folder.name.startswith("map") else "localisation"
         if kind not in kinds:
