@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from driftmap.cli import data, localise, maps, replay, server, vpr, worker
+from driftmap.cli import camera, data, localise, maps, replay, server, vpr, worker
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -20,6 +20,7 @@ app.add_typer(maps.map_app, name="map")
 maps.report_app.command("localisation")(localise.report_localisation)
 app.add_typer(maps.report_app, name="report")
 app.add_typer(vpr.vpr_app, name="vpr")
+app.add_typer(camera.camera_app, name="camera")
 app.add_typer(server.user_app, name="user")
 app.command()(server.serve)
 app.command()(worker.worker)

@@ -7,15 +7,25 @@ does not know. JSON errors and bad values name the file, the 1-based line and th
 from __future__ import annotations
 
 import json
+import logging
 import math
 import re
 from pathlib import Path
 from typing import Any, cast
 
+from driftmap.core.imaging.lens import LENS_MODELS, Lens
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
-from driftmap.formats.records import DRIVE_FORMAT, DRIVE_KINDS, DriveKind, DriveMeta
+from driftmap.formats.records import (
+    DRIVE_FORMAT,
+    DRIVE_FORMAT_LENS,
+    DRIVE_FORMATS,
+    DRIVE_KINDS,
+    DriveKind,
+    DriveMeta,
+)
 
+logger = logging.getLogger(__name__)
 _KEY_RE = re.compile(r'"([^"\\]*)"\s*:')
 CAMERA_KEYS: tuple[str, ...] = ("width", "height", "ground_roi", "k_x", "k_y", "y_c", "y_h", "forward_sign")
 
@@ -34,13 +44,65 @@ def camera_to_json(camera: CameraModel) -> dict[str, Any]:
     }
     if camera.ground_homography is not None:
         block["ground_homography"] = [[float(v) for v in row] for row in camera.ground_homography]
+    if camera.lens is not None:
+        block["lens"] = lens_to_json(camera.lens)
     return block
+
+
+def lens_to_json(lens: Lens) -> dict[str, Any]:
+    """The ``lens`` object of a camera block: ``model``, ``K`` (3x3, pixels), ``distortion``."""
+    return {
+        "model": lens.model,
+        "K": [[float(v) for v in row] for row in lens.K],
+        "distortion": [float(v) for v in lens.distortion],
+    }
+
+
+def parse_lens_block(lens: object, text: str, file: str | Path) -> Lens:
+    """Validate a camera block's ``lens`` object (already parsed from ``text``).
+
+    Raises:
+        BadInputError: not an object, an unknown model, a K that is not 3x3 of finite numbers with
+            positive focal lengths, or the wrong number of distortion coefficients; names ``camera.lens.*``.
+    """
+
+    def bad(key: str, message: str) -> BadInputError:
+        return BadInputError(message, file=file, line=_line_of(text, "lens", key), field=f"camera.lens.{key}")
+
+    if not isinstance(lens, dict):
+        raise BadInputError(
+            "lens must be a JSON object", file=file, line=_line_of(text, "lens"), field="camera.lens"
+        )
+    for key in ("model", "K", "distortion"):
+        if key not in lens:
+            raise BadInputError(
+                "missing key", file=file, line=_line_of(text, "lens"), field=f"camera.lens.{key}"
+            )
+    model, k, dist = lens["model"], lens["K"], lens["distortion"]
+    if model not in LENS_MODELS:
+        raise bad("model", f"must be one of {', '.join(LENS_MODELS)}, found {json.dumps(model)[:60]}")
+    if not (
+        isinstance(k, list) and len(k) == 3 and all(isinstance(r, list) and len(r) == 3 for r in k)
+        and all(_finite(v) for r in k for v in r)
+    ):  # fmt: skip
+        raise bad("K", "must be a 3x3 list of finite numbers")
+    if not isinstance(dist, list) or not all(_finite(v) for v in dist):
+        raise bad("distortion", "must be a list of finite numbers")
+    try:
+        return Lens(model, tuple((float(r[0]), float(r[1]), float(r[2])) for r in k), tuple(map(float, dist)))
+    except BadInputError as exc:
+        key = (exc.field or "lens.K").removeprefix("lens.")
+        raise bad(key, exc.reason) from None
+
+
+def _finite(v: object) -> bool:
+    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
 
 
 def meta_to_json(meta: DriveMeta) -> dict[str, Any]:
     """The whole ``drive.json`` object for ``meta``."""
     return {
-        "format": DRIVE_FORMAT,
+        "format": DRIVE_FORMAT if meta.camera.lens is None else DRIVE_FORMAT_LENS,
         "name": meta.name,
         "kind": meta.kind,
         "fps": float(meta.fps),
@@ -55,6 +117,11 @@ def dump_drive_json(meta: DriveMeta) -> str:
         ValueError: a non-finite number in ``meta``.
     """
     return _dump(meta_to_json(meta), "") + "\n"
+
+
+def json_text(value: Any) -> str:
+    """JSON text as the writers emit it: one key per line, two-space indent, lists on one line, final newline."""
+    return _dump(value, "") + "\n"
 
 
 def _dump(value: Any, indent: str) -> str:
@@ -142,9 +209,9 @@ def parse_drive_json(text: str, file: str | Path) -> DriveMeta:
     if not isinstance(obj, dict):
         raise BadInputError("drive.json must hold a JSON object", file=file, line=1)
     fmt = _require(obj, "format", text, file)
-    if fmt != DRIVE_FORMAT:
+    if fmt not in DRIVE_FORMATS:
         raise BadInputError(
-            f"format must be '{DRIVE_FORMAT}', found {json.dumps(fmt)[:60]}",
+            f"format must be one of {', '.join(DRIVE_FORMATS)}, found {json.dumps(fmt)[:60]}",
             file=file,
             line=_line_of(text, "format"),
             field="format",
@@ -166,6 +233,13 @@ def parse_drive_json(text: str, file: str | Path) -> DriveMeta:
     if fps <= 0:
         raise BadInputError("fps must be positive", file=file, line=_line_of(text, "fps"), field="fps")
     camera = parse_camera_block(_require(obj, "camera", text, file), text, file)
+    if (camera.lens is None) != (fmt == DRIVE_FORMAT):  # the format says whether the camera has a lens
+        message = (
+            f"a camera with a lens needs format '{DRIVE_FORMAT_LENS}'"
+            if camera.lens is not None
+            else f"format '{DRIVE_FORMAT_LENS}' is for a camera with a lens; without one it is '{DRIVE_FORMAT}'"
+        )
+        raise BadInputError(message, file=file, line=_line_of(text, "format"), field="format")
     return DriveMeta(name=name, kind=cast(DriveKind, kind), fps=fps, camera=camera)
 
 
@@ -243,6 +317,9 @@ def parse_camera_block(block: object, text: str, file: str | Path) -> CameraMode
         ):
             raise bad("ground_homography", "must be a 3x3 list of finite numbers")
         homography = tuple((float(r[0]), float(r[1]), float(r[2])) for r in hom)
+    lens = parse_lens_block(block["lens"], text, file) if isinstance(block.get("lens"), dict) else None
+    if "lens" in block and lens is None:  # driftmap-drive/1 ignored unknown keys; only an object is a lens
+        logger.warning("%s: camera.lens is not a JSON object; ignored", file)
     return CameraModel(
         width_px=width,
         height_px=height,
@@ -253,6 +330,7 @@ def parse_camera_block(block: object, text: str, file: str | Path) -> CameraMode
         y_h_m=y_h,
         forward_sign=int(sign),
         ground_homography=homography,
+        lens=lens,
     )
 
 

@@ -12,6 +12,8 @@ from typing import Literal
 from driftmap.core.odometry.camera import CameraModel
 
 DRIVE_FORMAT = "driftmap-drive/1"
+DRIVE_FORMAT_LENS = "driftmap-drive/2"  # written when the camera block carries a lens
+DRIVE_FORMATS: tuple[str, ...] = (DRIVE_FORMAT, DRIVE_FORMAT_LENS)
 DriveKind = Literal["mapping", "localisation"]
 DRIVE_KINDS: tuple[str, ...] = ("mapping", "localisation")
 

@@ -1,7 +1,9 @@
 """The calibrated camera of one drive, as the ground-plane odometry needs it.
 
-The fields mirror the ``camera`` block of ``drive.json`` (``shared/formats.md``). The vehicle frame
-used by ``ground_homography`` has x forward, y left, origin on the floor under the camera, metres.
+The fields mirror the ``camera`` block of ``drive.json`` (``docs/formats.md``). The vehicle frame
+used by ``ground_homography`` has x forward, y left, origin on the floor under the camera, metres. A camera
+with a ``lens`` has its ROI, ``k_x``, ``k_y``, ``y_h`` and homography defined on the undistorted image
+(:mod:`driftmap.core.imaging.lens`); odometry undistorts the region it needs before matching.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from driftmap.core.imaging.lens import Lens
 from driftmap.errors import BadInputError
 
 
@@ -29,6 +32,7 @@ class CameraModel:
         forward_sign: +1 when image content moves down (+v) as the vehicle drives forward, else -1.
         ground_homography: optional (3, 3) map from pixel (u, v, 1) to the floor point
             (x forward, y left, w) in metres in the vehicle frame at the camera's foot.
+        lens: optional lens model; None for an ideal pinhole (frames used as recorded).
     """
 
     width_px: int
@@ -40,6 +44,7 @@ class CameraModel:
     y_h_m: float
     forward_sign: int = 1
     ground_homography: tuple[tuple[float, float, float], ...] | None = None
+    lens: Lens | None = None
 
     def __post_init__(self) -> None:
         if self.width_px <= 0 or self.height_px <= 0:

@@ -6,6 +6,8 @@ a metric bird's-eye grid over the ROI footprint plus the search range, with the 
 farthest depth slices as regions. Each frame is warped onto it once and patch-normalised into a pyramid
 (:func:`prepare_frame`), with a quality figure (texture, sharpness, unoccluded fraction) that feeds the
 step's confidence. Grid cells are ``(col, row)``; bird's-eye rows point backwards and columns right.
+A camera with a lens has its frames undistorted first, over the window of the image the grid (turned by
+up to the step's largest turn) can sample, with remap tables built once with the grid.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import mask_pyramid, patch_normalise, pyramid
+from driftmap.core.imaging.lens import LensMaps, lens_maps
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.odometry.params import OdometryParams
 from driftmap.errors import BadInputError
@@ -61,6 +64,7 @@ class MatchGrid:
     regions: list[list[NDArray[np.float32]]]  # mask pyramid per rectangle
     valid: list[NDArray[np.float32]]  # pyramid of cells showing image content
     extent_m: float  # half the larger side of the ROI footprint, metres (shear lever of a turn)
+    undistort: LensMaps | None = None  # remap tables of the camera's lens over the sampled window
 
 
 @dataclass(frozen=True)
@@ -227,7 +231,33 @@ def match_grid(camera: CameraModel, params: OdometryParams) -> MatchGrid:
     )  # fmt: skip
     masks, valid = grid_masks(camera, base, base.px_from_grid, max(1, params.patch_px // 2))
     regions = [mask_pyramid(m, levels) for m in masks]
-    return dataclasses.replace(base, regions=regions, valid=mask_pyramid(valid, levels))
+    undistort = None
+    if camera.lens is not None:
+        window = _sampled_window(camera, base)
+        undistort = lens_maps(camera.lens, (camera.width_px, camera.height_px), window)
+    return dataclasses.replace(base, regions=regions, valid=mask_pyramid(valid, levels), undistort=undistort)
+
+
+def _sampled_window(camera: CameraModel, setup: MatchGrid, margin: float = 0.1) -> Rect:
+    """Image rectangle ``(x, y, w, h)`` around the ROI and the grid's footprint, grown by ``margin``
+    of its size on each side (room for the turned grids of a step), clipped to the frame."""
+    width, height = setup.size
+    t = np.linspace(0.0, 1.0, 17)
+    border = np.concatenate(
+        [np.stack([t * width, np.zeros_like(t)], 1), np.stack([t * width, np.full_like(t, height)], 1),
+         np.stack([np.zeros_like(t), t * height], 1), np.stack([np.full_like(t, width), t * height], 1)]
+    )  # fmt: skip
+    hom = setup.px_from_grid
+    w_h = border @ hom[2, :2] + hom[2, 2]
+    pts = apply_homography(hom, border[w_h > 1e-9]) / setup.scale
+    x, y, w, h = camera.ground_roi_px
+    pts = np.vstack([pts[np.all(np.isfinite(pts), axis=1)], [[x, y], [x + w, y + h]]])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    grow = margin * (hi - lo)
+    x0, y0 = np.maximum(np.floor(lo - grow), 0).astype(int)
+    x1 = min(int(np.ceil(hi[0] + grow[0])), camera.width_px)
+    y1 = min(int(np.ceil(hi[1] + grow[1])), camera.height_px)
+    return (int(x0), int(y0), x1 - int(x0), y1 - int(y0))
 
 
 def frame_quality(raw: NDArray[np.uint8], camera: CameraModel, params: OdometryParams) -> float:
@@ -254,6 +284,8 @@ def normalised_pyramid(grid: NDArray, levels: int, params: OdometryParams) -> li
 def prepare_frame(
     frame: NDArray[np.uint8], camera: CameraModel, setup: MatchGrid, params: OdometryParams
 ) -> GridFrame:
+    if setup.undistort is not None:
+        frame = setup.undistort.apply(frame)
     grid = warp_to_grid(frame, setup, setup.px_from_grid)
     if setup.model == "linear" and params.linear_blur_px > 0:  # fine grain does not survive the zoom
         grid = np.asarray(cv2.GaussianBlur(grid, (0, 0), params.linear_blur_px), dtype=np.float32)

@@ -1,0 +1,100 @@
+"""``driftmap camera intrinsics`` and ``driftmap camera ground`` end to end on rendered boards and points."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from driftmap.cli import app
+from driftmap.core.imaging.lens import distort_points
+from driftmap.core.odometry.grid import apply_homography
+from driftmap.formats.camera_setup import complete_camera, read_camera_file
+from tests.core.imaging.boards import PINHOLE, board_poses, render_view
+from tests.floor_frames import pinhole_camera
+
+runner = CliRunner()
+SCALE_REL_TOL = 0.02  # k_x, k_y through a calibrated (not the true) lens, exact floor points
+
+
+@pytest.fixture(scope="module")
+def board_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("boards")
+    for k, (rvec, tvec) in enumerate(board_poses(5, 0.45)):
+        cv2.imwrite(str(folder / f"view{k}.png"), render_view(PINHOLE, rvec, tvec, ss=2))
+    cv2.imwrite(str(folder / "blank.png"), np.full((480, 640), 128, np.uint8))
+    return folder
+
+
+def _intrinsics(board_dir: Path, out: Path, *names: str) -> list[str]:
+    files = [str(board_dir / n) for n in names] or sorted(str(p) for p in board_dir.glob("*.png"))
+    return [*files, "--board", "8x6", "--square-m", "0.03", "--out", str(out)]
+
+
+def _points(path: Path, clicks_640: np.ndarray) -> np.ndarray:
+    """Floor points of the 320x240 test camera's homography seen at 640x480; raw clicks through PINHOLE."""
+    hom = np.asarray(pinhole_camera().homography()) @ np.diag([0.5, 0.5, 1.0])
+    floor = apply_homography(hom, clicks_640)
+    raw = distort_points(PINHOLE, clicks_640)
+    rows = "".join(f"{u},{v},{x},{y}\n" for (u, v), (x, y) in zip(raw, floor, strict=True))
+    path.write_text("u,v,x,y\n" + rows)
+    return hom
+
+
+class TestIntrinsicsCommand:
+    def test_calibrates_and_names_skipped_images(self, board_dir: Path, tmp_path: Path) -> None:
+        out = tmp_path / "camera.json"
+        result = runner.invoke(app, ["camera", "intrinsics", *_intrinsics(board_dir, out)])
+        assert result.exit_code == 0, result.output
+        assert "blank.png: no 8x6 board found" in result.output
+        assert result.output.count("reprojection RMS") == 5
+        block = read_camera_file(out)
+        assert (block["width"], block["height"], block["lens"]["model"]) == (640, 480, "pinhole")
+        assert abs(block["lens"]["K"][0][0] / PINHOLE.K[0][0] - 1) < 0.01
+
+    def test_too_few_views_is_an_error_naming_the_count(self, board_dir: Path, tmp_path: Path) -> None:
+        args = _intrinsics(board_dir, tmp_path / "c.json", "view0.png", "view1.png", "blank.png")
+        result = runner.invoke(app, ["camera", "intrinsics", *args])
+        assert result.exit_code == 2
+        assert "found in 2 view(s); calibration needs at least 3" in result.output
+        assert not (tmp_path / "c.json").exists()
+
+    def test_bad_board_option(self, board_dir: Path, tmp_path: Path) -> None:
+        args = _intrinsics(board_dir, tmp_path / "c.json", "view0.png")
+        result = runner.invoke(app, ["camera", "intrinsics", *args[:-5], "--board", "8by6", *args[-4:]])
+        assert result.exit_code == 2 and "--board" in result.output
+
+
+class TestGroundCommand:
+    def test_intrinsics_then_ground_make_one_camera(self, board_dir: Path, tmp_path: Path) -> None:
+        lens_file, out, points = tmp_path / "lens.json", tmp_path / "camera.json", tmp_path / "points.csv"
+        assert runner.invoke(app, ["camera", "intrinsics", *_intrinsics(board_dir, lens_file)]).exit_code == 0
+        clicks = np.array([[40.0, 210.0], [600.0, 210.0], [620.0, 470.0], [20.0, 470.0], [320.0, 330.0]])
+        _points(points, clicks)
+        args = ["camera", "ground", str(points), "--camera", str(lens_file), "--out", str(out)]
+        result = runner.invoke(app, [*args, "--roi", "120,260,400,180", "--y-c", "1.5"])
+        assert result.exit_code == 0, result.output
+        assert "point 5: residual" in result.output
+        camera = complete_camera(read_camera_file(out), out)
+        assert camera is not None and camera.lens is not None and camera.y_c_m == 1.5
+        truth = pinhole_camera()
+        assert abs(camera.k_x_m_per_px / (truth.k_x_m_per_px / 2) - 1) < SCALE_REL_TOL
+        assert abs(camera.k_y_m_per_px / (truth.k_y_m_per_px / 2) - 1) < SCALE_REL_TOL
+
+    def test_collinear_points_name_the_file_and_points(self, tmp_path: Path) -> None:
+        points = tmp_path / "points.csv"
+        points.write_text("u,v,x,y\n10,200,3,1\n100,200,3,0\n200,200,3,-1\n50,230,2,0.5\n")
+        result = runner.invoke(
+            app, ["camera", "ground", str(points), "--size", "320x240", "--out", str(tmp_path / "c.json")]
+        )
+        assert result.exit_code == 2
+        assert str(points) in result.output and "points 1, 2, 3 are collinear" in result.output
+
+    def test_unknown_frame_size_is_refused(self, tmp_path: Path) -> None:
+        points = tmp_path / "points.csv"
+        points.write_text("u,v,x,y\n")
+        result = runner.invoke(app, ["camera", "ground", str(points), "--out", str(tmp_path / "c.json")])
+        assert result.exit_code == 2 and "--size" in result.output
