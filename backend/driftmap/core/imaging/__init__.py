@@ -3,5 +3,6 @@
 Modules: ``params`` (image and SAD parameters, presets), ``images`` (gray, crop, down-sample, patch
 normalisation; paper 000 IV-C), ``sad`` (shifted sum of absolute differences, masked; paper 000 eq. 3/4,
 paper 001 eq. 6), ``registration`` (sub-pixel shift between two images by coarse-to-fine masked SAD) and
-``shift_cost`` (its two-sided cost).
+``shift_cost`` (its two-sided cost), ``lens`` (lens models and undistortion tables) and ``calibration``
+(lens intrinsics from chessboard views).
 """

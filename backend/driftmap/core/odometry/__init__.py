@@ -2,6 +2,6 @@
 
 Modules: ``params`` (parameters, presets), ``camera`` (the calibrated camera), ``grid`` (the matching
 grid, linear or bird's-eye), ``step`` (one step between two frames), ``drive`` (a drive's steps,
-self-calibration and dead reckoning), ``pitch`` (the slowly varying horizon) and ``rotation_centre``
-(the rotation-centre fit).
+self-calibration and dead reckoning), ``pitch`` (the slowly varying horizon), ``rotation_centre``
+(the rotation-centre fit) and ``ground_setup`` (the ground plane from clicked floor points).
 """
