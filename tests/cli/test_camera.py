@@ -84,6 +84,20 @@ class TestGroundCommand:
         assert abs(camera.k_x_m_per_px / (truth.k_x_m_per_px / 2) - 1) < SCALE_REL_TOL
         assert abs(camera.k_y_m_per_px / (truth.k_y_m_per_px / 2) - 1) < SCALE_REL_TOL
 
+    def test_a_new_lens_drops_the_fitted_ground(self, board_dir: Path, tmp_path: Path) -> None:
+        lens_file, out, points = tmp_path / "lens.json", tmp_path / "camera.json", tmp_path / "points.csv"
+        assert runner.invoke(app, ["camera", "intrinsics", *_intrinsics(board_dir, lens_file)]).exit_code == 0
+        _points(points, np.array([[40.0, 210.0], [600.0, 210.0], [620.0, 470.0], [20.0, 470.0]]))
+        args = ["camera", "ground", str(points), "--camera", str(lens_file), "--out", str(out)]
+        assert runner.invoke(app, [*args, "--roi", "120,260,400,180"]).exit_code == 0
+        views = ("view0.png", "view1.png", "view2.png")
+        again = _intrinsics(board_dir, out, *views)
+        result = runner.invoke(app, ["camera", "intrinsics", *again, "--camera", str(out)])
+        assert result.exit_code == 0 and "dropped k_x, k_y, y_h, ground_homography" in result.output
+        block = read_camera_file(out)
+        assert "k_x" not in block and block["ground_roi"] == [120, 260, 400, 180]
+        assert complete_camera(block, out) is None
+
     def test_collinear_points_name_the_file_and_points(self, tmp_path: Path) -> None:
         points = tmp_path / "points.csv"
         points.write_text("u,v,x,y\n10,200,3,1\n100,200,3,0\n200,200,3,-1\n50,230,2,0.5\n")

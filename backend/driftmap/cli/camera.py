@@ -29,6 +29,7 @@ from driftmap.formats.drive_json import lens_to_json
 
 camera_app = typer.Typer(help="Set up a camera: lens intrinsics and the ground plane.", no_args_is_help=True)
 
+_FITTED_GROUND = ("k_x", "k_y", "y_h", "ground_homography")  # refer to the undistorted image of one lens
 _BOARD_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 _ROI_RE = re.compile(r"^\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*$")
 
@@ -87,6 +88,13 @@ def intrinsics(
         result = calibrate_lens(views, target, size, cast(LensModel, model))
         for name, rms in zip(names, result.view_rms_px, strict=True):
             console.print(f"{name}: reprojection RMS {rms:.3f} px")
+        stale = [k for k in _FITTED_GROUND if k in block]
+        if stale and block.get("lens") != lens_to_json(result.lens):
+            for key in stale:  # fitted on the old undistorted image: refit with `driftmap camera ground`
+                del block[key]
+            err_console.print(
+                f"dropped {', '.join(stale)} (fitted for the previous lens): run `camera ground` again"
+            )
         block.update({"width": size[0], "height": size[1], "lens": lens_to_json(result.lens)})
         write_camera_file(out, block)
     k = result.lens.K
