@@ -10,7 +10,7 @@ import pytest
 
 from driftmap.core.imaging.lens import Lens, undistort_points
 from driftmap.core.odometry.drive import estimate_step
-from driftmap.core.odometry.grid import match_grid
+from driftmap.core.odometry.grid import match_grid, prepare_frame
 from driftmap.core.odometry.params import ODOMETRY_DEFAULT
 from tests.floor_frames import arc_step, floor_texture, pinhole_camera, render
 
@@ -67,3 +67,9 @@ class TestLensOdometry:
         x, y, w, h = tables.window
         rx, ry, rw, rh = cam.ground_roi_px
         assert x <= rx and y <= ry and x + w >= rx + rw and y + h >= ry + rh
+
+    def test_the_recorded_frame_is_kept_for_a_restart(self, tex: np.ndarray) -> None:
+        cam = dataclasses.replace(pinhole_camera(), lens=LENSES[1])
+        frame = _through(LENSES[1], render(tex, pinhole_camera(), START))
+        prepared = prepare_frame(frame, cam, match_grid(cam, ODOMETRY_DEFAULT), ODOMETRY_DEFAULT)
+        assert prepared.recorded_frame() is frame and not np.array_equal(prepared.raw, frame)

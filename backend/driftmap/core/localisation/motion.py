@@ -71,7 +71,7 @@ class OdometryFeed:
 
     def previous_frame(self) -> NDArray[np.uint8]:
         """(H, W) uint8 the last frame fed, or (0, 0) before the first (kept in the localiser's state)."""
-        return np.zeros((0, 0), dtype=np.uint8) if self._prev is None else self._prev.raw
+        return np.zeros((0, 0), dtype=np.uint8) if self._prev is None else self._prev.recorded_frame()
 
     def restore(self, frame: NDArray[np.uint8], t_s: float) -> None:
         """Continue after ``frame`` taken at ``t_s`` (from a stored state; an empty frame forgets it)."""

@@ -69,9 +69,16 @@ class MatchGrid:
 
 @dataclass(frozen=True)
 class GridFrame:
-    raw: NDArray[np.uint8]
+    raw: NDArray[np.uint8]  # (H, W) the frame the grid samples: undistorted when the camera has a lens
     pyr: list[NDArray[np.float32]]
     quality: float
+    recorded: NDArray[np.uint8] | None = (
+        None  # (H, W) the frame as recorded, when ``raw`` is its undistorted copy
+    )
+
+    def recorded_frame(self) -> NDArray[np.uint8]:
+        """(H, W) uint8 the frame as recorded (what a later :func:`prepare_frame` takes again)."""
+        return self.raw if self.recorded is None else self.recorded
 
 
 def check_frame(frame: NDArray, camera: CameraModel, name: str) -> NDArray[np.uint8]:
@@ -284,10 +291,11 @@ def normalised_pyramid(grid: NDArray, levels: int, params: OdometryParams) -> li
 def prepare_frame(
     frame: NDArray[np.uint8], camera: CameraModel, setup: MatchGrid, params: OdometryParams
 ) -> GridFrame:
+    recorded = None
     if setup.undistort is not None:
-        frame = setup.undistort.apply(frame)
+        recorded, frame = frame, setup.undistort.apply(frame)
     grid = warp_to_grid(frame, setup, setup.px_from_grid)
     if setup.model == "linear" and params.linear_blur_px > 0:  # fine grain does not survive the zoom
         grid = np.asarray(cv2.GaussianBlur(grid, (0, 0), params.linear_blur_px), dtype=np.float32)
     pyr = normalised_pyramid(grid, setup.levels, params)
-    return GridFrame(frame, pyr, frame_quality(frame, camera, params))
+    return GridFrame(frame, pyr, frame_quality(frame, camera, params), recorded)
