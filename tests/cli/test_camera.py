@@ -10,10 +10,12 @@ import pytest
 from typer.testing import CliRunner
 
 from driftmap.cli import app
-from driftmap.core.imaging.lens import distort_points
+from driftmap.core.imaging.calibration import Board
+from driftmap.core.imaging.lens import Lens, distort_points
 from driftmap.core.odometry.grid import apply_homography
-from driftmap.formats.camera_setup import complete_camera, read_camera_file
-from tests.core.imaging.boards import PINHOLE, board_poses, render_view
+from driftmap.formats.camera_setup import complete_camera, read_camera_file, write_camera_file
+from driftmap.formats.drive_json import lens_to_json
+from tests.core.imaging.boards import PINHOLE, board_poses, floor_pose, render_view
 from tests.floor_frames import pinhole_camera
 
 runner = CliRunner()
@@ -112,3 +114,65 @@ class TestGroundCommand:
         points.write_text("u,v,x,y\n")
         result = runner.invoke(app, ["camera", "ground", str(points), "--out", str(tmp_path / "c.json")])
         assert result.exit_code == 2 and "--size" in result.output
+
+
+class TestGroundFromABoard:
+    def test_board_on_the_floor(self, tmp_path: Path) -> None:
+        board = Board(8, 5, 0.25)
+        lens = Lens(
+            "pinhole", ((500.0, 0.0, 320.0), (0.0, 500.0, 240.0), (0.0, 0.0, 1.0)), (-0.2, 0.05, 0.0, 0.0)
+        )
+        image = tmp_path / "floor.png"
+        cv2.imwrite(
+            str(image), render_view(lens, *floor_pose(board, (3.0, 0.2), 1.2), board=board, size=(640, 480))
+        )
+        lens_file, out = tmp_path / "lens.json", tmp_path / "camera.json"
+        write_camera_file(lens_file, {"width": 640, "height": 480, "lens": lens_to_json(lens)})
+        args = [
+            "--board-image",
+            str(image),
+            "--board",
+            "8x5",
+            "--square-m",
+            "0.25",
+            "--board-at",
+            "3,0.2,68.755",
+        ]
+        result = runner.invoke(
+            app,
+            [
+                "camera",
+                "ground",
+                *args,
+                "--camera",
+                str(lens_file),
+                "--roi",
+                "120,260,400,180",
+                "--out",
+                str(out),
+            ],
+        )
+        assert result.exit_code == 0, result.output
+        assert "corner 40: residual" in result.output
+        camera = complete_camera(read_camera_file(out), out)
+        assert camera is not None
+        truth = pinhole_camera()
+        assert abs(camera.k_x_m_per_px / (truth.k_x_m_per_px / 2) - 1) < SCALE_REL_TOL
+
+    def test_points_or_board_not_both(self, tmp_path: Path) -> None:
+        points = tmp_path / "points.csv"
+        points.write_text("u,v,x,y\n")
+        args = ["camera", "ground", str(points), "--board-image", str(points), "--size", "64x48"]
+        result = runner.invoke(app, [*args, "--out", str(tmp_path / "c.json")])
+        assert result.exit_code == 2 and "either a points CSV or --board-image" in result.output
+
+    def test_board_not_found_names_the_image(self, tmp_path: Path) -> None:
+        image = tmp_path / "empty.png"
+        cv2.imwrite(str(image), np.full((48, 64), 128, np.uint8))
+        args = ["--board-image", str(image), "--board", "8x5", "--square-m", "0.25", "--board-at", "3,0,0"]
+        result = runner.invoke(
+            app, ["camera", "ground", *args, "--size", "64x48", "--out", str(tmp_path / "c.json")]
+        )
+        assert (
+            result.exit_code == 2 and "empty.png" in result.output and "no 8x5 board found" in result.output
+        )

@@ -6,16 +6,19 @@ and write ``--out``, so ``intrinsics`` then ``ground`` combine into one camera b
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Annotated, Any, cast
 
+import numpy as np
 import typer
+from numpy.typing import NDArray
 
 from driftmap.cli.common import console, err_console, user_errors
 from driftmap.core.imaging.calibration import Board, calibrate_lens, find_board
-from driftmap.core.imaging.lens import LENS_MODELS, LensModel
-from driftmap.core.odometry.ground_setup import fit_ground
+from driftmap.core.imaging.lens import LENS_MODELS, Lens, LensModel
+from driftmap.core.odometry.ground_setup import board_floor_points, fit_ground
 from driftmap.errors import BadInputError
 from driftmap.formats.camera_setup import (
     calibration_images,
@@ -106,10 +109,18 @@ def intrinsics(
 
 @camera_app.command("ground")
 def ground(
-    points: Annotated[
-        Path, typer.Argument(help="CSV u,v,x,y: floor marks in a frame and their floor metres.")
-    ],
     out: Annotated[Path, typer.Option("--out", help="camera.json to write.")],
+    points: Annotated[
+        Path | None, typer.Argument(help="CSV u,v,x,y: floor marks in a frame and their floor metres.")
+    ] = None,
+    board_image: Annotated[
+        Path | None, typer.Option("--board-image", help="A frame with a chessboard lying on the floor.")
+    ] = None,
+    board: Annotated[str | None, typer.Option("--board", help="Its inner corners COLSxROWS.")] = None,
+    square_m: Annotated[float | None, typer.Option("--square-m", help="Its square side, metres.")] = None,
+    board_at: Annotated[
+        str | None, typer.Option("--board-at", help="X,Y,YAW_DEG: its centre (metres) and row direction.")
+    ] = None,
     camera: Annotated[Path | None, typer.Option("--camera", help="camera.json to add the ground to.")] = None,
     roi: Annotated[
         str | None,
@@ -119,7 +130,7 @@ def ground(
     y_c: Annotated[float | None, typer.Option("--y-c", help="Rear axle to camera, metres.")] = None,
     forward_sign: Annotated[int | None, typer.Option("--forward-sign", help="+1 or -1.")] = None,
 ) -> None:
-    """Fit the ground homography, k_x, k_y and y_h from >= 4 clicked floor points; print each residual."""
+    """Fit the ground homography, k_x, k_y and y_h from >= 4 clicked floor points or a board on the floor."""
     with user_errors():
         block = _start(camera)
         if size is not None:
@@ -131,15 +142,21 @@ def ground(
             raise BadInputError(
                 "the frame size is unknown: give --camera with width/height or --size", field="--size"
             )
-        pixels, floor = read_ground_points(points)
         lens = lens_of(block, camera or "camera")
+        if (points is None) == (board_image is None):
+            raise BadInputError("give either a points CSV or --board-image", field="POINTS")
+        source: Path | None = points or board_image
+        if points is not None:
+            pixels, floor = read_ground_points(points)
+        else:
+            pixels, floor = _board_points(source, board, square_m, board_at, lens)
         rect = _roi(roi, block, pixels)
         try:
             fit = fit_ground(pixels, floor, rect, lens)
         except BadInputError as exc:
-            raise BadInputError(exc.reason, file=points, field=exc.field) from None
+            raise BadInputError(exc.reason, file=source, field=exc.field) from None
         for k, residual in enumerate(fit.residuals_m, start=1):
-            console.print(f"point {k}: residual {100 * residual:.1f} cm")
+            console.print(f"{'point' if points else 'corner'} {k}: residual {100 * residual:.1f} cm")
         block.update(
             {
                 "ground_roi": list(rect),
@@ -157,6 +174,28 @@ def ground(
         f"k_x {fit.k_x_m_per_px:.5f} k_y {fit.k_y_m_per_px:.5f} m/px, y_h {fit.y_h_m:.3f} m; wrote {out}"
         + ("" if done else " (incomplete camera block)")
     )
+
+
+def _board_points(
+    image_path: Path | None, board: str | None, square_m: float | None, at: str | None, lens: Lens | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Corner pixels of a board lying on the floor in one frame, and their floor positions."""
+    if board is None or square_m is None or at is None:
+        raise BadInputError("--board-image needs --board, --square-m and --board-at", field="--board-at")
+    target = _board(board, square_m)
+    try:
+        x, y, yaw_deg = (float(v) for v in at.split(","))
+    except ValueError:
+        raise BadInputError(f"must be X,Y,YAW_DEG, found {at!r}", field="--board-at") from None
+    [(name, image)] = list(calibration_images([Path(str(image_path))]))
+    corners = find_board(image, target)
+    if corners is None:
+        raise BadInputError(f"no {board} board found", file=name)
+    try:
+        floor = board_floor_points(corners, target, (x, y), math.radians(yaw_deg), lens)
+    except BadInputError as exc:
+        raise BadInputError(exc.reason, file=name, field=exc.field) from None
+    return corners, floor
 
 
 def _roi(text: str | None, block: dict[str, Any], pixels: Any) -> tuple[int, int, int, int]:

@@ -92,3 +92,27 @@ def board_poses(count: int, distance_m: float, seed: int = 3) -> list[tuple[NDAr
         )
         poses.append((rvec, target - rot @ centre))
     return poses
+
+
+def floor_pose(
+    board: Board,
+    centre_m: tuple[float, float],
+    yaw_rad: float,
+    pitch_deg: float = 35.0,
+    height_m: float = 2.0,
+) -> tuple[NDArray, NDArray]:
+    """(rvec, tvec) of a board lying on the floor, seen by :func:`tests.floor_frames.pinhole_camera`'s mount.
+
+    The board's centre is at ``centre_m`` (x forward, y left) and its rows point at ``yaw_rad``.
+    """
+    phi = np.radians(pitch_deg)
+    r1, r2 = np.array([0.0, -np.sin(phi), np.cos(phi)]), np.array([-1.0, 0.0, 0.0])  # floor x, y in camera
+    camera_from_floor = np.stack([r1, r2, np.cross(r1, r2)], axis=1)
+    t = np.array([0.0, height_m * np.cos(phi), height_m * np.sin(phi)])
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    mid = np.array([(board.cols - 1) / 2, (board.rows - 1) / 2, 0.0]) * board.square_m
+    rot = camera_from_floor @ turn
+    tvec = camera_from_floor @ (np.array([*centre_m, 0.0]) - turn @ mid) + t
+    rvec, _ = cv2.Rodrigues(rot)
+    return rvec.ravel(), tvec

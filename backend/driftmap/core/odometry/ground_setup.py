@@ -17,12 +17,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from driftmap.core.imaging.calibration import Board
 from driftmap.core.imaging.lens import Lens, undistort_points
 from driftmap.core.odometry.grid import Rect, apply_homography
 from driftmap.core.odometry.step import centre_px
 from driftmap.errors import BadInputError
 
-__all__ = ["MIN_POINTS", "GroundFit", "fit_ground"]
+__all__ = ["MIN_POINTS", "GroundFit", "board_floor_points", "fit_ground"]
 
 MIN_POINTS = 4
 _COLLINEAR = 1e-3  # a triangle is degenerate when its area is below this fraction of its longest side squared
@@ -121,3 +122,66 @@ def fit_ground(pixels_px: NDArray, floor_m: NDArray, roi: Rect, lens: Lens | Non
         y_h_m=float(np.hypot(*f[0])),
         residuals_m=tuple(float(r) for r in residuals),
     )
+
+
+def board_floor_points(
+    corners_px: NDArray, board: Board, centre_m: tuple[float, float], yaw_rad: float, lens: Lens | None = None
+) -> NDArray[np.float64]:
+    """Floor positions of the inner corners of a chessboard lying flat on the floor.
+
+    The board's centre lies at ``centre_m`` (x forward, y left, metres, vehicle frame at the camera's foot)
+    and its rows (the ``cols`` direction) point at ``yaw_rad`` counter-clockwise from x forward. A detector
+    may number the corners from either end, so of the four numberings (turned half a turn, mirrored) the one
+    is kept that an upright camera looking at the floor can see: image content higher up is farther away,
+    and the image is not mirrored (pixel-to-floor Jacobian with a negative determinant).
+
+    Args:
+        corners_px: ``(cols * rows, 2)`` corner pixels of the recorded frame, row by row as detected.
+        board: the board (``cols != rows``, so rows and columns cannot be confused).
+        centre_m: floor position of the board's centre, metres.
+        yaw_rad: direction of the board's rows, radians.
+        lens: the camera's lens, or None.
+
+    Returns:
+        ``(cols * rows, 2)`` float64 floor points, metres, in the order of ``corners_px``.
+
+    Raises:
+        BadInputError: a square board, a wrong corner count, or no numbering an upright camera could see.
+    """
+    n = board.cols * board.rows
+    pix = np.asarray(corners_px, dtype=np.float64)
+    if pix.shape != (n, 2):
+        raise BadInputError(
+            f"need {n} corners of a {board.cols}x{board.rows} board, got {pix.shape}", field="board"
+        )
+    if board.cols == board.rows:
+        raise BadInputError(
+            "a board on the floor needs COLS != ROWS (its rows must be told apart)", field="board"
+        )
+    ideal = undistort_points(lens, pix) if lens is not None else pix
+    jj, ii = np.divmod(np.arange(n), board.cols)
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    numberings = [
+        (ii, jj),
+        (board.cols - 1 - ii, board.rows - 1 - jj),
+        (ii, board.rows - 1 - jj),
+        (board.cols - 1 - ii, jj),
+    ]
+    centre_px = ideal.mean(axis=0)
+    probe = centre_px + np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, -10.0], [0.0, 10.0]])
+    seen = []
+    for i, j in numberings:
+        off = np.stack([(i - (board.cols - 1) / 2), (j - (board.rows - 1) / 2)], axis=1) * board.square_m
+        floor = np.asarray(centre_m) + off @ np.array([[c, s], [-s, c]])
+        hom, _ = cv2.findHomography(ideal, floor, 0)
+        if hom is None:
+            continue
+        f = apply_homography(hom, probe)
+        jac = np.stack([f[1] - f[0], f[2] - f[0]], axis=1)
+        if np.linalg.det(jac) < 0 and np.linalg.norm(f[3]) > np.linalg.norm(f[4]):
+            seen.append(floor)
+    if len(seen) != 1:
+        raise BadInputError(
+            "the board's corners fit no view of an upright camera looking at the floor", field="board"
+        )
+    return np.asarray(seen[0], dtype=np.float64)
