@@ -13,9 +13,14 @@ from driftmap.cli import app
 from driftmap.core.imaging.calibration import Board
 from driftmap.core.imaging.lens import Lens, distort_points
 from driftmap.core.odometry.grid import apply_homography
+from driftmap.core.odometry.scale_check import scale_camera
 from driftmap.formats.camera_setup import complete_camera, read_camera_file, write_camera_file
+from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.drive_json import lens_to_json
+from driftmap.formats.frame_images import encode_png
+from driftmap.formats.records import DriveMeta, FrameRow
 from tests.core.imaging.boards import PINHOLE, board_poses, floor_pose, render_view
+from tests.core.odometry.test_scale_check import straight_frames
 from tests.floor_frames import pinhole_camera
 
 runner = CliRunner()
@@ -176,3 +181,31 @@ class TestGroundFromABoard:
         assert (
             result.exit_code == 2 and "empty.png" in result.output and "no 8x5 board found" in result.output
         )
+
+
+class TestCheckCommand:
+    def test_scale_from_a_measured_drive(self, tmp_path: Path) -> None:
+        wrong = scale_camera(pinhole_camera(), 1.08)
+        frames = straight_frames()
+        rows = [FrameRow(i, i / 10) for i in range(len(frames))]
+        drive = tmp_path / "straight"
+        write_drive_folder(
+            drive, DriveMeta("straight", "mapping", 10.0, wrong), rows, (encode_png(f) for f in frames)
+        )
+        out = tmp_path / "fixed.json"
+        result = runner.invoke(app, ["camera", "check", str(drive), "--distance-m", "2.0", "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        assert "floor lengths x 0.92" in result.output
+        fixed = complete_camera(read_camera_file(out), out)
+        assert fixed is not None
+        assert fixed.k_y_m_per_px == pytest.approx(pinhole_camera().k_y_m_per_px, rel=0.01)
+
+    def test_distance_must_be_positive(self, tmp_path: Path) -> None:
+        frames = straight_frames(n=2)
+        drive = tmp_path / "d"
+        rows = [FrameRow(i, i / 10) for i in range(2)]
+        write_drive_folder(
+            drive, DriveMeta("d", "mapping", 10.0, pinhole_camera()), rows, (encode_png(f) for f in frames)
+        )
+        result = runner.invoke(app, ["camera", "check", str(drive), "--distance-m", "0"])
+        assert result.exit_code == 2 and "distance_m" in result.output

@@ -1,6 +1,7 @@
-"""``driftmap camera``: set up a camera: lens intrinsics from a chessboard, the ground plane from floor points.
+"""``driftmap camera``: set up a camera: lens intrinsics from a chessboard, the ground plane from floor points,
+and a check of the floor scale and ``forward_sign`` against a drive over a measured distance.
 
-Both commands read an optional ``--camera camera.json`` (a camera block in progress), add what they measure
+The set-up commands read an optional ``--camera camera.json`` (a camera block in progress), add what they measure
 and write ``--out``, so ``intrinsics`` then ``ground`` combine into one camera block (``docs/formats.md``).
 """
 
@@ -18,7 +19,10 @@ from numpy.typing import NDArray
 from driftmap.cli.common import console, err_console, user_errors
 from driftmap.core.imaging.calibration import Board, calibrate_lens, find_board
 from driftmap.core.imaging.lens import LENS_MODELS, Lens, LensModel
+from driftmap.core.odometry.camera import CameraModel
+from driftmap.core.odometry.drive import dead_reckon
 from driftmap.core.odometry.ground_setup import board_floor_points, fit_ground
+from driftmap.core.odometry.scale_check import check_scale, scale_camera
 from driftmap.errors import BadInputError
 from driftmap.formats.camera_setup import (
     calibration_images,
@@ -28,9 +32,13 @@ from driftmap.formats.camera_setup import (
     read_ground_points,
     write_camera_file,
 )
-from driftmap.formats.drive_json import lens_to_json
+from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
+from driftmap.formats.drive_json import camera_to_json, lens_to_json
+from driftmap.formats.frame_images import decode_gray
 
-camera_app = typer.Typer(help="Set up a camera: lens intrinsics and the ground plane.", no_args_is_help=True)
+camera_app = typer.Typer(
+    help="Set up a camera: lens intrinsics, the ground plane, a scale check.", no_args_is_help=True
+)
 
 _FITTED_GROUND = ("k_x", "k_y", "y_h", "ground_homography")  # refer to the undistorted image of one lens
 _BOARD_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
@@ -218,3 +226,38 @@ def _roi(text: str | None, block: dict[str, Any], pixels: Any) -> tuple[int, int
             f"[{x}, {y}, {w}, {h}] does not lie inside the {width}x{height} frame", field="--roi"
         )
     return (x, y, w, h)
+
+
+@camera_app.command("check")
+def check(
+    drive_dir: Annotated[
+        Path, typer.Argument(help="A drive folder: a straight drive over a measured distance.")
+    ],
+    distance_m: Annotated[float, typer.Option("--distance-m", help="The distance driven, metres.")],
+    camera: Annotated[
+        Path | None, typer.Option("--camera", help="camera.json to check (default: the drive's camera).")
+    ] = None,
+    reverse: Annotated[bool, typer.Option("--reverse", help="The drive was in reverse.")] = False,
+    out: Annotated[Path | None, typer.Option("--out", help="Write the corrected camera.json here.")] = None,
+) -> None:
+    """Check the floor scale and forward_sign against a drive over a measured distance."""
+    with user_errors():
+        folder = read_drive_folder(drive_dir)
+        model = folder.meta.camera
+        if camera is not None:
+            model = complete_camera(read_camera_file(camera), camera) or _incomplete(camera)
+        frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
+        result = check_scale(dead_reckon(frames, model).wTi, distance_m, reverse=reverse)
+        fixed = scale_camera(model, result.ratio, flip_sign=result.sign_wrong)
+        if out is not None:
+            write_camera_file(out, camera_to_json(fixed))
+    console.print(
+        f"odometry travelled {result.travelled_m:+.3f} m, measured {distance_m:.3f} m: floor lengths x "
+        f"{result.ratio:.4f} ({100 * (result.ratio - 1):+.1f} %)"
+        + ("; forward_sign is wrong" if result.sign_wrong else "")
+        + (f"; wrote {out}" if out is not None else "")
+    )
+
+
+def _incomplete(path: Path) -> CameraModel:
+    raise BadInputError("is not a complete camera block (run `driftmap camera ground` first)", file=path)
