@@ -63,9 +63,11 @@ class TestDriveJsonVersions:
             parse_drive_json(V1_TEXT.replace("driftmap-drive/1", "driftmap-drive/2"), "drive.json")
         assert (err.value.line, err.value.field) == (2, "format")
 
-    def test_a_lens_that_is_no_object_is_an_unknown_key(self) -> None:
+    def test_a_lens_that_is_no_object_is_refused_naming_it(self) -> None:
         block = {**camera_to_json(make_camera()), "lens": "fisheye"}
-        assert parse_camera_block(block, "", "c.json").lens is None
+        with pytest.raises(BadInputError, match="lens must be a JSON object") as err:
+            parse_camera_block(block, "", "c.json")
+        assert err.value.field == "camera.lens"
 
     def test_unknown_version_is_refused(self) -> None:
         with pytest.raises(BadInputError, match="driftmap-drive/1, driftmap-drive/2"):

@@ -39,7 +39,7 @@ class TestCameraBlock:
         assert parse_camera_block(camera_to_json(camera), "", "calib.json") == camera
 
     def test_unknown_keys_are_ignored(self) -> None:
-        block = {**camera_to_json(make_camera()), "lens": "fisheye"}
+        block = {**camera_to_json(make_camera()), "mount": "rear"}
         assert parse_camera_block(block, "", "c.json") == make_camera()
 
     @pytest.mark.parametrize(

@@ -7,7 +7,6 @@ does not know. JSON errors and bad values name the file, the 1-based line and th
 from __future__ import annotations
 
 import json
-import logging
 import math
 import re
 from pathlib import Path
@@ -25,7 +24,6 @@ from driftmap.formats.records import (
     DriveMeta,
 )
 
-logger = logging.getLogger(__name__)
 _KEY_RE = re.compile(r'"([^"\\]*)"\s*:')
 CAMERA_KEYS: tuple[str, ...] = ("width", "height", "ground_roi", "k_x", "k_y", "y_c", "y_h", "forward_sign")
 
@@ -317,9 +315,7 @@ def parse_camera_block(block: object, text: str, file: str | Path) -> CameraMode
         ):
             raise bad("ground_homography", "must be a 3x3 list of finite numbers")
         homography = tuple((float(r[0]), float(r[1]), float(r[2])) for r in hom)
-    lens = parse_lens_block(block["lens"], text, file) if isinstance(block.get("lens"), dict) else None
-    if "lens" in block and lens is None:  # driftmap-drive/1 ignored unknown keys; only an object is a lens
-        logger.warning("%s: camera.lens is not a JSON object; ignored", file)
+    lens = parse_lens_block(block["lens"], text, file) if "lens" in block else None
     return CameraModel(
         width_px=width,
         height_px=height,
