@@ -37,8 +37,8 @@ from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.frame_images import decode_gray
+from driftmap.live import localise as live_localise
 from driftmap.services import drives as drive_service
-from driftmap.services import live as live_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.services import users as user_service
@@ -82,10 +82,10 @@ def baseline_ms(data: Path, frames: list[tuple[float, bytes]], count: int, camer
         vehicle, _token = vehicle_service.create_vehicle(session, "baseline", 1)
         vehicle_service.set_camera(session, vehicle, camera)
         vid = vehicle.id
-    maps, slot, times = live_service.LiveMaps(), None, []
+    maps, slot, times = live_localise.LiveMaps(), None, []
     for t_s, blob in frames[:count]:
         t0 = time.perf_counter()
-        _outcome, slot = live_service.localise_live_frame(
+        _outcome, slot = live_localise.localise_live_frame(
             storage.db, storage.blobs, maps, vid, t_s, decode_gray(blob), (0, 0), slot
         )
         times.append((time.perf_counter() - t0) * 1e3)

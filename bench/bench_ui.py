@@ -41,7 +41,7 @@ import httpx
 import numpy as np
 from playwright.sync_api import Browser
 
-from driftmap.api.live_service import position_message
+from driftmap.api.schemas_live import position_message
 from driftmap.services import vehicles as vehicle_service
 from driftmap.services.positions import PositionView
 from driftmap.store.access_models import VehiclePosition

@@ -20,11 +20,12 @@ import pytest
 from fastapi.testclient import TestClient
 
 from driftmap.api.app import create_app
-from driftmap.api.hub import InMemoryHub
-from driftmap.api.live_service import LiveService
+from driftmap.api.schemas_live import position_message
 from driftmap.config import Settings
 from driftmap.errors import ConflictError
 from driftmap.formats.frame_images import decode_gray, encode_png
+from driftmap.live.hub import InMemoryHub
+from driftmap.live.ingest import LiveService
 from driftmap.services import localisation as loc_service
 from driftmap.services import sites as site_service
 from driftmap.services import vehicles as vehicle_service
@@ -240,7 +241,7 @@ class TestOverload:
                 session, "burst", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, queue_depth=1, processes=1)
+        live = LiveService(settings, storage, position_message=position_message, queue_depth=1, processes=1)
         burst = [(f.t, f.data) for f in frames[:12]]
 
         async def run() -> list:  # type: ignore[type-arg]
@@ -276,7 +277,7 @@ class TestOverload:
                 session, "shuffled", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, queue_depth=1, processes=1)
+        live = LiveService(settings, storage, position_message=position_message, queue_depth=1, processes=1)
         order = [3, 1, 2, 0, 5, 4]
 
         async def run() -> list:  # type: ignore[type-arg]
@@ -304,7 +305,7 @@ class TestWorkerProcesses:
                 session, "crash", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, processes=1)
+        live = LiveService(settings, storage, position_message=position_message, processes=1)
 
         async def run() -> list[str]:
             first = await live.submit(vid, "crash", site_id, frames[0].t, frames[0].data)

@@ -25,14 +25,15 @@ import pytest
 import redis
 import websockets
 
-from driftmap.api.hub import RedisHub, Subscription
-from driftmap.api.latest_frames import RedisFrames
-from driftmap.api.live_service import LiveService
+from driftmap.api.schemas_live import position_message
 from driftmap.config import Settings
+from driftmap.live.hub import RedisHub, Subscription
+from driftmap.live.ingest import LiveService
+from driftmap.live.latest_frames import RedisFrames
+from driftmap.live.localise import FrameOutcome
 from driftmap.services import sites as site_service
 from driftmap.services import users as user_service
 from driftmap.services import vehicles as vehicle_service
-from driftmap.services.live import FrameOutcome
 from driftmap.store.access_models import VehicleLiveState, VehiclePosition
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import (
@@ -85,7 +86,9 @@ class TestTwoServicesOnOneDatabase:
         settings = Settings(data_dir=built)
         storage = Storage.open(settings)
         (shared, site_id), (alone, _site) = _vehicles(storage, "shared", "alone")
-        first, second, single = (LiveService(settings, storage, processes=1) for _ in range(3))
+        first, second, single = (
+            LiveService(settings, storage, position_message=position_message, processes=1) for _ in range(3)
+        )
 
         async def run() -> tuple[list[FrameOutcome], list[FrameOutcome]]:
             both = [
@@ -117,7 +120,9 @@ class TestTwoServicesOnOneDatabase:
         settings = Settings(data_dir=built)
         storage = Storage.open(settings)
         [(vid, site_id)] = _vehicles(storage, "raced")
-        first, second = (LiveService(settings, storage, processes=1) for _ in range(2))
+        first, second = (
+            LiveService(settings, storage, position_message=position_message, processes=1) for _ in range(2)
+        )
 
         async def run() -> list[FrameOutcome]:
             tasks = []

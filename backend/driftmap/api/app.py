@@ -16,13 +16,13 @@ from fastapi.staticfiles import StaticFiles
 from driftmap import __version__
 from driftmap.api.deps import PrincipalCache
 from driftmap.api.error_handlers import driftmap_error_handler
-from driftmap.api.hub import InMemoryHub, LiveHub, RedisHub
-from driftmap.api.latest_frames import LatestFrames, MemoryFrames, RedisFrames
-from driftmap.api.live_service import LiveService
 from driftmap.api.routes import ROUTERS
-from driftmap.api.schemas_live import add_to_openapi
+from driftmap.api.schemas_live import add_to_openapi, position_message
 from driftmap.config import Settings, get_settings
 from driftmap.errors import DriftmapError
+from driftmap.live.hub import InMemoryHub, LiveHub, RedisHub
+from driftmap.live.ingest import LiveService
+from driftmap.live.latest_frames import LatestFrames, MemoryFrames, RedisFrames
 from driftmap.services.security import secret_key
 from driftmap.store.storage import Storage
 
@@ -37,7 +37,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     frames: LatestFrames = MemoryFrames()
     if settings.redis_url:  # several API processes: watchers and latest frames shared through Redis
         hub, frames = RedisHub(settings.redis_url), RedisFrames(settings.redis_url)
-    live = LiveService(settings, storage, hub, frames, processes=settings.live_processes)
+    live = LiveService(
+        settings, storage, hub, frames, position_message=position_message, processes=settings.live_processes
+    )
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

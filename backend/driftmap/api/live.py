@@ -1,5 +1,7 @@
 """Live localisation: vehicles post frames (HTTP or a WebSocket stream), watchers follow ``/api/live``.
 
+The routes hand frames to the process's :class:`~driftmap.live.ingest.LiveService` (``app.state.live``).
+
 ``POST /api/vehicles/{id}/frames?t=SECONDS`` takes the JPEG or PNG bytes as the body (``Content-Type:
 image/jpeg`` or ``image/png``) and answers with a :class:`~driftmap.api.schemas_access.FrameEstimate`.
 
@@ -42,13 +44,13 @@ from driftmap.api.deps import (
     websocket_principal,
 )
 from driftmap.api.error_handlers import error_body, status_of
-from driftmap.api.live_service import LiveService, position_message
 from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
-from driftmap.api.schemas_live import LiveSnapshot, LiveStale
+from driftmap.api.schemas_live import LiveSnapshot, LiveStale, position_message
 from driftmap.errors import BadRequestError, DriftmapError, NotFoundError, PayloadTooLargeError
+from driftmap.live.ingest import LiveService
 from driftmap.services import positions as position_service
 from driftmap.services import vehicles as vehicle_service
-from driftmap.services.live import as_utc
+from driftmap.services.positions import as_utc
 from driftmap.store.models import utc_now
 
 router = APIRouter(tags=["live"])

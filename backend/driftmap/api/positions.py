@@ -9,7 +9,7 @@ from driftmap.api.schemas_access import LiveStateRead, PositionRead, VehicleLate
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.services import positions as position_service
 from driftmap.services import vehicles as vehicle_service
-from driftmap.services.live import as_utc
+from driftmap.services.positions import as_utc
 from driftmap.store.access_models import VehicleLiveState
 
 router = APIRouter(tags=["positions"], dependencies=[Depends(VIEWER)])

@@ -17,6 +17,8 @@ from pydantic import BaseModel, Field, RootModel
 from pydantic.json_schema import models_json_schema
 
 from driftmap.api.schemas_access import PositionRead, VehicleLatestRead
+from driftmap.live.hub import Message
+from driftmap.services.positions import PositionView
 
 
 class LiveSnapshot(BaseModel):
@@ -47,6 +49,11 @@ class LiveStale(BaseModel):
 
 class LiveMessage(RootModel[Annotated[LiveSnapshot | LivePosition | LiveStale, Field(discriminator="type")]]):
     """One message of the ``/api/live`` WebSocket, told apart by ``type``."""
+
+
+def position_message(view: PositionView) -> Message:
+    """The ``/api/live`` message of one position (a :class:`LivePosition`)."""
+    return LivePosition.model_validate(view).model_dump(mode="json")
 
 
 def add_to_openapi(app: FastAPI) -> None:

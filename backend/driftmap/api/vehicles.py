@@ -27,7 +27,7 @@ from driftmap.api.schemas_access import (
     VehicleWithToken,
 )
 from driftmap.errors import NotFoundError
-from driftmap.services import live_start
+from driftmap.live import start as live_start
 from driftmap.services import vehicles as vehicle_service
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])

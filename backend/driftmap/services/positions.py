@@ -7,19 +7,23 @@ position whose ``seq`` is above N.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import UTC, datetime
 
 from sqlalchemy import Row, Select, func, select
 from sqlalchemy.orm import Session
 
-from driftmap.services.live import as_utc
 from driftmap.store.access_models import Vehicle, VehiclePosition
 from driftmap.store.models import MapVersion, utc_now
 
 
+def as_utc(moment: datetime) -> datetime:
+    """``moment`` as aware UTC (SQLite returns naive datetimes that were stored as UTC)."""
+    return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
+
+
 @dataclass(frozen=True)
 class PositionView:
-    """One position of one vehicle, as the API shows it (see :class:`~driftmap.services.live.FrameOutcome`)."""
+    """One position of one vehicle, as the API shows it (see :class:`~driftmap.live.localise.FrameOutcome`)."""
 
     seq: int
     vehicle_id: int

@@ -21,7 +21,7 @@ import math
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from typing import Literal
 
 import numpy as np
@@ -126,11 +126,6 @@ class FrameOutcome:
     """Smoothed fraction of isolated outlier pixels (dust), 0-1."""
     flat_area: float | None = None
     """Fraction of the image persistently without detail (water drop), 0-1."""
-
-
-def as_utc(moment: datetime) -> datetime:
-    """``moment`` as aware UTC (SQLite returns naive datetimes that were stored as UTC)."""
-    return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
 
 
 def decode_state(data: bytes) -> tuple[LocaliserState, ObscuredState]:

@@ -3,7 +3,7 @@
 The localiser step (SAD over the candidate nodes) and the database write are CPU-bound Python and numpy; in
 threads they would hold the GIL against the event loop that answers every other request. So each server
 process runs ``processes`` single-process pools and sends every frame of a vehicle to the same one
-(``vehicle_id % processes``): that process keeps the vehicle's :class:`~driftmap.services.live.LiveSlot`
+(``vehicle_id % processes``): that process keeps the vehicle's :class:`~driftmap.live.localise.LiveSlot`
 (the localiser with its cached transition matrices) between frames and the map cache of its vehicles' sites.
 The vehicle's state row in the database stays the truth: a process that meets a newer revision than its
 slot's reloads the state from it.
@@ -27,8 +27,8 @@ from sqlalchemy.exc import SQLAlchemyError
 from driftmap.config import Settings
 from driftmap.errors import ConflictError
 from driftmap.formats.frame_images import decode_gray
-from driftmap.services import live as live_service
-from driftmap.services.live import FrameOutcome, LiveMaps, LiveSlot
+from driftmap.live import localise
+from driftmap.live.localise import FrameOutcome, LiveMaps, LiveSlot
 from driftmap.store.storage import Storage
 
 R = TypeVar("R")
@@ -86,7 +86,7 @@ def _localise(vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int])
     storage = _opened()
     frame = decode_gray(data, "frame")
     slot = _slots.pop(vehicle_id, None)
-    outcome, slot = live_service.localise_live_frame(
+    outcome, slot = localise.localise_live_frame(
         storage.db, storage.blobs, _maps, vehicle_id, t_s, frame, counts, slot
     )
     if slot is not None:
@@ -96,7 +96,7 @@ def _localise(vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int])
 
 @_database_errors_as_text
 def _store_counts(vehicle_id: int, skipped: int, out_of_order: int) -> None:
-    before, after = live_service.add_counts(_opened().db, vehicle_id, skipped, out_of_order)
+    before, after = localise.add_counts(_opened().db, vehicle_id, skipped, out_of_order)
     slot = _slots.get(vehicle_id)
     if slot is not None and slot.revision == before:
         slot.revision = after  # only the counts changed: the localiser stays valid

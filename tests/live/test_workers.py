@@ -15,16 +15,18 @@ import pytest
 from sqlalchemy import text
 
 from driftmap.config import Settings
+from driftmap.live.workers import LiveDatabaseError, LocaliserWorkers
 from driftmap.services import vehicles as vehicle_service
-from driftmap.services.live_workers import LiveDatabaseError, LocaliserWorkers
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
 from tests.processes import alive
 
+pytestmark = pytest.mark.db  # the workers open the database
+
 
 def test_a_worker_exits_when_its_parent_is_killed() -> None:
     child = (
-        "from driftmap.services.live_workers import _exit_with_parent; print('ready', flush=True); "
+        "from driftmap.live.workers import _exit_with_parent; print('ready', flush=True); "
         "_exit_with_parent($$, poll_s=0.05)"
     )
     # The parent stands in for the server: it starts the worker, prints its pid, then is SIGKILLed.

@@ -20,7 +20,7 @@ from sqlalchemy.orm.exc import StaleDataError
 from driftmap.core.localisation.camera_check import ObscuredState
 from driftmap.core.localisation.map import LocaliserMap
 from driftmap.errors import BadInputError, ConflictError
-from driftmap.services.live import LiveMaps, encode_state, live_state_row, require_map_version
+from driftmap.live.localise import LiveMaps, encode_state, live_state_row, require_map_version
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
 from driftmap.services.vehicles import get_vehicle, vehicle_camera
 from driftmap.store.blobs import BlobStore

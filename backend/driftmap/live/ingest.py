@@ -1,7 +1,7 @@
 """Per-vehicle lanes that feed frames to the localiser in order, off the event loop.
 
 Each vehicle has a lane: at most one frame of it is being localised (in a localiser worker process,
-:mod:`driftmap.services.live_workers`, so the event loop stays responsive) and at most ``queue_depth`` wait
+:mod:`driftmap.live.workers`, so the event loop stays responsive) and at most ``queue_depth`` wait
 behind it, ordered by ``t``. A frame whose
 ``t`` is not after the newest frame handed to the localiser (or equals a waiting one) is refused as
 ``out_of_order``. When the waiting room overflows, its oldest frame is skipped on purpose: its caller gets
@@ -9,7 +9,7 @@ behind it, ordered by ``t``. A frame whose
 reordered and never processed twice; every posted frame gets exactly one answer.
 
 Several API processes may share one database (and one Redis): a vehicle's localiser state is the stored
-:class:`~driftmap.store.access_models.VehicleLiveState` (see :mod:`driftmap.services.live`), so frames of
+:class:`~driftmap.store.access_models.VehicleLiveState` (see :mod:`driftmap.live.localise`), so frames of
 one vehicle posted to different processes are still localised once each and in order. A processed frame is
 published to the hub and kept as the vehicle's latest frame *before* its caller gets the answer, so a
 vehicle that posts its next frame after the answer (to any process) cannot overtake it on the hub.
@@ -20,15 +20,15 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
-from driftmap.api.hub import InMemoryHub, LiveHub, Message
-from driftmap.api.latest_frames import LatestFrames, MemoryFrames
-from driftmap.api.schemas_live import LivePosition
 from driftmap.config import Settings
 from driftmap.formats.frame_images import check_complete
-from driftmap.services.live import FrameOutcome, FrameStatus
-from driftmap.services.live_workers import LocaliserWorkers
+from driftmap.live.hub import InMemoryHub, LiveHub, Message
+from driftmap.live.latest_frames import LatestFrames, MemoryFrames
+from driftmap.live.localise import FrameOutcome, FrameStatus
+from driftmap.live.workers import LocaliserWorkers
 from driftmap.services.positions import PositionView
 from driftmap.store.storage import Storage
 
@@ -58,11 +58,6 @@ class _Lane:
     """(skipped, out of order) stored while ``last`` is still None (no frame processed in this process)."""
     """(skipped, out of order) handed to a worker and not yet in ``last``."""
     last: FrameOutcome | None = None
-
-
-def position_message(view: PositionView) -> Message:
-    """The ``/api/live`` message of one position (a :class:`~driftmap.api.schemas_live.LivePosition`)."""
-    return LivePosition.model_validate(view).model_dump(mode="json")
 
 
 def _view(outcome: FrameOutcome) -> PositionView:
@@ -103,6 +98,8 @@ class LiveService:
         storage: the database and blob store.
         hub: where estimates are published (an in-process hub when None).
         frames: where the latest frame of each vehicle is kept (this process's memory when None).
+        position_message: the hub message of a processed frame's position (the API's
+            :func:`~driftmap.api.schemas_live.position_message`).
         queue_depth: frames of one vehicle that may wait behind the one being localised.
         processes: localiser worker processes (about one per core).
     """
@@ -114,10 +111,12 @@ class LiveService:
         hub: LiveHub | None = None,
         frames: LatestFrames | None = None,
         *,
+        position_message: Callable[[PositionView], Message],
         queue_depth: int = 1,
         processes: int = 2,
     ) -> None:
         self.settings = settings
+        self.position_message = position_message
         self.storage = storage
         self.hub: LiveHub = hub if hub is not None else InMemoryHub()
         self.queue_depth = max(1, queue_depth)
@@ -220,7 +219,7 @@ class LiveService:
         except Exception:
             log.warning("could not keep the latest frame of vehicle %s", vehicle_id, exc_info=True)
         try:
-            await self.hub.publish(position_message(_view(outcome)))
+            await self.hub.publish(self.position_message(_view(outcome)))
         except Exception:
             log.warning("could not publish position %s of vehicle %s", outcome.seq, vehicle_id, exc_info=True)
 
