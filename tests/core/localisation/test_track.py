@@ -1,5 +1,5 @@
 """The continuous track's own rules on hand-made cases: fixes while standing, edges across the heading, a
-guessed heading checked by b(i)'s step, coasting over an unusable step."""
+guessed heading checked by b(i)'s step."""
 
 from __future__ import annotations
 
@@ -91,19 +91,3 @@ class TestHeadingCheck:
         track = heading(TrackState.at((5.0, 0.0), 1.0), 0.0)
         assert TrackState.from_arrays(track.to_arrays()[:8]).heading_checked
         assert not TrackState.from_arrays(track.to_arrays()).heading_checked
-
-
-class TestCoasting:
-    def test_an_unusable_step_coasts_at_the_fading_running_speed(self) -> None:
-        p = TRACK_DEFAULT
-        track = heading(TrackState.at((0.0, 0.0), 1.0), 0.0)
-        for _ in range(5):
-            track = predict(track, step(0.2), 0.1, p)  # 2 m/s east
-        x_before = float(track.wT[0])
-        coasted = predict(track, None, 0.1, p)
-        assert coasted.wT[0] - x_before == pytest.approx(0.2, abs=0.02)
-        assert coasted.speed_mps == pytest.approx(track.speed_mps * p.coast_memory)
-
-    def test_without_a_running_speed_it_stands(self) -> None:
-        track = heading(TrackState.at((0.0, 0.0), 1.0), 0.0)
-        assert predict(track, None, 0.1, TRACK_DEFAULT).wT[0] == 0.0

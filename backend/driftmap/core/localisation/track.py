@@ -7,8 +7,7 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
 * **predict** (:func:`predict`): with a usable odometry step (eq. 1-2, :mod:`driftmap.core.localisation.motion`)
   the pose is composed with the step's ``prev_T_curr`` (rear-axle arc) and the variance grows with the step's
   ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
-  ``free_speed_mps`` x the gap (a random walk), and heading is held; a track that was driving coasts on at
-  its running speed, which fades by ``coast_memory`` a frame (a blurred or dusty frame among usable ones).
+  ``free_speed_mps`` x the gap (a random walk), and heading is held.
 * **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i) of a frame that is not lost,
   pulls the position with the Kalman gain ``var / (var + r)``, ``r = fix_sigma_m^2`` (a node centre is within
   half a node spacing of the vehicle: ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). The
@@ -65,7 +64,6 @@ class TrackParams:
     flip_m: float = 25.0  # the heading is reversed when that evidence falls below minus this, metres
     heading_pull: float = 0.05  # per moving frame, the share of the gap to the edge direction closed
     speed_memory: float = 0.5  # weight of the newest step in the running speed
-    coast_memory: float = 0.8  # per frame without a usable step, the share of the running speed coasted on
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
     fix_min_confidence: float = (
         0.3  # a far fix re-anchors a trusted track at this raw confidence (X x distinct)
@@ -82,7 +80,7 @@ class TrackParams:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m", "fix_spacing_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"TrackParams.{name} must be positive, got {getattr(self, name)}")
-        for name in ("heading_pull", "speed_memory", "flip_memory", "coast_memory"):
+        for name in ("heading_pull", "speed_memory", "flip_memory"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise ValueError(f"TrackParams.{name} must be in (0, 1], got {getattr(self, name)}")
 
@@ -176,12 +174,7 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
     gap = max(gap_s, 0.0)
     if step is None:
         var = state.var_m2 + (params.free_speed_mps * gap) ** 2
-        if not (state.has_heading and math.isfinite(state.speed_mps)):
-            return replace(state, var_m2=var, speed_mps=math.nan)
-        # an unusable step (blur, a dusty frame) between usable ones: coast on at the running speed, which
-        # fades, rather than stand still while the vehicle drives on
-        wT = np.asarray(compose(state.wT, (state.speed_mps * gap, 0.0, 0.0)))
-        return replace(state, wT=wT, var_m2=var, speed_mps=state.speed_mps * params.coast_memory)
+        return replace(state, var_m2=var, speed_mps=math.nan)
     sd = step.sigma_xy_m + params.step_sigma_frac * abs(step.dx_m)
     speed = step.dx_m / gap if gap > 0 else 0.0
     a = params.speed_memory
