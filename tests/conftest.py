@@ -31,7 +31,18 @@ TESTS = Path(__file__).resolve().parent
 
 DB_FIXTURES = frozenset({"settings", "storage", "postgres_server"})
 """A test that uses one of these (directly or through another fixture) is marked ``db``."""
-DB_PATHS = ("api", "cli", "e2e", "jobs", "services", "store", "topology", "test_cli.py", "test_serve.py")
+DB_PATHS = (
+    "api",
+    "cli",
+    "e2e",
+    "jobs",
+    "live",
+    "services",
+    "store",
+    "topology",
+    "test_cli.py",
+    "test_serve.py",
+)
 """Folders and files under tests/ whose every test is marked ``db`` (they open stores through helpers too)."""
 UNMARKED_DATABASE_URL = "not_marked_db://a-test-that-opens-a-database-must-be-marked-db/see-tests-conftest"
 """``DRIFTMAP_DATABASE_URL`` while a test not marked ``db`` runs: opening it fails (no such dialect)."""
