@@ -1,4 +1,4 @@
-"""Simulated dust and water obscurants (paper 000, section IV-A)."""
+"""Simulated dust and water obscurants ([SSLAM], section IV-A)."""
 
 from __future__ import annotations
 

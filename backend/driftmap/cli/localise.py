@@ -32,11 +32,11 @@ def localise(
         bool,
         typer.Option(
             "--sesame/--no-sesame",
-            help="SESAME masks (eq. 6) and salient database; --no-sesame: holistic SAD on paper 000's references.",
+            help="SESAME masks (eq. 6) and salient database; --no-sesame: holistic SAD on the SSLAM paper's references.",
         ),
     ] = True,
     temporal: Annotated[
-        bool, typer.Option("--temporal/--no-temporal", help="HMM temporal filter (paper 000 III-B).")
+        bool, typer.Option("--temporal/--no-temporal", help="HMM temporal filter (the SSLAM paper III-B).")
     ] = True,
     start: Annotated[
         str | None,
@@ -132,7 +132,7 @@ def report_localisation(
         bool,
         typer.Option(
             "--known-start",
-            help="Start the HMM at each drive's true first position, as paper 000 does (default: global start).",
+            help="Start the HMM at each drive's true first position, as the SSLAM paper does (default: global start).",
         ),
     ] = False,
     method: Annotated[

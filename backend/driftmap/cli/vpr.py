@@ -44,7 +44,7 @@ def vpr_match(
     method: Annotated[
         str | None,
         typer.Option(
-            help="sad (patch-normalised SAD) or sesame (paper 001); default sad with --temporal, else sesame."
+            help="sad (patch-normalised SAD) or sesame (the SESAME paper); default sad with --temporal, else sesame."
         ),
     ] = None,
     temporal: Annotated[

@@ -1,7 +1,7 @@
 """A vehicle's known start, given live: seed its stored localiser belief as ``driftmap localise --start`` does.
 
 :func:`seed_known_start` builds the vehicle's localiser on its site's latest map version with the start
-(paper 000's X_0: the nearest node and the nodes within ``radius_m`` of it) and the vehicle's camera, and
+([SSLAM]'s X_0: the nearest node and the nodes within ``radius_m`` of it) and the vehicle's camera, and
 stores that localiser's state as the vehicle's live state. The stored revision moves on, so every server
 process rebuilds its cached localiser from the stored state at the vehicle's next frame; the frame counts and
 the last frame time stay (a frame must still be newer than the last one processed).

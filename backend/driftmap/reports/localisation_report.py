@@ -1,14 +1,14 @@
-"""Localisation evaluated like both papers: precision-recall per condition and method (paper 000 Fig. 9).
+"""Localisation evaluated like both papers: precision-recall per condition and method ([SSLAM] Fig. 9).
 
 Every localisation drive with ground truth is run through four localisers on the same stored map version:
 holistic single-image SAD, single-image SAD with SESAME, the HMM filter with SAD, and the HMM with SESAME.
-As in paper 001, "SESAME" is the whole method: salient query masks (eq. 6) against the SESAME database
-(quality filter and Algorithm 1); the holistic methods compare whole images against paper 000's plain
+As in [SESAME], "SESAME" is the whole method: salient query masks (eq. 6) against the SESAME database
+(quality filter and Algorithm 1); the holistic methods compare whole images against [SSLAM]'s plain
 references (a few frames per node), when the map version holds both. Drives are grouped by condition from their names: ``*-dust1``, ``*-dust2``, ``*-water1``,
-``*-water2`` (the simulator's obscured copies, paper 000 IV-A) and ``clean`` for the rest.
+``*-water2`` (the simulator's obscured copies, [SSLAM] IV-A) and ``clean`` for the rest.
 
 A frame's estimate is right when its node centre lies within ``tolerance_m`` of the true floor point
-(15 m for the simulator; paper 000 used 30 m in a larger mine). Sweeping the match threshold X_thresh over
+(15 m for the simulator; [SSLAM] used 30 m in a larger mine). Sweeping the match threshold X_thresh over
 each method's score gives the precision-recall curve (:mod:`driftmap.core.place_recognition.metrics`). The match rule is
 the one the localiser applies (eq. 12 and driftmap's lost detection): a frame the filter counts as lost is
 never matched, at any threshold. The table gives the curve's area, the recall at 100 % precision (also when
@@ -121,9 +121,9 @@ def run_localisation_report(
         params: HMM parameters of the temporal methods.
         single_image_stride: single-image methods score every this-many-th frame (they compare the
             whole map each frame; the HMM methods always see every frame).
-        holistic_map: the references of the holistic methods (paper 000's plain selection); None: ``lmap``.
+        holistic_map: the references of the holistic methods ([SSLAM]'s plain selection); None: ``lmap``.
         known_start: the HMM methods start each drive at the node nearest its first true floor point, as
-            paper 000 does ("X_0 is initialized to the starting position ... known prior to vehicle
+            [SSLAM] does ("X_0 is initialized to the starting position ... known prior to vehicle
             operation"); False starts them global (uniform), which driftmap must also survive.
         progress: called with (drive name, fraction of drives done).
         methods: the labels of :data:`METHODS` to run; None: all.

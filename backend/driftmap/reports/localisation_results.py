@@ -174,7 +174,9 @@ class LocalisationReport:
                 f"/ {float(row['matched_max_m']):.1f} | {float(row['reported_error_m']):.2f} "
                 f"| {float(row['ece']):.3f} | {float(row['ms_per_frame']):.1f} |"
             )
-        start = "at each drive's known start (paper 000 X_0)" if self.known_start else "global (uniform)"
+        start = (
+            "at each drive's known start (the SSLAM paper X_0)" if self.known_start else "global (uniform)"
+        )
         lines.append(f"\nHMM belief started {start}; {self.tolerance_m:g} m tolerance.\n")
         lines += [
             f"{DEFAULT_METHOD}, each drive on its own:\n",

@@ -1,6 +1,6 @@
 """The paper's Table I and Fig. 6, reproduced on a site whose mapping drives carry ground truth.
 
-Variants (paper 000, V-A): (a) visual odometry only, (b) odometry + automatic loop closure, (c) odometry +
+Variants ([SSLAM], V-A): (a) visual odometry only, (b) odometry + automatic loop closure, (c) odometry +
 manual groundings, (d) the full system. (a) and (b) start each drive from its first frame's true pose,
 since nothing else places them. The error is the mean over every mapping frame of the distance between
 the estimated and the true floor point under the camera, metres.

@@ -116,7 +116,7 @@ def load_version_localiser_map(
 ) -> LocaliserMap:
     """The :class:`LocaliserMap` of one stored map version (see the module docstring for the sources).
 
-    ``holistic`` takes paper 000's plain reference selection (a few frames per node by heading) instead of
+    ``holistic`` takes [SSLAM]'s plain reference selection (a few frames per node by heading) instead of
     the SESAME database, when the version holds both; it is what holistic SAD is compared against.
     """
     topomap = load_topomap(blobs, version)
@@ -147,7 +147,7 @@ def load_localiser_map(
 ) -> LocaliserMap:
     """The localiser's map of ``site``'s map version ``version`` (latest when None).
 
-    ``holistic``: paper 000's plain reference frames instead of the SESAME database (see
+    ``holistic``: [SSLAM]'s plain reference frames instead of the SESAME database (see
     :func:`load_version_localiser_map`).
 
     Raises:
@@ -171,7 +171,7 @@ def make_localiser(
     """A :class:`Localiser` on ``lmap``: SESAME masks unless ``sesame`` is None, HMM filter unless not temporal.
 
     ``start_xy_m`` is the vehicle's known start (survey frame, metres): the belief starts at the nearest node
-    and the nodes within ``start_radius_m`` of it (paper 000's X_0), the continuous track at the point; None
+    and the nodes within ``start_radius_m`` of it ([SSLAM]'s X_0), the continuous track at the point; None
     starts it global (uniform). ``camera`` is the vehicle's calibrated camera: its ground-plane odometry
     moves the belief and the track (None: appearance alone).
     """

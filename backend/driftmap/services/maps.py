@@ -45,7 +45,7 @@ from driftmap.store.queries import latest_map_version
 LOCALISER_DB_KEY = "localiser_db_sha256"
 """``MapVersion.stats`` key of the localisation database blob: an ``.npz`` of ``thumbs`` (S, h, w) float16
 reference thumbnails of every node's chosen frames, node by node, and ``node_ptr`` (M + 1,) int64 offsets;
-with the SESAME database on, also ``holistic_thumbs``/``holistic_node_ptr``: paper 000's plain selection."""
+with the SESAME database on, also ``holistic_thumbs``/``holistic_node_ptr``: [SSLAM]'s plain selection."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,4 +1,4 @@
-"""Simulated camera obscurants of paper 000, section IV-A: aerosolised dust and water on the lens.
+"""Simulated camera obscurants of [SSLAM], section IV-A: aerosolised dust and water on the lens.
 
 * Dust level 1 / 2: 5 % / 10 % of the pixels of every frame, chosen at random per frame, set to grey.
 * Water level 1 / 2: a static circular region of 90 / 150 pixels diameter at the paper's 944x800

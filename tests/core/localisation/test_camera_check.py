@@ -1,4 +1,4 @@
-"""The obscured-camera judgement on the simulator's frames: clean vs its dust and water copies (paper 000 IV-A)."""
+"""The obscured-camera judgement on the simulator's frames: clean vs its dust and water copies ([SSLAM] IV-A)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""HMM building blocks (paper 000 III-B): node comparison (eq. 4), gamma (eq. 8), pi (eq. 9-10), update."""
+"""HMM building blocks ([SSLAM] III-B): node comparison (eq. 4), gamma (eq. 8), pi (eq. 9-10), update."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The stateful HMM localiser (paper 000 III-B) on hand-made corridors whose answer is known."""
+"""The stateful HMM localiser ([SSLAM] III-B) on hand-made corridors whose answer is known."""
 
 from __future__ import annotations
 

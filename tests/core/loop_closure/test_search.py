@@ -1,4 +1,4 @@
-"""Loop closure by shifted SAD with coarse candidates and sequence checks (paper 000 III-A-2, eq. 3).
+"""Loop closure by shifted SAD with coarse candidates and sequence checks ([SSLAM] III-A-2, eq. 3).
 
 The synthetic world is a long strip of blurred random texture (a tunnel wall seen side-on); a
 keyframe is a 64x32 view of it, one every 32 pixels, with pixel jitter and noise, patch normalised.

@@ -1,4 +1,4 @@
-"""Tests of the glare image-quality classifier (paper 001, section 3.5)."""
+"""Tests of the glare image-quality classifier ([SESAME], section 3.5)."""
 
 from __future__ import annotations
 

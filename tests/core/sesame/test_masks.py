@@ -1,4 +1,4 @@
-"""Tests of SESAME saliency masks, the Saliency Score and Algorithm 1 (paper 001, sections 3.2-3.4)."""
+"""Tests of SESAME saliency masks, the Saliency Score and Algorithm 1 ([SESAME], sections 3.2-3.4)."""
 
 from __future__ import annotations
 

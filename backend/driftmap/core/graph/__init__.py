@@ -1,4 +1,4 @@
-"""The pose graph of Semi-Supervised SLAM (paper 000 III-A-3): drives, loop closures and groundings solved.
+"""The pose graph of Semi-Supervised SLAM ([SSLAM] III-A-3): drives, loop closures and groundings solved.
 
 Modules: ``alignment`` (SE(2) helpers and the rigid placement of dead-reckoned drives in the survey
 frame), ``constraints`` (what the graph is made of and its parameters), ``posegraph`` (the GTSAM

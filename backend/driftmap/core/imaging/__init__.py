@@ -1,8 +1,8 @@
 """Image pre-processing, the shifted SAD and shift registration: the image operations every stage shares.
 
 Modules: ``params`` (image and SAD parameters, presets), ``images`` (gray, crop, down-sample, patch
-normalisation; paper 000 IV-C), ``sad`` (shifted sum of absolute differences, masked; paper 000 eq. 3/4,
-paper 001 eq. 6), ``registration`` (sub-pixel shift between two images by coarse-to-fine masked SAD) and
+normalisation; [SSLAM] IV-C), ``sad`` (shifted sum of absolute differences, masked; [SSLAM] eq. 3/4,
+[SESAME] eq. 6), ``registration`` (sub-pixel shift between two images by coarse-to-fine masked SAD) and
 ``shift_cost`` (its two-sided cost), ``lens`` (lens models and undistortion tables) and ``calibration``
 (lens intrinsics from chessboard views).
 """

@@ -1,4 +1,4 @@
-"""Image pre-processing for place recognition (paper 000, section IV-C).
+"""Image pre-processing for place recognition ([SSLAM], section IV-C).
 
 Every frame is converted to grayscale, cropped, down-sampled and patch normalised before it is
 compared with the SAD of :mod:`driftmap.core.imaging.sad`. Patch normalisation subtracts from each pixel

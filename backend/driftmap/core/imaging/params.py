@@ -23,7 +23,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ImageParams:
-    """Place-recognition pre-processing (paper 000 IV-C): gray, crop, down-sample, patch normalise."""
+    """Place-recognition pre-processing ([SSLAM] IV-C): gray, crop, down-sample, patch normalise."""
 
     crop_px: tuple[int, int, int, int] | None = None  # (x, y, w, h) kept before down-sampling; None keeps all
     crop_margins_px: tuple[int, int, int, int] | None = None  # (left, top, right, bottom) removed instead
@@ -42,7 +42,7 @@ class ImageParams:
 
 @dataclass(frozen=True)
 class SadParams:
-    """Shifted SAD image comparison (paper 000 eq. 3/4; masked form of paper 001 eq. 6)."""
+    """Shifted SAD image comparison ([SSLAM] eq. 3/4; masked form of [SESAME] eq. 6)."""
 
     max_shift_x_px: int = 4  # lateral search +-x_max, pixels of the compared images
     max_shift_y_px: int = 2  # vertical search +-y_max, pixels

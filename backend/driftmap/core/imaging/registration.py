@@ -3,7 +3,7 @@
 The visual odometry (:mod:`driftmap.core.odometry.drive`) measures each step as the motion of the floor between
 two frames: :func:`register_shift` searches the coarsest pyramid level exhaustively (a masked squared
 difference computed by correlation), carries its best local minima down the pyramid by downhill SAD
-windows (the two-sided, overlap-normalised cost of eq. 3 of paper 000 with the region-of-interest and
+windows (the two-sided, overlap-normalised cost of eq. 3 of [SSLAM] with the region-of-interest and
 valid-pixel masks as weights) and refines the winner to sub-pixel (Gauss-Newton on the SSD, or a parabola
 per axis). Shift convention as in :mod:`driftmap.core.imaging.sad`: content moving right and down in ``b`` gives a
 positive ``(dx, dy)``.

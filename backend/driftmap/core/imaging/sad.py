@@ -1,4 +1,4 @@
-"""Shifted sum-of-absolute-differences image comparison (paper 000 eq. 3/4, paper 001 eq. 6).
+"""Shifted sum-of-absolute-differences image comparison ([SSLAM] eq. 3/4, [SESAME] eq. 6).
 
 The difference score of a query image ``a`` and a reference image ``b`` is the smallest, over
 integer shifts ``(dx, dy)`` with ``|dx| <= x_max`` and ``|dy| <= y_max``, of the mean absolute
@@ -10,7 +10,7 @@ with ``p = (x, y)`` running over the query pixels whose shifted partner lies ins
 a mask ``w = 1`` and the denominator is the overlap area ``(W - |dx|) (H - |dy|)``, so scores of
 different shifts are comparable (eq. 3 divides by the resolution ``R_x R_y``; dividing by the
 overlap instead keeps large shifts from looking better merely because fewer pixels count). With a
-mask ``w`` in {0, 1} on the query this is SESAME's masked SAD (paper 001 eq. 6): only salient
+mask ``w`` in {0, 1} on the query this is SESAME's masked SAD ([SESAME] eq. 6): only salient
 query pixels count, normalised by the number of salient pixels in the overlap. Paper 001 writes
 the shift on the query, ``I_qr(y + dy, x + dx) - I_db(y, x)``; here it is on the reference, so its
 ``(dx, dy)`` is our ``(-dx, -dy)``.

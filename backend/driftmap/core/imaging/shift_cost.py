@@ -1,6 +1,6 @@
 """The cost of one shift in :func:`~driftmap.core.imaging.registration.register_shift`, both ways round.
 
-:class:`TwoSidedCost` is eq. 3 of paper 000 made two-sided and overlap-normalised: each image's
+:class:`TwoSidedCost` is eq. 3 of [SSLAM] made two-sided and overlap-normalised: each image's
 region-of-interest is compared with the other image at the shift, weighted by the other's valid-pixel
 mask, and the two sides' sums are pooled. Mask facts (bounding boxes, whether a box is all valid) are
 remembered per mask, since a drive compares many frames through the same few masks. :func:`gradient` is

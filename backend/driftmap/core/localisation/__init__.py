@@ -1,4 +1,4 @@
-"""Online localisation against a stored map (paper 000 III-B): one frame in, one position estimate out.
+"""Online localisation against a stored map ([SSLAM] III-B): one frame in, one position estimate out.
 
 Modules: ``hmm`` (node scores, transitions, the HMM update; eq. 4-10), ``map`` (the map a localiser
 runs on), ``localiser`` (the per-frame step), ``state`` (what it reports and keeps), ``motion`` (the

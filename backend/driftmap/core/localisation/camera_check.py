@@ -3,14 +3,14 @@
 Three cheap measures per frame (a 320x240 frame takes about a millisecond or two):
 
 * ``speckle``: the fraction of pixels more than ``speckle_jump_grey`` grey levels from the median of their
-  3x3 neighbourhood. Aerosolised dust on the lens shows as isolated grey dots (paper 000, IV-A: 5-10 % of
+  3x3 neighbourhood. Aerosolised dust on the lens shows as isolated grey dots ([SSLAM], IV-A: 5-10 % of
   the pixels); a clean tunnel frame, even with sensor noise and motion blur, has almost none (< 0.1 %).
 * per-cell sharpness: the mean absolute Laplacian of each ``cell_px`` square cell. A water drop blurs a fixed
   region of the lens, so the cells under it stay flat while the vehicle moves and the rest of the scene
   changes. Each cell keeps a decaying memory of its sharpest recent value (time constant ``memory_s``); a cell
   whose memory is below ``flat_ratio`` times the median cell's is persistently flat, and ``flat_area`` is
   the fraction of such cells. Clean drives keep every cell sharp at some moment within seconds.
-* ``salient``: the SESAME salient fraction ``SS / SS_m`` (paper 001 eq. 8-9) of the frame; a lens covered
+* ``salient``: the SESAME salient fraction ``SS / SS_m`` ([SESAME] eq. 8-9) of the frame; a lens covered
   by mud or a cloth leaves a bland image with few salient patches. ``sharpness`` (variance of the
   Laplacian, grey levels squared) is reported with it.
 

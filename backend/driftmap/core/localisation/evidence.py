@@ -1,5 +1,5 @@
 """How b(i) compares with the other places the frame was compared with: the lost test, relocation and the
-running distinctness behind the confidence (beyond paper 000).
+running distinctness behind the confidence (beyond [SSLAM]).
 
 Lost detection (beyond the paper): a frame is lost when the confidence X_i(b(i)) is below ``lost_confidence``
 or the believed place does not look distinctly better than somewhere else: d(i, b(i)) is above

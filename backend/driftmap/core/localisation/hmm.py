@@ -1,4 +1,4 @@
-"""HMM place recognition on the stored map (paper 000 III-B, eq. 4-10): node scores, transitions, update.
+"""HMM place recognition on the stored map ([SSLAM] III-B, eq. 4-10): node scores, transitions, update.
 
 One filter step, as :class:`driftmap.core.localisation.localiser.Localiser` runs it:
 
@@ -61,7 +61,7 @@ _NON_NEGATIVE = (
 
 @dataclass(frozen=True)
 class HmmParams:
-    """Parameters of the HMM temporal filter (paper 000 eq. 5-12) and of lost detection (driftmap's own)."""
+    """Parameters of the HMM temporal filter ([SSLAM] eq. 5-12) and of lost detection (driftmap's own)."""
 
     max_speed_mps: float = 7.0  # fastest vehicle travel; A_t = max_speed_mps x frame gap (eq. 10)
     min_a_t_m: float = 7.5  # floor on A_t: keep it above the node spacing N or the belief can never move
@@ -196,7 +196,7 @@ def compare_nodes(
         node_ptr: (M + 1,) int64 offsets of each node's frames in ``thumbs``.
         nodes: (n,) int64 node indices to compare; only their frames are touched.
         sad_params: shift ranges of the SAD.
-        mask: optional (H, W) bool SESAME salient mask of the query (paper 001 eq. 6): only salient query
+        mask: optional (H, W) bool SESAME salient mask of the query ([SESAME] eq. 6): only salient query
             pixels count, normalised by their number in the overlap; None compares every pixel.
 
     Returns:

@@ -1,4 +1,4 @@
-"""Online localisation against a stored map (paper 000 III-B): one frame in, one position estimate out.
+"""Online localisation against a stored map ([SSLAM] III-B): one frame in, one position estimate out.
 
 :class:`Localiser` holds the map (:class:`LocaliserMap`), the belief and the continuous track;
 :meth:`Localiser.step` runs the vehicle camera's odometry step (:mod:`driftmap.core.localisation.motion`), one
@@ -17,7 +17,7 @@ Transitions (eq. 9-10) also let the belief take every direct step between two no
 long (:func:`driftmap.core.localisation.transitions.long_steps`): node spacing is uneven at junctions and merges, and a step
 longer than the reach A_t would otherwise be a wall the belief can never cross.
 
-SESAME (paper 001, eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
+SESAME ([SESAME], eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
 from the raw frame and only salient query pixels count in every node comparison, normalised by their number
 in the overlap. A query with almost no salient pixel (a black or washed-out frame) falls back to the plain
 holistic SAD, so it still gets scores.
@@ -62,7 +62,7 @@ class Localiser:
         sad_params: SAD shift ranges.
         image_params: pre-processing applied to frames that are not already thumbnails; None: the map's.
         single_image: no temporal filter (for ``--no-temporal`` comparisons).
-        sesame: SESAME mask parameters (paper 001 eq. 6); None compares whole images (holistic SAD).
+        sesame: SESAME mask parameters ([SESAME] eq. 6); None compares whole images (holistic SAD).
         start_node: known start node; None starts with a global (uniform) belief.
         start_radius_m: spread the start over nodes within this of the start node, metres.
         camera: the vehicle's calibrated camera: its ground-plane odometry moves the belief by the distance

@@ -1,4 +1,4 @@
-"""The map a localiser runs on (paper 000 III-B): each node's reference thumbnails, centre and adjacency.
+"""The map a localiser runs on ([SSLAM] III-B): each node's reference thumbnails, centre and adjacency.
 
 :class:`LocaliserMap` is what :class:`driftmap.core.localisation.localiser.Localiser` reads of a stored map;
 :func:`build_localiser_map` makes one from a :class:`~driftmap.core.topomap.build.TopoMap` and the thumbnails of its

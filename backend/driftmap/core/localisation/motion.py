@@ -1,4 +1,4 @@
-"""The vehicle's own motion between localisation frames: ground-plane odometry (paper 000 III-A-1, eq. 1-2).
+"""The vehicle's own motion between localisation frames: ground-plane odometry ([SSLAM] III-A-1, eq. 1-2).
 
 A localising vehicle carries the camera its map was built from. :class:`OdometryFeed` runs the mapping
 pipeline's single odometry step (:func:`driftmap.core.odometry.step.match_step` on frames prepared once with

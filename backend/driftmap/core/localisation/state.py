@@ -26,7 +26,7 @@ class Estimate:
             tunnels (:mod:`driftmap.core.localisation.track`), b(i)'s centre before the track has one.
         y_m: ... y (north), metres.
         score: the paper's X_i(b(i)) in [0, 1] (eq. 11); single-image mode: 1 - d_best / median d over the map.
-            Kept for paper 000's protocol; the product reports :attr:`confidence`.
+            Kept for [SSLAM]'s protocol; the product reports :attr:`confidence`.
         matched: ``confidence >= HmmParams.confidence_threshold`` and the frame is not lost.
         lost: the filter is lost: this frame and the ones before it failed the lost test, at least
             ``lost_report_frames`` counted in a row (it re-initialises after ``lost_frames``).

@@ -1,4 +1,4 @@
-"""A localising vehicle's continuous position and heading along the mapped tunnels (beyond paper 000).
+"""A localising vehicle's continuous position and heading along the mapped tunnels (beyond [SSLAM]).
 
 The HMM (:mod:`driftmap.core.localisation.hmm`) answers *which place*: a node every N metres. Between and beyond node
 centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_rad)`` in the survey frame

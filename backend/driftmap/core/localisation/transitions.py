@@ -1,4 +1,4 @@
-"""Where the belief may move between frames (paper 000 eq. 9-10): the transition matrices pi per reach A_t,
+"""Where the belief may move between frames ([SSLAM] eq. 9-10): the transition matrices pi per reach A_t,
 and the direct steps between nodes longer than the minimum reach that a frame may still take.
 
 :class:`TransitionModel` is the predict step of :mod:`driftmap.core.localisation.hmm`'s filter; the

@@ -1,6 +1,6 @@
 """Turns driven against the map's turns: odometry's heading change checked along the topological graph.
 
-Beyond paper 000: its transition (eq. 9-10) lets the belief move anywhere within a reach, and the odometry-gated
+Beyond [SSLAM]: its transition (eq. 9-10) lets the belief move anywhere within a reach, and the odometry-gated
 transition (:mod:`driftmap.core.localisation.localiser`) by the distance driven. Neither asks *which way* the vehicle went.
 A look-alike place in another tunnel can follow the distance driven, but rarely the turns: a vehicle that has
 just rounded a 90-degree corner is not in the middle of a long straight drive.

@@ -1,4 +1,4 @@
-"""Appearance-only loop closure between keyframes (paper 000 III-A-2, eq. 3).
+"""Appearance-only loop closure between keyframes ([SSLAM] III-A-2, eq. 3).
 
 Modules: ``params`` (parameters, presets), ``descriptors`` (coarse descriptors and candidates),
 ``pair_scores`` (eq. 3 on pairs and along diagonals), ``blocks`` (the search planned once and scored

@@ -1,4 +1,4 @@
-"""Parameters of the loop-closure search (paper 000 III-A-2, eq. 3), with their presets.
+"""Parameters of the loop-closure search ([SSLAM] III-A-2, eq. 3), with their presets.
 
 ``LOOPS_PAPER`` is the paper's rule (the best earlier frame with d < d_t, no sequence or uniqueness test),
 ``LOOPS_DEFAULT`` what driftmap uses, ``LOOPS_FAST`` trades recall for speed. The module docstring of
@@ -16,7 +16,7 @@ __all__ = ["LOOPS_DEFAULT", "LOOPS_FAST", "LOOPS_PAPER", "LoopParams"]
 
 @dataclass(frozen=True)
 class LoopParams:
-    """Loop closure by shifted SAD (paper 000 III-A-2, eq. 3) with candidates and sequence checks."""
+    """Loop closure by shifted SAD ([SSLAM] III-A-2, eq. 3) with candidates and sequence checks."""
 
     d_t: float | None = None  # absolute eq. 3 threshold on a sequence's mean d; None: from the background
     d_t_sigmas: float = 4.5  # relative d_t = background median - this x background sigma

@@ -1,4 +1,4 @@
-"""Appearance-only loop closure between the keyframes of a site's drives (paper 000, III-A-2).
+"""Appearance-only loop closure between the keyframes of a site's drives ([SSLAM], III-A-2).
 
 The paper compares every new frame with every earlier one by the shifted SAD of eq. 3 (frames
 pre-processed as in IV-C) and adds a constraint when ``d(i, j) < d_t``. That costs O(N^2) full

@@ -1,4 +1,4 @@
-"""The Semi-Supervised SLAM mapping pipeline (paper 000 III-A): drives in, an optimised topological map out.
+"""The Semi-Supervised SLAM mapping pipeline ([SSLAM] III-A): drives in, an optimised topological map out.
 
 Modules: ``drive`` (one drive's odometry, thumbnails and frame statistics, in segments), ``prepare``
 (stages 1-3: odometry, keyframes, loop-closure search; the parameters and presets) and ``pipeline``

@@ -1,4 +1,4 @@
-"""The Semi-Supervised SLAM mapping pipeline (paper 000, III-A): odometry, loops, groundings, graph, map.
+"""The Semi-Supervised SLAM mapping pipeline ([SSLAM], III-A): odometry, loops, groundings, graph, map.
 
 One pure function, :func:`build_map`, turns a site's mapping drives into an optimised, compressed map. The
 CLI, the workers and the tests call it the same way; frames arrive through a callable per drive so that
@@ -108,7 +108,7 @@ class MapBuild:
         odometry_confidence: per drive, (N_d,) confidence of the step into each frame (1 for frame 0).
         stats: figures of the build (counts, errors, seconds per stage).
         reference_thumbs: (S, h, w) float32 thumbnails of ``topomap.chosen``, the localiser's references.
-        holistic_ptr: (M + 1,) int64 node offsets of paper 000's plain selection (the topomap's default
+        holistic_ptr: (M + 1,) int64 node offsets of [SSLAM]'s plain selection (the topomap's default
             selector), kept for holistic-SAD localisation when the SESAME database chose ``topomap.chosen``.
         holistic_thumbs: (S', h, w) float32 thumbnails of that plain selection, node by node.
     """

@@ -1,4 +1,4 @@
-"""Stages 1-3 of a map build (paper 000, III-A): per-drive odometry, keyframes, loop-closure search.
+"""Stages 1-3 of a map build ([SSLAM], III-A): per-drive odometry, keyframes, loop-closure search.
 
 The inputs of a build (:class:`MappingDrive`, :class:`MappingParams` and its presets) live here too.
 Stage 1 is independent per drive segment (:func:`prepare_segment`, joined per drive by :func:`join_segments`);

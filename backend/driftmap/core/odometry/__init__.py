@@ -1,4 +1,4 @@
-"""Ground-plane visual odometry (paper 000 III-A-1, eq. 1-2): a drive's steps from its camera frames.
+"""Ground-plane visual odometry ([SSLAM] III-A-1, eq. 1-2): a drive's steps from its camera frames.
 
 Modules: ``params`` (parameters, presets), ``camera`` (the calibrated camera), ``grid`` (the matching
 grid, linear or bird's-eye), ``step`` (one step between two frames), ``drive`` (a drive's steps,

@@ -1,4 +1,4 @@
-"""Ground-plane visual odometry of a drive (paper 000 III-A-1, eq. 1 and 2): its steps, their
+"""Ground-plane visual odometry of a drive ([SSLAM] III-A-1, eq. 1 and 2): its steps, their
 self-calibration, and dead reckoning.
 
 One step between two frames (the linear and homography models, the signs and the rear-axle arc motion

@@ -1,4 +1,4 @@
-"""The ground plane of a camera from floor points seen in a frame (paper 000 III-A1: a known homography).
+"""The ground plane of a camera from floor points seen in a frame ([SSLAM] III-A1: a known homography).
 
 A technician clicks N >= 4 floor marks in one frame (pixels ``(u, v)`` of the recorded frame) and measures
 their floor coordinates ``(x, y)`` in metres in the vehicle frame at the camera's foot (x forward, y left,

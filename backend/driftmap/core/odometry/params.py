@@ -1,6 +1,6 @@
 """Parameters of the ground-plane visual odometry, with their presets.
 
-``ODOMETRY_PAPER`` is the linear model of paper 000 (eq. 1-2), ``ODOMETRY_DEFAULT`` what driftmap uses
+``ODOMETRY_PAPER`` is the linear model of [SSLAM] (eq. 1-2), ``ODOMETRY_DEFAULT`` what driftmap uses
 (bird's-eye when the camera allows it), ``ODOMETRY_FAST`` trades accuracy for speed and ``ODOMETRY_LIVE``
 is a localising vehicle's per-frame step. Units are in the field names (``_px``, ``_m``, ``_rad``) or
 comments.
@@ -26,7 +26,7 @@ OdometryModel = Literal["auto", "linear", "homography"]
 
 @dataclass(frozen=True)
 class OdometryParams:
-    """Ground-plane visual odometry (paper 000 eq. 1, 2; bird's-eye extension)."""
+    """Ground-plane visual odometry ([SSLAM] eq. 1, 2; bird's-eye extension)."""
 
     model: OdometryModel = "auto"  # "linear": eq. 1-2 with k_x/k_y; "homography": bird's-eye; auto picks
     max_step_m: float = 1.5  # largest forward or reverse travel per frame that is searched, metres

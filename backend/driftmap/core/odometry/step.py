@@ -1,4 +1,4 @@
-"""One ground-plane odometry step (paper 000 III-A-1, eq. 1 and 2): the vehicle's motion between two frames.
+"""One ground-plane odometry step ([SSLAM] III-A-1, eq. 1 and 2): the vehicle's motion between two frames.
 
 Two consecutive frames are compared over the calibrated floor region (``ground_roi``); the motion
 of the floor content is found by coarse-to-fine, sub-pixel, two-sided SAD registration

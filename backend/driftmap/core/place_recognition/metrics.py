@@ -1,8 +1,8 @@
 """Place-recognition metrics: recall@1, the precision-recall sweep, its area, recall at 100 % precision.
 
-Every query gets one best match with a confidence score. Sweeping a threshold over the scores (paper 000
+Every query gets one best match with a confidence score. Sweeping a threshold over the scores ([SSLAM]
 section V: X_thresh), a query counts as *matched* when its score is at or above the threshold; a matched
-query is a true positive when its match is acceptable (ground truth), else a false positive. As in paper 000:
+query is a true positive when its match is acceptable (ground truth), else a false positive. As in [SSLAM]:
 
 * precision = true positives / matched queries,
 * recall = true positives / recallable queries (queries with at least one acceptable match).

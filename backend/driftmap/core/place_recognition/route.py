@@ -1,4 +1,4 @@
-"""Place recognition over a route of reference images with the HMM of paper 000 (eq. 5-11).
+"""Place recognition over a route of reference images with the HMM of [SSLAM] (eq. 5-11).
 
 The references of a dataset, in route order, are the nodes of a chain; the queries are taken in order, one
 filter step each. :mod:`driftmap.core.place_recognition.route_filter` holds the model (transitions,

@@ -1,4 +1,4 @@
-"""The route HMM of paper 000 (eq. 5-11): its parameters, the forward filter and the smoother.
+"""The route HMM of [SSLAM] (eq. 5-11): its parameters, the forward filter and the smoother.
 
 The references of a dataset, in route order, are the nodes of a chain (node j = reference j); the query
 images are taken in order, one filter step each. A step is the paper's: predict with a transition matrix
@@ -20,7 +20,7 @@ b(i) (eq. 11). What differs from the mine localiser (:class:`driftmap.core.local
   (``calib_samples`` rows, neighbours excluded), gives reference j's typical unrelated distance m_j and
   its spread s_j (median, 1.4826 MAD), and ``O_i(j) = exp(gain * clip((m_j - d(i, j)) / s_j))``. A
   reference that resembles everything (a dark frame, a bland wall) has a low m_j and gains nothing
-  from a low d: the "hub" references of paper 001 section 3.4 stop attracting the belief.
+  from a low d: the "hub" references of [SESAME] section 3.4 stop attracting the belief.
 * **Recovery.** ``uniform_mix`` of the prior is spread over the whole route each step (the global
   re-initialisation of the localiser, made continuous): a wrong lock decays once the true place keeps
   matching better.

@@ -2,11 +2,11 @@
 
 A place-recognition dataset is a set of reference (database) images, in route order, and a set of query
 images. Both are reduced to patch-normalised thumbnails (:func:`driftmap.core.imaging.images.preprocess`) whose
-height follows the input's aspect ratio (paper 001 section 4.6 keeps it unchanged), then:
+height follows the input's aspect ratio ([SESAME] section 4.6 keeps it unchanged), then:
 
 * ``sad`` compares every query with every reference by the shifted, overlap-normalised SAD of
-  :mod:`driftmap.core.imaging.sad` (paper 000 eq. 3): a ``(Q, D)`` distance matrix, computed in cache-sized blocks.
-* ``sesame`` applies paper 001: the query's hierarchical entropy mask (eq. 5, 7, 10) restricts the SAD to
+  :mod:`driftmap.core.imaging.sad` ([SSLAM] eq. 3): a ``(Q, D)`` distance matrix, computed in cache-sized blocks.
+* ``sesame`` applies [SESAME]: the query's hierarchical entropy mask (eq. 5, 7, 10) restricts the SAD to
   its salient pixels, normalised by their count (eq. 6), and reference images whose Saliency Score
   ``SS / SS_m`` (eq. 8-9) is below ``S_th`` are left out of the database (section 3.4: mostly dark or bright
   references otherwise become the best match of many queries). Algorithm 1's adjacency test needs metric
@@ -61,7 +61,7 @@ class VprParams:
     """How images of a place-recognition dataset are compared: thumbnails, SAD shift search, SESAME."""
 
     thumb_width_px: int = 64  # thumbnail width; the height keeps the input's aspect ratio (64x32 for 2:1)
-    patch_px: int = 8  # patch-normalisation square, thumbnail pixels (paper 000 IV-C)
+    patch_px: int = 8  # patch-normalisation square, thumbnail pixels ([SSLAM] IV-C)
     mask_width_px: int = 160  # SESAME mask width R_x (Table 1), never above the input's; R_y keeps the aspect
     sad: SadParams = SAD_DEFAULT  # shift search of the SAD
     sesame: saliency.SesameParams = (
@@ -75,7 +75,7 @@ class VprParams:
             raise BadInputError(f"must be >= 2, got {self.patch_px}", field="patch_px")
 
 
-#: The mine's comparison (paper 000 IV-C): 64-pixel-wide thumbnails, shifts +-4 / +-2 px for lateral offsets.
+#: The mine's comparison ([SSLAM] IV-C): 64-pixel-wide thumbnails, shifts +-4 / +-2 px for lateral offsets.
 VPR_DEFAULT = VprParams()
 #: A camera that keeps to one path (rail, corridor centreline, road lane): no shift search. Measured on the
 #: outside data: on the corridor the +-4/+-2 search changes no match; on Nordland it only adds false matches
@@ -172,7 +172,7 @@ def check_pair(query: PreparedImages, db: PreparedImages) -> None:
 def distance_matrix(
     query: PreparedImages, db: PreparedImages, params: VprParams = VPR_DEFAULT, *, workers: int = 1
 ) -> F32:
-    """Difference scores of every query against every reference (paper 000 eq. 3; paper 001 eq. 6).
+    """Difference scores of every query against every reference ([SSLAM] eq. 3; [SESAME] eq. 6).
 
     Each row streams the references through :func:`driftmap.core.imaging.sad.sad_one_to_many` in cache-sized chunks
     (with the query's salient mask for SESAME); rows are shared among ``workers`` threads (OpenCV and BLAS

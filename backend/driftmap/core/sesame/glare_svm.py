@@ -1,4 +1,4 @@
-"""Linear SVM image-quality classifier that removes glare-struck frames from the database (paper 001, 3.5).
+"""Linear SVM image-quality classifier that removes glare-struck frames from the database ([SESAME], 3.5).
 
 Frames lit by a lamp or a head-light change intensity gradually, so their patch entropy is not low enough
 for SESAME to drop them, yet the bright blob attracts false matches. The paper trains a linear SVM on
@@ -47,7 +47,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class QualityParams:
-    """Synthetic training data and the linear SVM of the image-quality classifier (paper 001, 3.5, 4.3)."""
+    """Synthetic training data and the linear SVM of the image-quality classifier ([SESAME], 3.5, 4.3)."""
 
     feature_size_px: tuple[int, int] = (160, 76)  # (width, height) frames are reduced to before features
     n_train_per_class: int = 200  # synthetic "good" and "bad" images each for training

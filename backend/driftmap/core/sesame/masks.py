@@ -1,4 +1,4 @@
-"""SESAME: Shannon-entropy saliency masks and the salient database filter (paper 001, sections 3.2-3.4).
+"""SESAME: Shannon-entropy saliency masks and the salient database filter ([SESAME], sections 3.2-3.4).
 
 A gray 8-bit image, reduced to ``R_x x R_y`` = 160 x 76 pixels (Table 1), is cut into non-overlapping
 square patches of side ``Len(p)``; each patch gets its Shannon entropy over the 256 intensity bins (eq. 5)::
@@ -58,7 +58,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class SesameParams:
-    """SESAME saliency masks and map filter (paper 001 Table 1 and sections 3.2-3.4, 4.4)."""
+    """SESAME saliency masks and map filter ([SESAME] Table 1 and sections 3.2-3.4, 4.4)."""
 
     mask_size_px: tuple[int, int] = (160, 76)  # (R_x, R_y): image size the entropy masks are computed at
     patch_sizes_px: tuple[int, ...] = (5, 10, 20)  # Len(p) of each mask level, pixels of mask_size_px

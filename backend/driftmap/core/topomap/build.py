@@ -13,7 +13,7 @@ stop counts once; every pose outside its traced node's area goes to the nearest 
 neighbours (so poses between node areas go to the nearer of the nodes before and after them, never across a
 wall); and each node keeps at most ``frames_per_node`` frames chosen by a pluggable :data:`~driftmap.core.topomap.model.FrameSelector`
 (default: distinct headings first, so both travel directions, then distinct drives, then nearest the centre
-and best quality). SESAME's BuildSalientDatabase (paper 001, Algorithm 1) plugs in there: it receives every
+and best quality). SESAME's BuildSalientDatabase ([SESAME], Algorithm 1) plugs in there: it receives every
 member frame of a node with positions, headings, distances and qualities. A node that a drive stepped over
 (a frame step longer than N) holds no frame; it still carries the connectivity.
 """

@@ -1,6 +1,6 @@
-"""The localisation database of a map: which mapping frames each node keeps (paper 001, 3.4-3.5, Algorithm 1).
+"""The localisation database of a map: which mapping frames each node keeps ([SESAME], 3.4-3.5, Algorithm 1).
 
-Each node of the topological map stores reference frames that queries are compared with (paper 000 eq. 4:
+Each node of the topological map stores reference frames that queries are compared with ([SSLAM] eq. 4:
 the node score is the minimum over them). Paper 001 builds that database with SESAME:
 
 1. **Quality filter** (3.5): a linear SVM (:mod:`driftmap.core.sesame.glare_svm`) trained on artificial glare images
@@ -70,7 +70,7 @@ _PER_FRAME = ("chain", "row", "frame_id", "xy_m", "yaw_rad", "dist_m", "quality"
 
 @dataclass(frozen=True)
 class DatabaseParams:
-    """How each node's reference frames are chosen (paper 001 Table 1 for the SESAME thresholds)."""
+    """How each node's reference frames are chosen ([SESAME] Table 1 for the SESAME thresholds)."""
 
     use_sesame: bool = True  # Algorithm 1 and saliency-ordered views; False: the topomap's default selector
     use_quality: bool = True  # drop frames the glare classifier calls bad
