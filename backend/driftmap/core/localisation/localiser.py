@@ -1,9 +1,11 @@
 """Online localisation against a stored map ([SSLAM] III-B): one frame in, one position estimate out.
 
 :class:`Localiser` holds the map (:class:`LocaliserMap`), the belief and the continuous track;
-:meth:`Localiser.step` runs the vehicle camera's odometry step (:mod:`driftmap.core.localisation.motion`), one
-HMM step of :mod:`driftmap.core.localisation.hmm` whose transition moves the belief by the distance driven, and the track
-update (:mod:`driftmap.core.localisation.track`), and returns an :class:`Estimate`: b(i) (eq. 11), the
+:meth:`Localiser.step` runs the vehicle camera's odometry step (:mod:`driftmap.core.localisation.motion`),
+one HMM step of :mod:`driftmap.core.localisation.hmm` whose transition moves the belief by the distance
+driven and whose prior is weighed by the turns driven against the map's turns every 2.5 m
+(:mod:`driftmap.core.localisation.turns`), and the track update (:mod:`driftmap.core.localisation.track`),
+and returns an :class:`Estimate`: b(i) (eq. 11), the
 continuous position and heading, speed, and the one calibrated confidence that ``matched`` thresholds.
 ``docs/design/localiser.md`` explains the model. The batch CLI, the report and the live server use it the
 same way; the live server keeps :meth:`Localiser.state` in its shared store between frames and calls
