@@ -47,6 +47,7 @@ import numpy as np
 
 from driftmap.core.odometry.drive import compose
 from driftmap.core.odometry.step import OdometryStep
+from driftmap.core.topomap.model import wrap_rad
 from driftmap.core.types import F64, I64
 
 __all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "check_heading", "correct", "predict", "snap"]
@@ -263,7 +264,7 @@ def check_heading(
 
 def _axial_rad(a_rad: F64 | float, b_rad: F64 | float) -> F64:
     """|a - b| between two undirected directions, radians in [0, pi/2]."""
-    d = np.abs(np.arctan2(np.sin(np.asarray(a_rad) - b_rad), np.cos(np.asarray(a_rad) - b_rad)))
+    d = np.abs(wrap_rad(np.asarray(a_rad, dtype=np.float64) - b_rad))
     return np.asarray(np.minimum(d, np.pi - d), dtype=np.float64)
 
 

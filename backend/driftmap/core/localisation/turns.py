@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from driftmap.core.topomap.model import wrap_rad
 from driftmap.core.types import F64, I64
 from driftmap.errors import BadInputError
 
@@ -65,10 +66,6 @@ class TurnParams:
 
 
 TURNS_DEFAULT = TurnParams()
-
-
-def _wrap(angle_rad: F64 | float) -> F64:
-    return np.asarray(np.arctan2(np.sin(angle_rad), np.cos(angle_rad)), dtype=np.float64)
 
 
 def map_turns(centres_m: F64, edges: I64, params: TurnParams = TURNS_DEFAULT) -> F64:
@@ -111,7 +108,7 @@ def map_turns(centres_m: F64, edges: I64, params: TurnParams = TURNS_DEFAULT) ->
                 start = heading if math.isnan(first) else first
                 total = length + seg
                 if total >= lo:
-                    turn = abs(math.atan2(math.sin(heading - start), math.cos(heading - start)))
+                    turn = abs(float(wrap_rad(np.asarray(heading - start))))
                     turns.add(round(turn, 2))
                 if total < hi:
                     stack.append((nxt, total, start, seen | {nxt}))
@@ -180,7 +177,7 @@ class TurnHistory:
         if older.size == 0:
             return TurnHistory(samples, now, sign), None
         samples = samples[older[-1] :]  # keep the newest sample at least a window back
-        turn = abs(float(_wrap(now[1] - samples[0, 1])))
+        turn = abs(float(wrap_rad(now[1] - samples[0, 1])))
         return TurnHistory(samples, now, sign), turn
 
     def to_arrays(self) -> F64:
