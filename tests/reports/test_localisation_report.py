@@ -104,8 +104,10 @@ class TestReport:
         assert truth is not None
         start = lmap.centres_m[lmap.nearest_node(*truth[0])]
         for name in ("HMM+SAD", "HMM+SESAME", DEFAULT_METHOD):
+            # at the start node: its centre, pulled towards where its best-matching reference was taken (a
+            # node's frames lie within the merge radius, 2.5 m, of its centre)
             first_error_m = report.results[("clean", name)].error_m[0]
-            assert first_error_m == pytest.approx(float(np.hypot(*(start - truth[0]))), abs=1e-9)
+            assert first_error_m <= float(np.hypot(*(start - truth[0]))) + 2.5
         assert "known start" in report.table()
 
     def test_a_subset_of_methods(self, tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> None:

@@ -9,6 +9,8 @@ and :func:`localise_frames` runs a sequence of frames through it.
 Reference thumbnails come from the version's localisation database blob when the build stored one (its
 SHA-256 under ``stats["localiser_db_sha256"]``, see :mod:`driftmap.services.maps`); otherwise they are made
 again from the stored frames of the version's node frames, with the pre-processing the version was built with.
+Where each reference frame was taken (its optimised pose in the version) makes the localiser's place fixes
+finer than the node centres.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import frame_rows
 from driftmap.services.maps import LOCALISER_DB_KEY, get_map_version, load_topomap
 from driftmap.store.blobs import BlobStore
-from driftmap.store.models import Drive, Frame, MapNodeFrame, MapVersion, Site
+from driftmap.store.models import Drive, Frame, MapNodeFrame, MapPose, MapVersion, Site
 
 __all__ = [
     "LOCALISER_DB_KEY",
@@ -111,13 +113,34 @@ def _thumbs_from_frames(
     return stack.astype(np.float32), np.r_[0, np.cumsum(counts)].astype(np.int64)
 
 
+def _reference_positions(session: Session, version: MapVersion, n_refs: int) -> NDArray[np.float64] | None:
+    """(S, 2) float64 the optimised positions (survey metres) of the version's node frames in node and rank
+    order, the order of the stored references; None when they do not line up with the ``n_refs`` references."""
+    rows = session.execute(
+        select(MapPose.x_m, MapPose.y_m)
+        .select_from(MapNodeFrame)
+        .join(
+            MapPose,
+            (MapPose.frame_id == MapNodeFrame.frame_id)
+            & (MapPose.map_version_id == MapNodeFrame.map_version_id),
+        )
+        .where(MapNodeFrame.map_version_id == version.id)
+        .order_by(MapNodeFrame.node, MapNodeFrame.rank)
+    ).all()
+    if len(rows) != n_refs:
+        log.warning("map version %s: %d reference positions for %d references", version.id, len(rows), n_refs)
+        return None
+    return np.asarray(rows, dtype=np.float64).reshape(-1, 2)
+
+
 def load_version_localiser_map(
     session: Session, blobs: BlobStore, version: MapVersion, *, holistic: bool = False
 ) -> LocaliserMap:
     """The :class:`LocaliserMap` of one stored map version (see the module docstring for the sources).
 
     ``holistic`` takes [SSLAM]'s plain reference selection (a few frames per node by heading) instead of
-    the SESAME database, when the version holds both; it is what holistic SAD is compared against.
+    the SESAME database, when the version holds both; it is what holistic SAD is compared against, and its
+    place fixes are the node centres, as in the paper.
     """
     topomap = load_topomap(blobs, version)
     image_params = image_params_of(version)
@@ -139,6 +162,7 @@ def load_version_localiser_map(
         max_adjacency_m=float(topomap.params.max_adjacency_m),
         image_params=image_params,
         edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
+        ref_xy_m=None if holistic else _reference_positions(session, version, int(thumbs.shape[0])),
     )
 
 

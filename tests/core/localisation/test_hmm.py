@@ -63,6 +63,14 @@ class TestCompareNodes:
         d = hmm.compare_nodes(refs[2], refs, ptr, np.arange(3, dtype=np.int64))
         assert int(np.argmin(d)) == 1
 
+    def test_the_reference_that_gave_each_score(self) -> None:
+        refs = thumbs(7)
+        ptr = np.array([0, 3, 3, 5, 7], dtype=np.int64)  # node 1 holds no frame
+        d, best = hmm.compare_references(refs[4], refs, ptr, np.array([2, 1, 0], dtype=np.int64))
+        direct = sad_one_to_many(refs[4], refs).d
+        assert best.tolist() == [4, -1, int(np.argmin(direct[0:3]))]
+        np.testing.assert_allclose(d, [0.0, np.inf, direct[0:3].min()], atol=SAD_TOL)
+
     def test_bad_node_index(self) -> None:
         refs = thumbs(3)
         with pytest.raises(BadInputError):

@@ -14,6 +14,7 @@ from driftmap.core.localisation.map import LocaliserMap
 from driftmap.core.localisation.motion import OdometryFeed
 from driftmap.core.localisation.track import TRACK_DEFAULT, TrackState, correct
 from driftmap.core.odometry.step import OdometryStep
+from driftmap.core.topomap.distances import shortest_paths
 from tests.core.localisation.test_localiser import DT_S, SPACING_M, chain_map, textures, view
 from tests.floor_frames import floor_texture, pinhole_camera, render
 
@@ -122,6 +123,47 @@ class TestContinuousTrack:
         for k in range(20, 20 + int(hmm.DEFAULT.odometry_hop_m / 0.5) + 1):
             loc.step(blank, k * FPS_DT_S, motion=straight(0.5))
         assert loc.state().belief[11] > 1e-3  # one hop taken
+
+
+class TestPlaceFixFromTheReferences:
+    """Each node's reference frames were taken a metre apart: the one a frame matches best tells where in
+    the node the vehicle is, finer than the node centre."""
+
+    METRES = 60
+
+    def corridor_by_metre(self, positions: bool) -> tuple[F32, LocaliserMap]:
+        tex = textures(self.METRES, seed=8)  # a distinct look every metre
+        rng = np.random.default_rng(9)
+        n = self.METRES // int(SPACING_M)
+        thumbs = np.stack([view(t, rng) for t in tex])  # node j holds metres 5 j .. 5 j + 4
+        edges = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
+        return tex, LocaliserMap(
+            thumbs=thumbs,
+            node_ptr=np.arange(0, self.METRES + 1, int(SPACING_M), dtype=np.int64),
+            centres_m=np.column_stack([np.arange(n) * SPACING_M + 2.0, np.zeros(n)]),
+            adjacency_m=shortest_paths(n, edges, np.full(n - 1, SPACING_M), 50.0),
+            max_adjacency_m=50.0,
+            edges=edges,
+            ref_xy_m=np.column_stack([np.arange(self.METRES, dtype=np.float64), np.zeros(self.METRES)])
+            if positions
+            else None,
+        )
+
+    @pytest.mark.parametrize("metre", [1, 13, 44])
+    def test_the_first_fix_is_where_the_best_reference_was_taken(self, metre: int) -> None:
+        for positions, expect_m in ((True, float(metre)), (False, (metre // 5) * SPACING_M + 2.0)):
+            tex, lmap = self.corridor_by_metre(positions)
+            est = Localiser(lmap).step(
+                view(tex[metre], np.random.default_rng(metre)), 0.0, motion=straight(0.5)
+            )
+            assert est.node == metre // 5
+            assert (est.x_m, est.y_m) == pytest.approx((expect_m, 0.0))
+
+    def test_a_reference_out_of_the_node_gives_its_centre(self) -> None:
+        _, lmap = self.corridor_by_metre(True)
+        np.testing.assert_allclose(lmap.fix_m(2, 12), [12.0, 0.0])
+        np.testing.assert_allclose(lmap.fix_m(2, 3), lmap.centres_m[2])
+        np.testing.assert_allclose(lmap.fix_m(2, -1), lmap.centres_m[2])
 
 
 class TestFallbacks:

@@ -1,5 +1,5 @@
 """The continuous track's own rules on hand-made cases: fixes while standing, edges across the heading, a
-guessed heading checked by b(i)'s step."""
+guessed heading checked by b(i)'s step, a wrong heading corrected by the fixes."""
 
 from __future__ import annotations
 
@@ -91,3 +91,33 @@ class TestHeadingCheck:
         track = heading(TrackState.at((5.0, 0.0), 1.0), 0.0)
         assert TrackState.from_arrays(track.to_arrays()[:8]).heading_checked
         assert not TrackState.from_arrays(track.to_arrays()).heading_checked
+        assert TrackState.from_arrays(track.to_arrays()[:9]).flip_left_m == 0.0
+        sideways = replace(track, flip_left_m=-3.5)
+        assert TrackState.from_arrays(sideways.to_arrays()).flip_left_m == -3.5
+
+
+def drive_east(track: TrackState, frames: int) -> tuple[TrackState, list[float]]:
+    """Drive ``frames`` frames east at 0.5 m per frame from x = 0 with place fixes at the true position (the
+    vehicle's own heading, not the track's, is east); the track's heading after each frame."""
+    p, yaws = TRACK_DEFAULT, []
+    for k in range(1, frames + 1):
+        track = predict(track, step(0.5), 0.1, p)
+        track, _ = correct(track, np.array([0.5 * k, 0.0]), True, True, p, travel_m=0.5)
+        yaws.append(float(track.wT[2]))
+    return track, yaws
+
+
+class TestHeadingFromTheFixes:
+    @pytest.mark.parametrize("wrong_rad", [math.pi / 2, -math.pi / 2, 0.8, math.pi])
+    def test_a_wrong_heading_is_turned_to_the_way_the_fixes_go(self, wrong_rad: float) -> None:
+        # set along a crossing tunnel (pi/2), half-way round a junction (0.8) or the other way (pi): where
+        # no edge along the heading would pull it back, the fixes' innovations show the angle
+        start = replace(heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), wrong_rad), speed_mps=5.0)
+        track, _ = drive_east(start, 40)
+        assert abs(math.atan2(math.sin(track.wT[2]), math.cos(track.wT[2]))) < 0.3
+        assert float(np.hypot(track.wT[0] - 20.0, track.wT[1])) < 3.0
+
+    def test_a_right_heading_stays(self) -> None:
+        start = replace(heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.05), speed_mps=5.0)
+        _, yaws = drive_east(start, 60)
+        assert max(abs(y - 0.05) for y in yaws) < 1e-9

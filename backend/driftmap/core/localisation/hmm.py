@@ -39,6 +39,7 @@ __all__ = [
     "calibrated",
     "check_node_ptr",
     "compare_nodes",
+    "compare_references",
     "hmm_update",
     "initial_belief",
     "observation",
@@ -187,7 +188,20 @@ def compare_nodes(
     sad_params: SadParams = SAD_DEFAULT,
     mask: NDArray[np.bool_] | None = None,
 ) -> F32:
-    """Node difference scores of eq. 4 for the requested nodes only.
+    """Node difference scores of eq. 4 for the requested nodes only (:func:`compare_references` without
+    which reference frame gave each)."""
+    return compare_references(query, thumbs, node_ptr, nodes, sad_params, mask)[0]
+
+
+def compare_references(
+    query: F32,
+    thumbs: F32,
+    node_ptr: I64,
+    nodes: I64,
+    sad_params: SadParams = SAD_DEFAULT,
+    mask: NDArray[np.bool_] | None = None,
+) -> tuple[F32, I64]:
+    """Node difference scores of eq. 4 for the requested nodes only, and the reference frame that gave each.
 
     Args:
         query: (H, W) float32 pre-processed (patch-normalised) query thumbnail.
@@ -201,7 +215,8 @@ def compare_nodes(
 
     Returns:
         (n,) float32 d(i, j): the minimum over node j's frames of the shifted SAD (intensity units of the
-        thumbnails); ``inf`` for a node that holds no frame.
+        thumbnails); ``inf`` for a node that holds no frame. (n,) int64 the row of ``thumbs`` of the frame
+        that gave that minimum; -1 for a node that holds no frame.
     """
     nodes = np.asarray(nodes, dtype=np.int64)
     if thumbs.ndim != 3 or query.shape != thumbs.shape[1:]:
@@ -211,23 +226,27 @@ def compare_nodes(
         raise BadInputError(f"nodes must be (n,) indices below {m}", field="nodes")
     start, count = node_ptr[nodes], node_ptr[nodes + 1] - node_ptr[nodes]
     out = np.full(nodes.size, np.inf, dtype=np.float32)
+    best_ref = np.full(nodes.size, -1, dtype=np.int64)
     has = count > 0
     if not has.any():
-        return out
+        return out, best_ref
     start, count = start[has], count[has]
     total = int(count.sum())
+    seg = np.cumsum(count) - count
+    flat = np.repeat(start - seg, count) + np.arange(total, dtype=np.int64)
     if total == thumbs.shape[0] and np.array_equal(start, node_ptr[:-1][node_ptr[1:] > node_ptr[:-1]]):
         refs = thumbs  # every node in map order: no gather copy
     else:
-        seg = np.cumsum(count) - count
-        flat = np.repeat(start - seg, count) + np.arange(total, dtype=np.int64)
         refs = thumbs[flat]
     if mask is None:
         d = sad_one_to_many(query, refs, sad_params).d
     else:
         d = sad_one_to_many(query, refs, sad_params, mask=mask).d
-    out[has] = np.minimum.reduceat(d, np.cumsum(count) - count)
-    return out
+    out[has] = np.minimum.reduceat(d, seg)
+    # each node's least d first within its segment: the frame that gave the node's score
+    order = np.lexsort((d, np.repeat(np.arange(count.size), count)))
+    best_ref[has] = flat[order[seg]]
+    return out, best_ref
 
 
 def observation(d: F32 | F64, p_t: float, epsilon: float) -> F64:

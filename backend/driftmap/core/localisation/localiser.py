@@ -224,10 +224,10 @@ class Localiser:
         prior, turns = self._check_turns(prior, s.turns, motion)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
-        d_all = hmm.compare_nodes(query, lm.thumbs, lm.node_ptr, np.r_[nodes, probes], self.sad_params, mask)
+        compared = np.r_[nodes, probes]
+        d_all, refs = hmm.compare_references(query, lm.thumbs, lm.node_ptr, compared, self.sad_params, mask)
         gamma = hmm.observation(d_all[: nodes.size], p.p_t, p.epsilon)
         belief = hmm.hmm_update(prior, nodes, gamma, p.epsilon)
-        compared = np.r_[nodes, probes]
         far_m = 2.0 * self.transitions.reach_m(gap_s)
         best = int(np.argmax(belief))
         typical, near, elsewhere, far_best = evidence.judge(lm.adjacency_m, best, compared, d_all, far_m)
@@ -249,7 +249,9 @@ class Localiser:
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
         raw = 0.0 if reported_lost else score * distinct
         confidence = 0.0 if reported_lost else hmm.calibrated(raw, p.calibration)
-        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, raw, still, s.node)
+        at_best = np.flatnonzero(compared == best)
+        fix = lm.fix_m(best, int(refs[at_best[0]]) if at_best.size else -1)
+        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, fix, raw, still, s.node)
         if disagree:
             confidence = 0.0
         elif reported_lost and motion is not None and track.trusted:
@@ -323,11 +325,13 @@ class Localiser:
         motion: OdometryStep | None,
         gap_s: float,
         best: int,
+        fix_m: F64,
         raw: float,
         still: bool,
         last_node: int = -1,
     ) -> tuple[TrackState, bool, bool]:
-        """The continuous track after this frame: moved by odometry, corrected by b(i)'s centre unless the
+        """The continuous track after this frame: moved by odometry, corrected by the place fix ``fix_m``
+        (where b(i)'s best-matching reference frame was taken, :meth:`LocaliserMap.fix_m`) unless the
         frame is lost (``raw``, the uncalibrated ``score x distinct``, is 0), kept on the mapped tunnels around it
         (:mod:`driftmap.core.localisation.track`); whether the vehicle moves (odometry speed, else a changed
         view); and whether the track and b(i) disagree (a doubtful far b(i) the dead-reckoned track did not
@@ -339,7 +343,7 @@ class Localiser:
             confident = raw >= tp.fix_min_confidence
             travel_m = None if motion is None else abs(motion.dx_m)
             track, disagree = localiser_track.correct(
-                track, lm.centres_m[best], confident, motion is not None, tp, travel_m
+                track, fix_m, confident, motion is not None, tp, travel_m
             )
         if motion is not None:
             moving = not motion.stationary and abs(motion.dx_m) > tp.moving_mps * max(gap_s, 1e-3)

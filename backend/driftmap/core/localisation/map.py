@@ -37,6 +37,9 @@ class LocaliserMap:
         image_params: the pre-processing that made ``thumbs``; query frames get the same.
         edges: (E, 2) int64 node pairs driven between directly (the tunnels as segments between centres);
             the continuous track follows them (:func:`driftmap.core.localisation.track.snap`); (0, 2): none.
+        ref_xy_m: (S, 2) float64 where each reference thumbnail was taken: its frame's optimised pose, survey
+            frame, metres; the place fix of a frame is the position of the reference it matched best, finer
+            than the node centre. None: unknown (the fix is the node centre).
     """
 
     thumbs: NDArray[np.float32]
@@ -46,6 +49,7 @@ class LocaliserMap:
     max_adjacency_m: float
     image_params: ImageParams = IMAGES_DEFAULT
     edges: I64 = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    ref_xy_m: F64 | None = None
     _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
     _turns: dict[TurnParams, F64] = field(default_factory=dict, init=False, repr=False)
 
@@ -65,6 +69,17 @@ class LocaliserMap:
         edges = np.asarray(self.edges)
         if edges.ndim != 2 or edges.shape[1] != 2 or (edges.size and (edges.min() < 0 or edges.max() >= m)):
             raise BadInputError(f"edges must be (E, 2) node indices below {m}", field="edges")
+        if self.ref_xy_m is not None and self.ref_xy_m.shape != (self.thumbs.shape[0], 2):
+            raise BadInputError(
+                f"ref_xy_m must be ({self.thumbs.shape[0]}, 2), got {self.ref_xy_m.shape}", field="ref_xy_m"
+            )
+
+    def fix_m(self, node: int, ref: int) -> F64:
+        """(2,) float64 the place fix of a frame whose b(i) is ``node`` and whose best reference frame was
+        row ``ref`` of ``thumbs`` (-1: unknown): where that reference was taken, else the node centre."""
+        if self.ref_xy_m is None or not self.node_ptr[node] <= ref < self.node_ptr[node + 1]:
+            return np.asarray(self.centres_m[node], dtype=np.float64)
+        return np.asarray(self.ref_xy_m[ref], dtype=np.float64)
 
     def edges_near(self, nodes: I64) -> I64:
         """(K, 2) int64 the edges with an end among ``nodes``."""
@@ -107,6 +122,7 @@ def build_localiser_map(
     topomap: TopoMap,
     thumbs_by_flat_frame_index: NDArray[np.float32],
     image_params: ImageParams = IMAGES_DEFAULT,
+    frame_xy_m: F64 | None = None,
 ) -> LocaliserMap:
     """The localiser's map from a :class:`TopoMap` and the thumbnails of its frames.
 
@@ -115,6 +131,9 @@ def build_localiser_map(
         thumbs_by_flat_frame_index: (F, H, W) float32 pre-processed thumbnails indexed by the map's flat
             frame index (every frame of every chain; only the chosen ones are read).
         image_params: the pre-processing that made the thumbnails.
+        frame_xy_m: (F, 2) float64 optimised positions of the map's frames by flat frame index, survey frame,
+            metres; the chosen ones become the references' positions (:attr:`LocaliserMap.ref_xy_m`). None:
+            fixes at node centres.
 
     Returns:
         The :class:`LocaliserMap`.
@@ -133,4 +152,5 @@ def build_localiser_map(
         max_adjacency_m=float(topomap.params.max_adjacency_m),
         image_params=image_params,
         edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
+        ref_xy_m=None if frame_xy_m is None else np.asarray(frame_xy_m, dtype=np.float64)[topomap.chosen],
     )

@@ -28,11 +28,14 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
 * **heading**: an unknown heading (after an anchor) is set, once the vehicle moves beside a mapped edge, to
   one of the edge's two directions, and checked (:func:`check_heading`) when b(i) next steps to a
   neighbouring node while odometry says the vehicle moves: a heading whose way of travel points against the
-  step is turned by pi. While moving, the fixes' innovations along the direction of travel are
-  summed with decay (``flip_memory``): a heading the wrong way round makes the prediction run away from the
-  fixes, the sum falls below ``-flip_m`` within a few frames and the heading is turned by pi. A right heading
-  only sees the fixes' small lag; after a reversal the position variance is raised so the fixes pull the
-  track back quickly.
+  step is turned by pi. While moving, the fixes' innovations along and across the direction of travel are
+  summed with decay (``flip_memory``). A heading off by an angle t makes the prediction run away from the
+  fixes: each innovation points along ``(cos t - 1, sin t)`` in the vehicle's frame (travel, left), so once
+  the summed innovations are longer than ``flip_m`` and point backwards, ``t = 2 atan2(left, along) - pi``;
+  the heading is turned by t when that exceeds ``turn_min_rad`` (pi: it faces the other way; about pi/2: it
+  was set along a crossing tunnel, where no edge along it would ever pull it back). A right heading only
+  sees the fixes' small lag and scatter; after a correction the position variance is raised so the fixes
+  pull the track back quickly.
 
 Speed comes from the odometry steps (signed metres over the frame gap, exponentially averaged); without
 odometry it is unknown (NaN).
@@ -62,7 +65,8 @@ class TrackParams:
     free_speed_mps: float = 3.0  # without odometry: position sd grows by this x the frame gap
     gate_m: float = 10.0  # a fix further than this + 3 sd from the track re-anchors it, metres
     flip_memory: float = 0.9  # per fix, the share of the heading-reversal evidence kept
-    flip_m: float = 25.0  # the heading is reversed when that evidence falls below minus this, metres
+    flip_m: float = 25.0  # the heading is corrected when that evidence is longer than this, metres
+    turn_min_rad: float = 0.35  # ... by the angle it shows, when at least this (smaller: the pull's job)
     heading_pull: float = 0.05  # per moving frame, the share of the gap to the edge direction closed
     speed_memory: float = 0.5  # weight of the newest step in the running speed
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
@@ -98,13 +102,14 @@ class TrackState:
             unknown.
         var_m2: position variance (isotropic), square metres.
         speed_mps: signed running speed from odometry (negative: reversing); NaN when not measured.
-        flip_m: evidence that the heading is reversed: the decaying sum of the fixes' innovations along the
+        flip_m: evidence that the heading is wrong: the decaying sum of the fixes' innovations along the
             direction of travel, metres (negative: the fixes keep pulling the track back).
         trusted: a confident fix (or a known start) has confirmed the track since it was anchored; only a
             trusted dead-reckoned track holds its course against a doubtful far fix.
         held: doubtful far fixes held against in a row.
         heading_checked: the heading, one of an edge's two ways when it was set, has been checked against
             the way b(i) stepped to a neighbouring node (:func:`check_heading`).
+        flip_left_m: the same sum across the direction of travel (to its left), metres.
     """
 
     wT: F64
@@ -114,6 +119,7 @@ class TrackState:
     trusted: bool = False
     held: int = 0
     heading_checked: bool = False
+    flip_left_m: float = 0.0
 
     @classmethod
     def empty(cls) -> TrackState:
@@ -135,7 +141,7 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(9,) float64 packed for the localiser's stored state."""
+        """(10,) float64 packed for the localiser's stored state."""
         packed = np.r_[
             self.wT,
             self.var_m2,
@@ -144,17 +150,20 @@ class TrackState:
             float(self.trusted),
             self.held,
             float(self.heading_checked),
+            self.flip_left_m,
         ]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays` (8 values: stored before the heading check; other sizes: no track)."""
+        """Inverse of :meth:`to_arrays`; 8 or 9 values (stored before the heading check or the sideways
+        evidence) are read with those as checked and 0; other sizes: no track."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size not in (8, 9):
+        if a.size not in (8, 9, 10):
             return cls.empty()
-        checked = bool(a[8]) if a.size == 9 else True
-        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]), checked)
+        checked = bool(a[8]) if a.size >= 9 else True
+        left = float(a[9]) if a.size == 10 else 0.0
+        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]), checked, left)
 
 
 def _wrap(angle_rad: float) -> float:
@@ -226,14 +235,17 @@ def correct(
     wT = state.wT.copy()
     innovation = fix - wT[:2]
     wT[:2] += gain * innovation
-    var, flip = (1.0 - gain) * state.var_m2, state.flip_m
+    var, flip, left = (1.0 - gain) * state.var_m2, state.flip_m, state.flip_left_m
     if state.has_heading and math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps:
         ahead = math.copysign(1.0, state.speed_mps) * np.array([math.cos(wT[2]), math.sin(wT[2])])
         flip = params.flip_memory * flip + float(innovation @ ahead)
-        if flip < -params.flip_m:  # the fixes keep pulling the track back: it faces the other way
-            wT[2], flip = _wrap(wT[2] + math.pi), 0.0
-            var = max(var, (2.0 * params.fix_sigma_m) ** 2)  # it ran the wrong way: let the fixes pull
-    return replace(state, wT=wT, var_m2=var, flip_m=flip), False
+        left = params.flip_memory * left + float(innovation @ np.array([-ahead[1], ahead[0]]))
+        if flip < 0.0 and math.hypot(flip, left) > params.flip_m:  # the fixes keep pulling it back
+            turn = _wrap(2.0 * math.atan2(left, flip) - math.pi)  # the heading error they show
+            if abs(turn) >= params.turn_min_rad:
+                wT[2], flip, left = _wrap(wT[2] + turn), 0.0, 0.0
+                var = max(var, (2.0 * params.fix_sigma_m) ** 2)  # it ran the wrong way: let the fixes pull
+    return replace(state, wT=wT, var_m2=var, flip_m=flip, flip_left_m=left), False
 
 
 def check_heading(
