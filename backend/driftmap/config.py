@@ -33,9 +33,9 @@ class Settings(BaseSettings):
     """Localiser worker processes of each API process (live frames), about one per core."""
 
     # DXF survey plans: what reading and storing one may cost (docs/formats.md, DXF limits)
-    survey_max_file_bytes: int = 128 * 1024**2
+    survey_max_file_bytes: int = 64 * 1024**2
     """Largest survey DXF, bytes (also bounded by ``max_upload_bytes``)."""
-    survey_max_entities: int = 2_000_000
+    survey_max_entities: int = 500_000
     """Most entities read from one plan, block contents counted again for every reference."""
     survey_max_extent_m: float = 100_000.0
     """Largest side of a plan's bounding box, metres."""

@@ -40,8 +40,8 @@ Box = tuple[float, float, float, float]  # (min_x, min_y, max_x, max_y), metres
 class DxfLimits:
     """What reading and storing one survey plan may cost (server settings ``survey_max_*``)."""
 
-    max_file_bytes: int = 128 * 1024**2  # largest DXF file, bytes
-    max_entities: int = 2_000_000  # entities read, those of a block counted again for every reference
+    max_file_bytes: int = 64 * 1024**2  # largest DXF file, bytes
+    max_entities: int = 500_000  # entities read, those of a block counted again for every reference
     max_extent_m: float = 100_000.0  # largest side of the drawing's bounding box, metres
     max_curve_points: int = 100_000  # points of one flattened entity or hatch boundary
     max_points: int = 1_000_000  # points of the whole plan
@@ -75,7 +75,16 @@ class EntityReader:
         self._box: Box | None = None
 
     def features(self, doc: Drawing) -> Iterator[tuple[str, str, Feature]]:
-        """(layer, DXF type, feature) for each drawable entity of model space, blocks exploded."""
+        """(layer, DXF type, feature) for each drawable entity of model space, blocks exploded.
+
+        Raises:
+            PayloadTooLargeError: block references that would expand to more than ``max_entities``
+                entities (counted from the block definitions before any is exploded), or a limit on points.
+            BadInputError: a drawing wider than ``max_extent_m``.
+        """
+        expanded = expanded_entity_count(doc)
+        if expanded > self.limits.max_entities:
+            self._too_many_entities(f"expands to {expanded:.3g} entities")
         for entity in doc.modelspace():
             yield from self._entity(entity, entity.dxf.layer, 0)
 
@@ -84,11 +93,7 @@ class EntityReader:
     def _entity(self, entity: DXFGraphic, layer: str, depth: int) -> Iterator[tuple[str, str, Feature]]:
         self._entities += 1
         if self._entities > self.limits.max_entities:
-            raise PayloadTooLargeError(
-                f"more than {self.limits.max_entities} entities (block contents counted for every "
-                f"reference; setting survey_max_entities)",
-                file=self.source,
-            )
+            self._too_many_entities(f"expands to more than {self.limits.max_entities} entities")
         dxftype = entity.dxftype()
         if dxftype == "INSERT":
             yield from self._insert(entity, layer, depth)  # type: ignore[arg-type]
@@ -165,7 +170,10 @@ class EntityReader:
             spline = entity.construction_tool()  # type: ignore[attr-defined]
             self._check_box(_control_box(spline.control_points), entity)  # a B-spline stays in their hull
             vertices = spline.flattening(self.sagitta, MIN_CURVE_SEGMENTS)
-        else:  # LINE and polylines; bulges become cubic Beziers within ~1e-4 of the arc radius
+        elif dxftype == "LINE":  # in WCS
+            vertices = [Vec3(entity.dxf.start), Vec3(entity.dxf.end)]
+            self._check_box(_control_box(vertices), entity)
+        else:  # polylines; bulges become cubic Beziers within ~1e-4 of the arc radius
             path = ezpath.make_path(entity)
             self._check_box(_control_box(path.control_vertices()), entity)
             vertices = path.flattening(self.sagitta, MIN_CURVE_SEGMENTS)
@@ -232,6 +240,13 @@ class EntityReader:
             )
         self._box = box
 
+    def _too_many_entities(self, what: str) -> None:
+        raise PayloadTooLargeError(
+            f"the plan {what}, block contents counted for every reference; the limit is "
+            f"{self.limits.max_entities} (setting survey_max_entities)",
+            file=self.source,
+        )
+
     def _too_many_points(self, entity: DXFGraphic) -> None:
         raise PayloadTooLargeError(
             f"{_describe(entity)} flattens to more than {self.limits.max_curve_points} points within "
@@ -246,6 +261,31 @@ class EntityReader:
                 f"the plan flattens to more than {self.limits.max_points} points (setting survey_max_points)",
                 file=self.source,
             )
+
+
+def expanded_entity_count(doc: Drawing) -> int:
+    """Entities of model space with every block reference expanded (MINSERT grids included).
+
+    Counted from the block definitions, each once, so a plan whose references multiply (ten references of
+    ten references of ...) is measured without exploding anything. A block that refers to itself counts
+    its reference as one entity.
+    """
+    per_block: dict[str, int] = {}
+
+    def block_count(name: str) -> int:
+        if name not in per_block:
+            per_block[name] = 0  # while counting: a cycle adds nothing
+            block = doc.blocks.get(name)
+            per_block[name] = 0 if block is None else sum(entity_count(e) for e in block)
+        return per_block[name]
+
+    def entity_count(entity: DXFGraphic) -> int:
+        if entity.dxftype() != "INSERT":
+            return 1
+        insert: Insert = entity  # type: ignore[assignment]
+        return 1 + len(insert.attribs) + max(insert.mcount, 1) * block_count(insert.dxf.name)
+
+    return sum(entity_count(e) for e in doc.modelspace())
 
 
 def _safely(entities: Iterator[DXFGraphic], skipped: Counter[str]) -> Iterator[DXFGraphic]:
