@@ -148,8 +148,8 @@ def stored_bytes(levels: list[FirstLevel]) -> int:
 
 
 def json_bytes(value: Any) -> int:
-    """Bytes of ``value`` written as compact JSON (UTF-8)."""
-    return len(json.dumps(value, separators=(",", ":"), ensure_ascii=False).encode())
+    """Bytes of ``value`` as JSON, written as the database's JSON columns write it (``json.dumps``)."""
+    return len(json.dumps(value))  # ASCII: non-ASCII characters are escaped
 
 
 def store_first_levels(
