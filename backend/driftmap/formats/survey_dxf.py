@@ -124,6 +124,14 @@ def read_survey_dxf(data: bytes, source: str, limits: DxfLimits = DEFAULT_LIMITS
             "(setting survey_max_file_bytes)",
             file=source,
         )
+    if not data.startswith(_BINARY_DXF_MAGIC):
+        coordinates = _coordinate_tags(data)
+        if coordinates > limits.max_points:
+            raise PayloadTooLargeError(
+                f"the DXF holds {coordinates} coordinates (group code 10), more than the limit of "
+                f"{limits.max_points} points (setting survey_max_points)",
+                file=source,
+            )
     doc = _load(data, source)
     insunits = _insunits(doc, source)
     scale = METRES_PER_UNIT[insunits]
@@ -235,6 +243,17 @@ def _load(data: bytes, source: str) -> Drawing:
         len(auditor.errors),
     )
     return doc
+
+
+def _coordinate_tags(data: bytes) -> int:
+    """How many group code 10 tags (the x of a point or vertex) ASCII DXF ``data`` holds, counted unparsed.
+
+    A value line reading ``10`` counts too (rare); so the count is at least the points written, block
+    contents once, which is what lets a plan far over the point limit be refused before ezdxf parses it.
+    """
+    head = data[:4096]
+    end = b"\r\n" if b"\r\n" in head else b"\n" if b"\n" in head else b"\r"
+    return sum(data.count(end + code + end) for code in (b"10", b" 10", b"  10"))
 
 
 def _insunits(doc: Drawing, source: str) -> int:

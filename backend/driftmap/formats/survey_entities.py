@@ -15,7 +15,7 @@ from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from itertools import islice
-from typing import Any
+from typing import Any, TypeVar
 
 from ezdxf import path as ezpath
 from ezdxf.document import Drawing
@@ -33,6 +33,7 @@ _TEXTS = frozenset({"TEXT", "MTEXT", "ATTRIB"})
 _HATCHES = frozenset({"HATCH", "MPOLYGON"})
 
 Feature = dict[str, Any]
+_Entity = TypeVar("_Entity", bound=DXFGraphic)
 Box = tuple[float, float, float, float]  # (min_x, min_y, max_x, max_y), metres
 
 
@@ -113,8 +114,8 @@ class EntityReader:
         if depth >= _MAX_BLOCK_DEPTH:
             self.skipped["INSERT"] += 1
             return
-        singles: Iterable[Insert] = insert.multi_insert() if insert.mcount > 1 else [insert]
-        for single in singles:  # lazily: a MINSERT grid may be huge, the entity limit stops it
+        singles: Iterator[Insert] = insert.multi_insert() if insert.mcount > 1 else iter([insert])
+        for single in _safely(singles, self.skipped):  # lazily: the entity limit stops a huge MINSERT grid
             for child in _safely(single.virtual_entities(), self.skipped):
                 child_layer = layer if child.dxf.layer == "0" else child.dxf.layer
                 yield from self._entity(child, child_layer, depth + 1)
@@ -283,12 +284,16 @@ def expanded_entity_count(doc: Drawing) -> int:
         if entity.dxftype() != "INSERT":
             return 1
         insert: Insert = entity  # type: ignore[assignment]
-        return 1 + len(insert.attribs) + max(insert.mcount, 1) * block_count(insert.dxf.name)
+        try:
+            grid = max(int(insert.mcount), 1)
+        except Exception:  # a damaged grid: exploding it is left to fail, and be counted, later
+            grid = 1
+        return 1 + len(insert.attribs) + grid * block_count(str(insert.dxf.get("name", "")))
 
     return sum(entity_count(e) for e in doc.modelspace())
 
 
-def _safely(entities: Iterator[DXFGraphic], skipped: Counter[str]) -> Iterator[DXFGraphic]:
+def _safely(entities: Iterator[_Entity], skipped: Counter[str]) -> Iterator[_Entity]:
     """The entities of a block reference until one cannot be made (a missing or broken block)."""
     while True:
         try:
