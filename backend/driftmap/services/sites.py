@@ -71,8 +71,8 @@ def add_survey_map(
 
     Raises:
         BadInputError: a plan :func:`read_survey_dxf` refuses.
-        PayloadTooLargeError: a plan over ``limits`` (the parsed layers and first-view levels together
-            over ``limits.max_stored_bytes`` of JSON among them).
+        PayloadTooLargeError: a plan over ``limits``, e.g. whose parsed layers and first-view levels
+            would take more than ``limits.max_stored_bytes`` of JSON in the database.
     """
     survey = read_survey_dxf(data, filename, limits)
     parsed = survey_map_to_json(survey)
