@@ -32,6 +32,20 @@ class Settings(BaseSettings):
     live_processes: int = 2
     """Localiser worker processes of each API process (live frames), about one per core."""
 
+    # DXF survey plans: what reading and storing one may cost (docs/formats.md, DXF limits)
+    survey_max_file_bytes: int = 64 * 1024**2
+    """Largest survey DXF, bytes (also bounded by ``max_upload_bytes``)."""
+    survey_max_entities: int = 500_000
+    """Most entities read from one plan, block contents counted again for every reference."""
+    survey_max_extent_m: float = 100_000.0
+    """Largest side of a plan's bounding box, metres."""
+    survey_max_curve_points: int = 100_000
+    """Most points one flattened curve, polyline or hatch boundary may have."""
+    survey_max_points: int = 1_000_000
+    """Most points of a whole plan once its curves are flattened."""
+    survey_max_stored_bytes: int = 128 * 1024**2
+    """Largest JSON of a plan's parsed layers and first-view levels in the database, bytes."""
+
     def resolved_database_url(self) -> str:
         """The database URL in force: the configured one or the embedded SQLite file."""
         if self.database_url:

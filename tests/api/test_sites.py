@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
+from typing import Any
 
 from tests.api.data_helpers import ApiUsers, create_site_with_survey, upload_zip
+from tests.formats.test_survey_dxf import draw_plan, dxf_bytes
+from tests.formats.test_survey_limits import HUGE_CIRCLE, REFUSAL_S, plan_with_binary_data
 from tests.jobs.mini_site import drive_folders, zip_folder
 
 
@@ -99,6 +103,39 @@ class TestSurvey:
         ]
         response = users.client.get(f"/api/sites/{site_id}/survey/layers", headers=users.auth("viewer"))
         assert response.status_code == 404
+
+
+class TestSurveyLimits:
+    def upload(self, users: ApiUsers, site_id: int, name: str, data: bytes) -> Any:
+        return users.client.post(
+            f"/api/sites/{site_id}/survey",
+            files={"file": (name, data, "application/dxf")},
+            headers=users.auth("admin"),
+        )
+
+    def test_plans_over_a_limit_are_refused_quickly_and_leave_the_site_as_it_was(
+        self, users: ApiUsers
+    ) -> None:
+        site_id = users.client.post("/api/sites", json={"name": "s"}, headers=users.auth("admin")).json()[
+            "id"
+        ]
+        start = time.perf_counter()
+        response = self.upload(users, site_id, "circle.dxf", HUGE_CIRCLE)
+        assert time.perf_counter() - start < REFUSAL_S
+        assert response.status_code == 422 and response.json()["file"] == "circle.dxf"
+        assert "CIRCLE" in response.json()["detail"] and "survey_max_extent_m" in response.json()["detail"]
+        users.client.app.state.settings.survey_max_points = 3  # type: ignore[attr-defined]
+        response = self.upload(users, site_id, "lines.dxf", dxf_bytes(draw_plan("R2000")))
+        assert response.status_code == 413 and "survey_max_points" in response.json()["detail"]
+        assert users.get(f"/api/sites/{site_id}/survey") == []
+
+    def test_a_windows_plan_with_binary_data_is_imported(self, users: ApiUsers) -> None:
+        site_id = users.client.post("/api/sites", json={"name": "w"}, headers=users.auth("admin")).json()[
+            "id"
+        ]
+        crlf = plan_with_binary_data().replace("\n", "\r\n").encode()
+        assert self.upload(users, site_id, "win.dxf", crlf).status_code == 201
+        assert list(users.get(f"/api/sites/{site_id}/survey/layers")["layers"]) == ["WALLS"]
 
 
 class TestSimulate:

@@ -156,8 +156,13 @@ class TestNewerEntities:
         assert features[1]["properties"] == {"text": "Drive 7", "entity": "MTEXT"}
         assert features[1]["geometry"]["coordinates"] == [7.0, 8.0]
 
-    def test_hatch_is_skipped_and_counted(self, new_plan: Any) -> None:
-        assert "HATCH" not in new_plan.layers and new_plan.skipped == {"HATCH": 1}
+    def test_hatch_boundary_is_a_closed_line(self, new_plan: Any) -> None:
+        assert coords(new_plan, "HATCH") == [[0, 0], [1, 0], [1, 1], [0, 0]]
+        assert new_plan.layers["HATCH"].features["features"][0]["properties"] == {
+            "entity": "HATCH",
+            "closed": True,
+        }
+        assert new_plan.skipped == {}
 
     def test_attributes_of_a_block_reference_become_text(self) -> None:
         doc = new_dxf("R2000")
@@ -206,10 +211,10 @@ class TestBadFiles:
     def test_empty_drawing(self) -> None:
         assert "no drawable entities" in self.error(dxf_bytes(new_dxf("R2000"))).reason
 
-    def test_only_hatches(self) -> None:
+    def test_only_undrawable_entities(self) -> None:
         doc = new_dxf("R2000")
-        doc.modelspace().add_hatch().paths.add_polyline_path([(0, 0), (1, 0), (1, 1)])
-        assert "1 HATCH" in self.error(dxf_bytes(doc)).reason
+        doc.modelspace().add_3dface([(0, 0, 0), (1, 0, 0), (1, 1, 1)])
+        assert "1 3DFACE" in self.error(dxf_bytes(doc)).reason
 
     @pytest.mark.parametrize(
         "data", [b"", b"hello world\n", bytes(range(256)) * 4, b"%PDF-1.4\n" + b"x" * 100]

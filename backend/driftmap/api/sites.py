@@ -103,9 +103,10 @@ def upload_survey(
     """Upload the site's surveyed DXF plan (multipart field ``file``); the newest plan is the one in use."""
     site = site_by_id(session, site_id)
     filename = file.filename or "survey.dxf"
-    data = read_limited(file, settings.max_upload_bytes, filename)
+    limits = site_service.survey_limits(settings)
+    data = read_limited(file, min(settings.max_upload_bytes, limits.max_file_bytes), filename)
     with storage.blobs.batch() as batch:
-        record = site_service.add_survey_map(session, batch, site, data, filename)
+        record = site_service.add_survey_map(session, batch, site, data, filename, limits)
         session.commit()
     return SurveyMapRead.model_validate(record)
 

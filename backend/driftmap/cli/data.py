@@ -67,7 +67,8 @@ def site_create(
         data = survey.read_bytes()
         with storage.blobs.batch() as batch, storage.db.session() as session:
             site = site_service.create_site(session, name, description)
-            survey_map = site_service.add_survey_map(session, batch, site, data, str(survey))
+            limits = site_service.survey_limits(get_settings())
+            survey_map = site_service.add_survey_map(session, batch, site, data, str(survey), limits)
             layers = ", ".join(sorted(survey_map.layers))
         console.print(f"site {name!r} created; survey {survey.name}: layers {layers}")
         if drives is not None:

@@ -7,41 +7,54 @@ Every drawable entity becomes a GeoJSON-like feature in plane metres (x east, y 
   :data:`SAGITTA_M` from the curve. Closed shapes stay ``LineString`` (never ``Polygon``: a closed wall
   outline is a line, not necessarily a valid area) whose last point repeats the first, with
   ``properties.closed = true``.
+* HATCH (and MPOLYGON) boundary paths, polyline and edge paths alike (lines, arcs, ellipses, splines),
+  become one closed ``LineString`` each; the fill itself is not drawn.
 * TEXT, MTEXT and the ATTRIBs of block references become ``Point`` features at their insertion point
   with ``properties.text``; POINT entities become ``Point`` features without text.
 * INSERT (and MINSERT) block references are exploded recursively with their transforms; entities on
   layer ``0`` inside a block take the layer of the reference, as in CAD programs.
-* Everything else (HATCH, DIMENSION, 3D solids, images, ...) is counted in ``skipped`` and left out.
+* Everything else (DIMENSION, 3D solids, meshes, images, ...) is counted in ``skipped`` and left out.
 
-``$INSUNITS`` scales the drawing to metres (0 = unitless and 6 = metres are taken as metres).
+``$INSUNITS`` scales the drawing to metres (0 = unitless and 6 = metres are taken as metres). ASCII DXF
+(UTF-8 or cp1252, any line ending) and binary DXF are read; an ASCII file the strict reader refuses is read
+again with ezdxf's recovery mode. The cost of a plan is bounded by :class:`DxfLimits` (file size, entities,
+extent, points per curve and in all; see :mod:`driftmap.formats.survey_entities`).
 """
 
 from __future__ import annotations
 
 import io
-import math
+import logging
 import os
 import tempfile
 from collections import Counter
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from ezdxf import path as ezpath
+from ezdxf import recover
 from ezdxf.document import Drawing
-from ezdxf.entities.dxfgfx import DXFGraphic
-from ezdxf.entities.insert import Insert
 from ezdxf.filemanagement import read as read_dxf_stream
 from ezdxf.filemanagement import readfile as read_dxf_file
 from ezdxf.lldxf.const import DXFError
 
-from driftmap.errors import BadInputError
+from driftmap.errors import BadInputError, PayloadTooLargeError
+from driftmap.formats.survey_entities import DEFAULT_LIMITS, SAGITTA_M, DxfLimits, EntityReader
 
-SAGITTA_M = 0.05  # largest distance between a flattened curve and its chords, metres
-_MAX_BLOCK_DEPTH = 16  # nested block references deeper than this are taken as a cycle
+__all__ = [
+    "DEFAULT_LIMITS",
+    "METRES_PER_UNIT",
+    "SAGITTA_M",
+    "DxfLimits",
+    "SurveyLayer",
+    "SurveyMap",
+    "read_survey_dxf",
+    "survey_map_from_json",
+    "survey_map_to_json",
+]
+
+log = logging.getLogger(__name__)
+
 _BINARY_DXF_MAGIC = b"AutoCAD Binary DXF"
-_CURVES = frozenset({"LINE", "LWPOLYLINE", "POLYLINE", "ARC", "CIRCLE", "ELLIPSE", "SPLINE"})
-_TEXTS = frozenset({"TEXT", "MTEXT", "ATTRIB"})
 # metres per drawing unit by $INSUNITS code (AutoCAD's list; astronomical units left out)
 METRES_PER_UNIT: dict[int, float] = {
     0: 1.0, 1: 0.0254, 2: 0.3048, 3: 1609.344, 4: 1e-3, 5: 1e-2, 6: 1.0, 7: 1e3, 8: 2.54e-8, 9: 2.54e-5,
@@ -90,28 +103,45 @@ class SurveyMap:
     skipped: dict[str, int] = field(default_factory=dict)
 
 
-def read_survey_dxf(data: bytes, source: str) -> SurveyMap:
+def read_survey_dxf(data: bytes, source: str, limits: DxfLimits = DEFAULT_LIMITS) -> SurveyMap:
     """Parse a DXF survey plan into per-layer features in plane metres.
 
     Args:
         data: the DXF file's bytes (ASCII DXF in UTF-8 or cp1252, or binary DXF).
         source: the file name, used in error messages.
+        limits: bounds on the file size, entities, extent (metres) and flattened points.
 
     Raises:
+        PayloadTooLargeError: a file, entity count or point count over its limit (the message names the
+            entity and the setting).
         BadInputError: bytes that are not a readable DXF (with ezdxf's line when it gives one), a
-            truncated file, an unknown ``$INSUNITS``, or a plan without drawable entities.
+            truncated file, an unknown ``$INSUNITS``, a drawing wider than ``limits.max_extent_m``, or a
+            plan without drawable entities.
     """
+    if len(data) > limits.max_file_bytes:
+        raise PayloadTooLargeError(
+            f"a DXF of {len(data)} bytes is over the {limits.max_file_bytes} byte limit "
+            "(setting survey_max_file_bytes)",
+            file=source,
+        )
+    if not data.startswith(_BINARY_DXF_MAGIC):
+        coordinates = _coordinate_tags(data)
+        if coordinates > limits.max_points:
+            raise PayloadTooLargeError(
+                f"the DXF holds {coordinates} coordinates (group code 10), more than the limit of "
+                f"{limits.max_points} points (setting survey_max_points)",
+                file=source,
+            )
     doc = _load(data, source)
-    insunits = int(doc.header.get("$INSUNITS", 0) or 0)
-    if insunits not in METRES_PER_UNIT:
-        raise BadInputError(f"unsupported $INSUNITS code {insunits}", file=source, field="$INSUNITS")
+    insunits = _insunits(doc, source)
     scale = METRES_PER_UNIT[insunits]
     features: dict[str, list[dict[str, Any]]] = {}
     counts: dict[str, Counter[str]] = {}
-    skipped: Counter[str] = Counter()
-    for layer, dxftype, feature in _features(doc, scale, skipped):
+    reader = EntityReader(scale, limits, source)
+    for layer, dxftype, feature in reader.features(doc):
         features.setdefault(layer, []).append(feature)
         counts.setdefault(layer, Counter())[dxftype] += 1
+    skipped = reader.skipped
     if not features:
         found = ", ".join(f"{n} {t}" for t, n in sorted(skipped.items())) or "nothing"
         raise BadInputError(
@@ -188,18 +218,54 @@ def survey_map_from_json(
 
 
 def _load(data: bytes, source: str) -> Drawing:
+    """The document in ``data``: binary DXF, else ASCII read strictly, else read in recovery mode."""
     if data.startswith(_BINARY_DXF_MAGIC):
         return _load_binary(data, source)
     text = _decode(data, source)
-    last_tags = [line.strip() for line in text.rstrip().rsplit("\n", 2)[-2:]]
-    if last_tags != ["0", "EOF"]:
+    if [line.strip() for line in text[-64:].rstrip().splitlines()[-2:]] != ["0", "EOF"]:
         raise BadInputError("not a complete DXF file (no '0 / EOF' at the end; truncated?)", file=source)
     try:
-        return read_dxf_stream(io.StringIO(text))
+        return read_dxf_stream(io.StringIO(text, newline=None))  # CR LF and CR line ends read as LF
     except DXFError as exc:
-        raise BadInputError(f"not a readable DXF: {exc}", file=source) from None
+        strict_error = str(exc)
     except Exception as exc:  # ezdxf raises assorted errors on malformed tags
-        raise BadInputError(f"not a readable DXF: {type(exc).__name__}: {exc}", file=source) from None
+        strict_error = f"{type(exc).__name__}: {exc}"
+    del text
+    try:
+        doc, auditor = recover.read(io.BytesIO(data))
+    except Exception:  # the strict reader's message names the line at fault
+        raise BadInputError(f"not a readable DXF: {strict_error}", file=source) from None
+    log.warning(
+        "%s: read in recovery mode (%s); %d problems fixed, %d left",
+        source,
+        strict_error,
+        len(auditor.fixes),
+        len(auditor.errors),
+    )
+    return doc
+
+
+def _coordinate_tags(data: bytes) -> int:
+    """How many group code 10 tags (the x of a point or vertex) ASCII DXF ``data`` holds, counted unparsed.
+
+    A value line reading ``10`` counts too (rare); so the count is at least the points written, block
+    contents once, which is what lets a plan far over the point limit be refused before ezdxf parses it.
+    """
+    head = data[:4096]
+    end = b"\r\n" if b"\r\n" in head else b"\n" if b"\n" in head else b"\r"
+    return sum(data.count(end + code + end) for code in (b"10", b" 10", b"  10"))
+
+
+def _insunits(doc: Drawing, source: str) -> int:
+    """The ``$INSUNITS`` code of ``doc`` (0 when absent), refused when it has no scale to metres."""
+    value = doc.header.get("$INSUNITS", 0)
+    try:
+        insunits = int(value or 0)
+    except (TypeError, ValueError):
+        raise BadInputError(f"$INSUNITS is not a code: {value!r}", file=source, field="$INSUNITS") from None
+    if insunits not in METRES_PER_UNIT:
+        raise BadInputError(f"unsupported $INSUNITS code {insunits}", file=source, field="$INSUNITS")
+    return insunits
 
 
 def _load_binary(data: bytes, source: str) -> Drawing:
@@ -225,115 +291,7 @@ def _decode(data: bytes, source: str) -> str:
     raise BadInputError("not a DXF file (text is neither UTF-8 nor cp1252)", file=source)
 
 
-# ----------------------------------------------------------------------------------------------- entities
-
-
-def _features(doc: Drawing, scale: float, skipped: Counter[str]) -> Iterator[tuple[str, str, dict[str, Any]]]:
-    """(layer, DXF type, feature) for each drawable entity of model space, blocks exploded."""
-    for entity in doc.modelspace():
-        yield from _entity_features(entity, entity.dxf.layer, scale, skipped, 0)
-
-
-def _entity_features(
-    entity: DXFGraphic, layer: str, scale: float, skipped: Counter[str], depth: int
-) -> Iterator[tuple[str, str, dict[str, Any]]]:
-    dxftype = entity.dxftype()
-    if dxftype == "INSERT":
-        yield from _insert_features(entity, layer, scale, skipped, depth)  # type: ignore[arg-type]
-        return
-    try:
-        if dxftype in _CURVES and not _is_mesh(entity):
-            feature = _line_feature(entity, scale)
-        elif dxftype in _TEXTS:
-            feature = _text_feature(entity, scale)
-        elif dxftype == "POINT":
-            feature = _point_feature(entity.dxf.location, scale, {"entity": "POINT"})
-        else:
-            feature = None
-    except Exception:  # a damaged entity is left out, not the whole plan
-        feature = None
-    if feature is None:
-        skipped[dxftype] += 1
-    else:
-        yield layer, dxftype, feature
-
-
-def _insert_features(
-    insert: Insert, layer: str, scale: float, skipped: Counter[str], depth: int
-) -> Iterator[tuple[str, str, dict[str, Any]]]:
-    if depth >= _MAX_BLOCK_DEPTH:
-        skipped["INSERT"] += 1
-        return
-    inserts = list(insert.multi_insert()) if insert.mcount > 1 else [insert]
-    for single in inserts:
-        try:
-            children = list(single.virtual_entities())
-        except Exception:  # a reference to a missing or broken block
-            skipped["INSERT"] += 1
-            continue
-        for child in children:
-            child_layer = layer if child.dxf.layer == "0" else child.dxf.layer
-            yield from _entity_features(child, child_layer, scale, skipped, depth + 1)
-        for attrib in single.attribs:
-            yield from _entity_features(attrib, attrib.dxf.layer, scale, skipped, depth + 1)
-
-
-def _is_mesh(entity: DXFGraphic) -> bool:
-    return entity.dxftype() == "POLYLINE" and bool(entity.is_poly_face_mesh or entity.is_polygon_mesh)  # type: ignore[attr-defined]
-
-
-def _line_feature(entity: DXFGraphic, scale: float) -> dict[str, Any] | None:
-    dxftype, sagitta = entity.dxftype(), SAGITTA_M / scale
-    if dxftype in ("ARC", "CIRCLE"):  # exact points on the curve, not on a Bezier approximation
-        vertices = entity.flattening(sagitta)  # type: ignore[attr-defined]
-    elif dxftype in ("ELLIPSE", "SPLINE"):
-        vertices = entity.flattening(sagitta, segments=16)  # type: ignore[attr-defined]
-    else:  # LINE and polylines; bulges become cubic Beziers within ~1e-4 of the arc radius
-        vertices = ezpath.make_path(entity).flattening(sagitta, segments=16)
-    points = [(v.x * scale, v.y * scale) for v in vertices]
-    closed = dxftype == "CIRCLE" or _closed_flag(entity)
-    if dxftype == "ELLIPSE":
-        closed = math.isclose(abs(entity.dxf.end_param - entity.dxf.start_param), math.tau, abs_tol=1e-9)
-    if closed and points and points[0] != points[-1]:
-        points.append(points[0])
-    points = [p for i, p in enumerate(points) if i == 0 or p != points[i - 1]]
-    if len(points) < 2 or not all(math.isfinite(c) for p in points for c in p):
-        return None
-    return {
-        "type": "Feature",
-        "geometry": {"type": "LineString", "coordinates": [list(p) for p in points]},
-        "properties": {"entity": dxftype, "closed": bool(closed)},
-    }
-
-
-def _closed_flag(entity: DXFGraphic) -> bool:
-    dxftype = entity.dxftype()
-    if dxftype == "LWPOLYLINE":
-        return bool(entity.closed)  # type: ignore[attr-defined]
-    if dxftype == "POLYLINE":
-        return bool(entity.is_closed)  # type: ignore[attr-defined]
-    if dxftype == "SPLINE":
-        return bool(entity.closed)  # type: ignore[attr-defined]
-    return False
-
-
-def _text_feature(entity: DXFGraphic, scale: float) -> dict[str, Any] | None:
-    # MTEXT's insertion point is in world coordinates, TEXT's and ATTRIB's in the entity's OCS
-    location = entity.dxf.insert if entity.dxftype() == "MTEXT" else entity.ocs().to_wcs(entity.dxf.insert)
-    text = entity.plain_text()  # type: ignore[attr-defined]
-    if not isinstance(text, str):
-        return None
-    properties = {"entity": entity.dxftype(), "text": text}
-    if entity.dxftype() == "ATTRIB":
-        properties["tag"] = entity.dxf.tag
-    return _point_feature(location, scale, properties)
-
-
-def _point_feature(location: Any, scale: float, properties: dict[str, Any]) -> dict[str, Any] | None:
-    x, y = float(location[0]) * scale, float(location[1]) * scale
-    if not (math.isfinite(x) and math.isfinite(y)):
-        return None
-    return {"type": "Feature", "geometry": {"type": "Point", "coordinates": [x, y]}, "properties": properties}
+# ----------------------------------------------------------------------------------------------- extents
 
 
 def _extents(features: list[dict[str, Any]]) -> Extents:

@@ -7,8 +7,9 @@ from pathlib import Path
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.errors import BadInputError, ConflictError, NotFoundError
-from driftmap.formats.survey_dxf import read_survey_dxf, survey_map_to_json
+from driftmap.config import Settings
+from driftmap.errors import BadInputError, ConflictError, NotFoundError, PayloadTooLargeError
+from driftmap.formats.survey_dxf import DEFAULT_LIMITS, DxfLimits, read_survey_dxf, survey_map_to_json
 from driftmap.services import survey_layers
 from driftmap.store.blobs import BlobBatch
 from driftmap.store.models import Site, SurveyMap
@@ -42,20 +43,43 @@ def create_site(session: Session, name: str, description: str = "") -> Site:
     return site
 
 
-def add_survey_map(session: Session, batch: BlobBatch, site: Site, data: bytes, filename: str) -> SurveyMap:
+def survey_limits(settings: Settings) -> DxfLimits:
+    """The ``survey_max_*`` settings as the DXF reader's limits."""
+    return DxfLimits(
+        max_file_bytes=settings.survey_max_file_bytes,
+        max_entities=settings.survey_max_entities,
+        max_extent_m=settings.survey_max_extent_m,
+        max_curve_points=settings.survey_max_curve_points,
+        max_points=settings.survey_max_points,
+        max_stored_bytes=settings.survey_max_stored_bytes,
+    )
+
+
+def add_survey_map(
+    session: Session,
+    batch: BlobBatch,
+    site: Site,
+    data: bytes,
+    filename: str,
+    limits: DxfLimits = DEFAULT_LIMITS,
+) -> SurveyMap:
     """Parse a DXF plan and store it (original bytes as a blob, parsed layers as JSON) on ``site``.
 
     The layers simplified for a first view's zooms are added in the same session (see
-    :func:`survey_layers.store_first_levels`): they commit or roll back with the plan.
+    :func:`survey_layers.store_first_levels`): they commit or roll back with the plan. Every limit is
+    checked before anything is added, so a refused plan leaves the site as it was.
+
+    Raises:
+        BadInputError: a plan :func:`read_survey_dxf` refuses.
+        PayloadTooLargeError: a plan over ``limits``, e.g. whose parsed layers and first-view levels
+            would take more than ``limits.max_stored_bytes`` of JSON in the database.
     """
-    survey = read_survey_dxf(data, filename)
-    sha = batch.put(data)
+    survey = read_survey_dxf(data, filename, limits)
     parsed = survey_map_to_json(survey)
     min_x, min_y, max_x, max_y = survey.extents
     record = SurveyMap(
         site_id=site.id,
         filename=Path(filename).name,
-        dxf_sha256=sha,
         units="m",
         min_x_m=min_x,
         min_y_m=min_y,
@@ -63,9 +87,18 @@ def add_survey_map(session: Session, batch: BlobBatch, site: Site, data: bytes, 
         max_y_m=max_y,
         layers=parsed,
     )
+    levels = survey_layers.first_levels(record)
+    size = survey_layers.json_bytes(parsed) + survey_layers.stored_bytes(levels)
+    if size > limits.max_stored_bytes:
+        raise PayloadTooLargeError(
+            f"the parsed plan and its first-view levels take {size} bytes, over the "
+            f"{limits.max_stored_bytes} byte limit (setting survey_max_stored_bytes)",
+            file=filename,
+        )
+    record.dxf_sha256 = batch.put(data)
     session.add(record)
     session.flush()
-    survey_layers.store_first_levels(session, record)
+    survey_layers.store_first_levels(session, record, levels)
     return record
 
 

@@ -11,9 +11,11 @@ in the upload's own transaction, so the first view of a freshly uploaded plan is
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import Any
 
 from shapely.geometry import mapping, shape
@@ -67,8 +69,20 @@ def _minimal(geometry: dict[str, Any]) -> bool:
     return kind in ("Point", "MultiPoint") or (kind == "LineString" and len(geometry["coordinates"]) == 2)
 
 
+def tolerance_key(tolerance_m: float) -> float:
+    """``tolerance_m`` rounded for lookups: to 6 decimals, or 3 significant digits when that is finer.
+
+    Plain rounding to micrometres would give the first-view zooms of a plan a few millimetres across one
+    key (and make a positive tolerance look like 0, "as stored"); keeping 3 significant digits keeps the
+    zooms apart (each halves the tolerance) while leaving every tolerance of 0.1 mm and more as it was.
+    """
+    if tolerance_m >= 1e-4 or tolerance_m == 0:
+        return round(tolerance_m, 6)
+    return float(f"{tolerance_m:.3g}")
+
+
 def _key(survey: SurveyMap, tolerance_m: float) -> tuple[int, str, float]:
-    return (survey.id, survey.dxf_sha256, round(tolerance_m, 6))
+    return (survey.id, survey.dxf_sha256, tolerance_key(tolerance_m))
 
 
 def _remember(key: tuple[int, str, float], whole: dict[str, Any]) -> None:
@@ -88,39 +102,79 @@ def _simplify_all(survey: SurveyMap, tolerance_m: float) -> dict[str, Any]:
     return {"layers": simplified, "vertices": counts}
 
 
-def store_first_levels(session: Session, survey: SurveyMap) -> list[SurveyLayerLevel]:
-    """Simplify a just-added plan for :data:`FIRST_VIEW_ZOOMS` and add the levels to ``session``.
+@dataclass(frozen=True)
+class FirstLevel:
+    """A plan's layers simplified for one of :data:`FIRST_VIEW_ZOOMS`, not yet stored.
+
+    Attributes:
+        zoom: the map zoom.
+        tolerance_m: the lookup key of the tolerance, metres (see :func:`tolerance_key`).
+        whole: ``{"layers": {name: FeatureCollection}, "vertices": {name: count}}``.
+        same_as_zoom: the coarser zoom whose layers these equal (stored once), or None.
+    """
+
+    zoom: int
+    tolerance_m: float
+    whole: dict[str, Any]
+    same_as_zoom: int | None
+
+
+def first_levels(survey: SurveyMap) -> list[FirstLevel]:
+    """Simplify a plan (stored or not: no id needed) for :data:`FIRST_VIEW_ZOOMS`.
+
+    A level whose layers equal the previous full level's (nothing more survives the finer tolerance) refers
+    to it (``same_as_zoom``) rather than copying it. Zooms whose tolerances share one key (see
+    :func:`tolerance_key`) get one level, the coarsest zoom's.
+    """
+    levels: list[FirstLevel] = []
+    stored: FirstLevel | None = None  # the last level kept in full
+    for zoom in FIRST_VIEW_ZOOMS:
+        tolerance = tolerance_for_zoom(survey, zoom)
+        key = tolerance_key(tolerance)
+        if any(level.tolerance_m == key for level in levels):
+            continue
+        whole = _simplify_all(survey, tolerance)
+        if stored is not None and whole["layers"] == stored.whole["layers"]:
+            levels.append(FirstLevel(zoom, key, stored.whole, stored.zoom))  # e.g. a plan of LINE entities
+        else:
+            stored = FirstLevel(zoom, key, whole, None)
+            levels.append(stored)
+    return levels
+
+
+def stored_bytes(levels: list[FirstLevel]) -> int:
+    """Bytes of JSON the levels' layers take in the database (those stored in full)."""
+    return sum(json_bytes(level.whole["layers"]) for level in levels if level.same_as_zoom is None)
+
+
+def json_bytes(value: Any) -> int:
+    """Bytes of ``value`` as JSON, written as the database's JSON columns write it (``json.dumps``)."""
+    return len(json.dumps(value))  # ASCII: non-ASCII characters are escaped
+
+
+def store_first_levels(
+    session: Session, survey: SurveyMap, levels: list[FirstLevel] | None = None
+) -> list[SurveyLayerLevel]:
+    """Add a just-added plan's :func:`first_levels` (or ``levels`` computed before) to ``session``.
 
     Call it in the transaction that adds ``survey`` (flushed, so it has an id): the levels commit or roll
     back with the plan. They are also put in this process's memory cache (keyed by the plan's content
     hash, so an entry of a rolled-back upload can only ever answer for the same plan).
 
-    A level whose layers equal the previous stored level's (nothing more survives the finer tolerance)
-    is stored as a reference to it (``same_as_zoom``) rather than a copy.
-
     Returns:
-        The added rows, one per zoom, flushed.
+        The added rows, one per level, flushed.
     """
     rows: list[SurveyLayerLevel] = []
-    stored: tuple[int, dict[str, Any]] | None = None  # the last level stored in full: (zoom, whole)
-    for zoom in FIRST_VIEW_ZOOMS:
-        tolerance = tolerance_for_zoom(survey, zoom)
-        key = _key(survey, tolerance)
-        whole = _simplify_all(survey, tolerance)
-        same_as: int | None = None
-        if stored is not None and whole["layers"] == stored[1]["layers"]:
-            same_as, whole = stored  # nothing more survived at this zoom (e.g. a plan of LINE entities)
-        else:
-            stored = (zoom, whole)
-        _remember(key, whole)
+    for level in first_levels(survey) if levels is None else levels:
+        _remember((survey.id, survey.dxf_sha256, level.tolerance_m), level.whole)
         rows.append(
             SurveyLayerLevel(
                 survey_map_id=survey.id,
-                zoom=zoom,
-                tolerance_m=key[2],
-                vertices=whole["vertices"],
-                layers=None if same_as is not None else whole["layers"],
-                same_as_zoom=same_as,
+                zoom=level.zoom,
+                tolerance_m=level.tolerance_m,
+                vertices=level.whole["vertices"],
+                layers=None if level.same_as_zoom is not None else level.whole["layers"],
+                same_as_zoom=level.same_as_zoom,
             )
         )
     session.add_all(rows)

@@ -100,7 +100,7 @@ class SurveyLayerLevel(Base):
     zoom: Mapped[int] = mapped_column(Integer)
     """The map zoom the level was computed for (0: the plan spans 256 px)."""
     tolerance_m: Mapped[float] = mapped_column(Float)
-    """Simplification tolerance, metres, rounded to 6 decimals (the lookup key)."""
+    """Simplification tolerance, metres, rounded as the lookup key (``services.survey_layers.tolerance_key``)."""
     vertices: Mapped[dict[str, Any]] = mapped_column(JSON)
     """Layer name -> vertices left after simplification."""
     layers: Mapped[dict[str, Any] | None] = mapped_column(JSON(none_as_null=True), deferred=True)
