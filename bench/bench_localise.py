@@ -66,12 +66,17 @@ def grid_map(rng: np.random.Generator) -> tuple[LocaliserMap, NDArray[np.float32
         ]
     ).astype(np.int64)
     col, row = np.divmod(np.arange(m), COLS)[::-1]
+    centres = np.column_stack([col * SPACING_M, row * SPACING_M]).astype(np.float64)
+    along = (np.arange(FRAMES_PER_NODE) - (FRAMES_PER_NODE - 1) / 2) * 1.0  # references 1 m apart along x
     lmap = LocaliserMap(
         thumbs=thumbs,
         node_ptr=np.arange(0, FRAMES_PER_NODE * m + 1, FRAMES_PER_NODE, dtype=np.int64),
-        centres_m=np.column_stack([col * SPACING_M, row * SPACING_M]).astype(np.float64),
+        centres_m=centres,
         adjacency_m=shortest_paths(m, edges, np.full(edges.shape[0], SPACING_M), 50.0),
         max_adjacency_m=50.0,
+        edges=edges,
+        ref_xy_m=np.repeat(centres, FRAMES_PER_NODE, axis=0)
+        + np.c_[np.tile(along, m), np.zeros(m * FRAMES_PER_NODE)],
     )
     return lmap, tex
 

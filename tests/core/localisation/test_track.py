@@ -96,13 +96,14 @@ class TestHeadingCheck:
         assert TrackState.from_arrays(sideways.to_arrays()).flip_left_m == -3.5
 
 
-def drive_east(track: TrackState, frames: int) -> tuple[TrackState, list[float]]:
+def drive_east(track: TrackState, frames: int, sure: bool = True) -> tuple[TrackState, list[float]]:
     """Drive ``frames`` frames east at 0.5 m per frame from x = 0 with place fixes at the true position (the
-    vehicle's own heading, not the track's, is east); the track's heading after each frame."""
+    vehicle's own heading, not the track's, is east), ``sure`` ones or doubtful; the track's heading after
+    each frame."""
     p, yaws = TRACK_DEFAULT, []
     for k in range(1, frames + 1):
         track = predict(track, step(0.5), 0.1, p)
-        track, _ = correct(track, np.array([0.5 * k, 0.0]), True, True, p, travel_m=0.5)
+        track, _ = correct(track, np.array([0.5 * k, 0.0]), True, True, p, travel_m=0.5, steers=sure)
         yaws.append(float(track.wT[2]))
     return track, yaws
 
@@ -116,6 +117,12 @@ class TestHeadingFromTheFixes:
         track, _ = drive_east(start, 40)
         assert abs(math.atan2(math.sin(track.wT[2]), math.cos(track.wT[2]))) < 0.3
         assert float(np.hypot(track.wT[0] - 20.0, track.wT[1])) < 3.0
+
+    def test_doubtful_fixes_do_not_turn_it(self) -> None:
+        start = replace(heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), math.pi / 2), speed_mps=5.0)
+        _, sure = drive_east(start, 20)
+        _, doubtful = drive_east(start, 20, sure=False)  # 10 m driven, within the gate: no re-anchor
+        assert abs(sure[-1]) < 0.3 and doubtful[-1] == pytest.approx(math.pi / 2)
 
     def test_a_right_heading_stays(self) -> None:
         start = replace(heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.05), speed_mps=5.0)

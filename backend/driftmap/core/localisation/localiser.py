@@ -251,7 +251,10 @@ class Localiser:
         confidence = 0.0 if reported_lost else hmm.calibrated(raw, p.calibration)
         at_best = np.flatnonzero(compared == best)
         fix = lm.fix_m(best, int(refs[at_best[0]]) if at_best.size else -1)
-        track, moving_now, disagree = self._follow(s.track, motion, gap_s, best, fix, raw, still, s.node)
+        sure = confidence >= p.confidence_threshold
+        track, moving_now, disagree = self._follow(
+            s.track, motion, gap_s, best, fix, raw, still, s.node, sure
+        )
         if disagree:
             confidence = 0.0
         elif reported_lost and motion is not None and track.trusted:
@@ -329,13 +332,15 @@ class Localiser:
         raw: float,
         still: bool,
         last_node: int = -1,
+        sure: bool = True,
     ) -> tuple[TrackState, bool, bool]:
         """The continuous track after this frame: moved by odometry, corrected by the place fix ``fix_m``
         (where b(i)'s best-matching reference frame was taken, :meth:`LocaliserMap.fix_m`) unless the
         frame is lost (``raw``, the uncalibrated ``score x distinct``, is 0), kept on the mapped tunnels around it
         (:mod:`driftmap.core.localisation.track`); whether the vehicle moves (odometry speed, else a changed
         view); and whether the track and b(i) disagree (a doubtful far b(i) the dead-reckoned track did not
-        follow)."""
+        follow). Only a ``sure`` fix (its frame's confidence reaches the match threshold) counts as evidence
+        of a wrong heading."""
         tp, lm = self.track_params, self.map
         track = localiser_track.predict(track, motion, gap_s, tp)
         disagree = False
@@ -343,7 +348,7 @@ class Localiser:
             confident = raw >= tp.fix_min_confidence
             travel_m = None if motion is None else abs(motion.dx_m)
             track, disagree = localiser_track.correct(
-                track, fix_m, confident, motion is not None, tp, travel_m
+                track, fix_m, confident, motion is not None, tp, travel_m, steers=sure
             )
         if motion is not None:
             moving = not motion.stationary and abs(motion.dx_m) > tp.moving_mps * max(gap_s, 1e-3)

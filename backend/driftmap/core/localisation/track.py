@@ -200,6 +200,7 @@ def correct(
     dead_reckoned: bool,
     params: TrackParams,
     travel_m: float | None = None,
+    steers: bool = True,
 ) -> tuple[TrackState, bool]:
     """Fuse the place fix (2,) ``fix_m`` (survey metres, b(i)'s centre of a frame not lost) into the track.
 
@@ -210,7 +211,8 @@ def correct(
     none.
 
     ``travel_m`` is the distance driven since the last frame by odometry (None without odometry: every
-    frame's fix counts whole).
+    frame's fix counts whole). Only a fix that ``steers`` (a sure one) adds to the evidence of a wrong
+    heading: doubtful fixes metres off, while the views are ambiguous, would turn a right heading.
 
     Returns:
         The new track, and whether it disagrees with the fix (a doubtful far fix was not followed: the
@@ -236,7 +238,8 @@ def correct(
     innovation = fix - wT[:2]
     wT[:2] += gain * innovation
     var, flip, left = (1.0 - gain) * state.var_m2, state.flip_m, state.flip_left_m
-    if state.has_heading and math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps:
+    moving = math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps
+    if steers and state.has_heading and moving:
         ahead = math.copysign(1.0, state.speed_mps) * np.array([math.cos(wT[2]), math.sin(wT[2])])
         flip = params.flip_memory * flip + float(innovation @ ahead)
         left = params.flip_memory * left + float(innovation @ np.array([-ahead[1], ahead[0]]))
