@@ -159,6 +159,14 @@ class TestPlaceFixFromTheReferences:
             assert est.node == metre // 5
             assert (est.x_m, est.y_m) == pytest.approx((expect_m, 0.0))
 
+    def test_a_neighbour_matching_better_gives_the_fix_not_a_far_node(self) -> None:
+        _, lmap = self.corridor_by_metre(True)
+        compared = np.array([2, 3, 9], dtype=np.int64)  # b(i) = 2; node 3 is next to it, node 9 35 m away
+        d = np.array([0.5, 0.2, 0.1], dtype=np.float32)
+        refs = np.array([12, 15, 45], dtype=np.int64)
+        np.testing.assert_allclose(lmap.place_fix(2, compared, d, refs, 7.5), [15.0, 0.0])
+        np.testing.assert_allclose(lmap.place_fix(2, compared, d, refs, 0.0), [12.0, 0.0])
+
     def test_a_reference_out_of_the_node_gives_its_centre(self) -> None:
         _, lmap = self.corridor_by_metre(True)
         np.testing.assert_allclose(lmap.fix_m(2, 12), [12.0, 0.0])

@@ -249,8 +249,7 @@ class Localiser:
         reported_lost = lost and lost_count >= min(p.lost_report_frames, p.lost_frames)
         raw = 0.0 if reported_lost else score * distinct
         confidence = 0.0 if reported_lost else hmm.calibrated(raw, p.calibration)
-        at_best = np.flatnonzero(compared == best)
-        fix = lm.fix_m(best, int(refs[at_best[0]]) if at_best.size else -1)
+        fix = lm.place_fix(best, compared, d_all, refs, self.track_params.fix_reach_m)
         sure = confidence >= p.confidence_threshold
         track, moving_now, disagree = self._follow(
             s.track, motion, gap_s, best, fix, raw, still, s.node, sure

@@ -15,10 +15,10 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_array
 
 from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
-from driftmap.core.localisation import hmm, transitions
+from driftmap.core.localisation import evidence, hmm, transitions
 from driftmap.core.localisation.turns import TurnParams, map_turns
 from driftmap.core.topomap.model import TopoMap
-from driftmap.core.types import F64, I64
+from driftmap.core.types import F32, F64, I64
 from driftmap.errors import BadInputError
 
 __all__ = ["LocaliserMap", "build_localiser_map"]
@@ -80,6 +80,22 @@ class LocaliserMap:
         if self.ref_xy_m is None or not self.node_ptr[node] <= ref < self.node_ptr[node + 1]:
             return np.asarray(self.centres_m[node], dtype=np.float64)
         return np.asarray(self.ref_xy_m[ref], dtype=np.float64)
+
+    def place_fix(self, best: int, compared: I64, d: F32, refs: I64, reach_m: float) -> F64:
+        """(2,) float64 survey metres: where the reference frame that matched a frame best was taken, among
+        the compared nodes within ``reach_m`` of path of b(i) (``best``) and b(i) itself (``compared`` (K,)
+        nodes, their scores ``d`` (K,) and best reference rows ``refs`` (K,),
+        :func:`driftmap.core.localisation.hmm.compare_references`).
+
+        b(i) moves on only once the next node's views match better than its own, so its own best reference
+        trails a moving vehicle; the next node's nearest reference, compared in the same frame, often
+        matches better already. The node centre when the map has no reference positions.
+        """
+        around = np.isin(compared, evidence.near(self.adjacency_m, best, reach_m)) | (compared == best)
+        k = int(np.argmin(np.where(around, d, np.inf)))
+        if not around[k] or not np.isfinite(d[k]):
+            return np.asarray(self.centres_m[best], dtype=np.float64)
+        return self.fix_m(int(compared[k]), int(refs[k]))
 
     def edges_near(self, nodes: I64) -> I64:
         """(K, 2) int64 the edges with an end among ``nodes``."""

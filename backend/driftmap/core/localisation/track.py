@@ -80,6 +80,7 @@ class TrackParams:
     check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path) checks a new heading's way
     turning_rad_per_m: float = 0.03  # odometry turning sharper than this is a turn: no heading pull
     fix_spacing_m: float = 2.5  # with odometry: one independent fix per this much travel, metres
+    fix_reach_m: float = 7.5  # the place fix: the best reference of the nodes this near b(i) (path), metres
 
     def __post_init__(self) -> None:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m", "fix_spacing_m"):
