@@ -46,6 +46,22 @@ class Settings(BaseSettings):
     survey_max_stored_bytes: int = 128 * 1024**2
     """Largest JSON of a plan's parsed layers and first-view levels in the database, bytes."""
 
+    # Login throttling and password hashing, health and supervision (docs/operations.md).
+    login_max_failures_per_user: int = 10
+    """Failed logins of one user name within ``login_failure_window_s`` before further tries get 429."""
+    login_max_failures_per_address: int = 50
+    """Failed logins from one client address within ``login_failure_window_s`` before further tries get 429."""
+    login_failure_window_s: float = 900.0
+    """Window over which failed logins are counted, seconds; a refused client may retry when it ends."""
+    login_hash_concurrency: int = 2
+    """Password hashes (argon2id, 64 MiB each) computed at once by one API process; other logins wait."""
+    login_waiting_max: int = 64
+    """Logins that may wait for a hashing slot; beyond that a login is answered 429 at once."""
+    health_worker_stale_s: float = 30.0
+    """``/api/health`` counts a job worker as alive if it reported within this many seconds."""
+    health_queue_stall_s: float = 600.0
+    """``/api/health`` calls the queue stalled when jobs wait this long while no job moves, seconds."""
+
     def resolved_database_url(self) -> str:
         """The database URL in force: the configured one or the embedded SQLite file."""
         if self.database_url:

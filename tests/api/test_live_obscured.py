@@ -84,7 +84,7 @@ class TestObscuredLive:
         assert float(latest_frame.headers["x-frame-t"]) == frames[-1].t
         none_yet = actors.client.get(f"/api/vehicles/{actors.other_vehicle_id}/frames/latest", headers=viewer)
         assert none_yet.status_code == 404
-        with actors.client.websocket_connect(f"/api/live?token={actors.tokens['viewer']}") as ws:
+        with actors.client.websocket_connect("/api/live", headers=viewer) as ws:
             snapshot = ws.receive_json()
         row = next(v for v in snapshot["vehicles"] if v["vehicle_id"] == actors.vehicle_id)
         assert row["position"]["obscured"] is True and row["position"]["obscured_reason"] == "dust"

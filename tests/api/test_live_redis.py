@@ -367,9 +367,10 @@ async def _post_and_watch(
     answers, the watcher's messages and each message's delay after its answer, milliseconds."""
     mine = {"Authorization": f"Bearer {fleet.vehicle_token}", "Content-Type": "image/png"}
     url = f"/api/vehicles/{fleet.vehicle_id}/frames"
-    live_url = watch_base.replace("http", "ws") + f"/api/live?token={fleet.viewer}"
+    live_url = watch_base.replace("http", "ws") + "/api/live"
     answers, updates, delays = [], [], []
-    async with websockets.connect(live_url) as live:
+    viewer = {"Authorization": f"Bearer {fleet.viewer}"}
+    async with websockets.connect(live_url, additional_headers=viewer) as live:
         assert json.loads(await live.recv())["type"] == "snapshot"
         for k, f in enumerate(frames):
             async with httpx.AsyncClient(timeout=60.0) as client:

@@ -33,6 +33,10 @@ SURVEYOR_WRITES = re.compile(
 )
 WEBSOCKET_RULES = {"/vehicles/{vehicle_id}/stream": "vehicle", "/live": "user"}
 """WebSocket routes (their own auth, closing with 4401/4403) and who may open them."""
+OWN_ACCOUNT_WRITES = frozenset({"/api/auth/password"})
+"""Writes every user may make to their own account."""
+REVOKING = frozenset({"/api/auth/logout"})
+"""Open routes that revoke the caller's tokens: called without credentials only (the rest still need them)."""
 
 
 @dataclass(frozen=True)
@@ -125,7 +129,7 @@ class TestRouteMatrix:
         assert len(routes) >= 15
         wrong = []
         for route in routes:
-            for caller in CALLERS:
+            for caller in (None,) if route.path in REVOKING else CALLERS:
                 response = actors.client.request(
                     route.method, _url(route, actors), headers=actors.auth(caller)
                 )
@@ -156,7 +160,7 @@ class TestRouteMatrix:
                     broken.append(f"{route.method} {route.path}: vehicles read nothing")
                 continue
             assert allowed is not None
-            writes = route.method not in ("GET", "HEAD")
+            writes = route.method not in ("GET", "HEAD") and route.path not in OWN_ACCOUNT_WRITES
             if writes and "viewer" in allowed:
                 broken.append(f"{route.method} {route.path}: viewers only read")
             if writes and "surveyor" in allowed and not SURVEYOR_WRITES.search(route.path):
@@ -184,6 +188,8 @@ class TestWebSockets:
             url = "/api" + path.replace("{vehicle_id}", str(actors.vehicle_id))
             allowed = caller == "vehicle" if rule == "vehicle" else caller in USER_ROLES
             with actors.client.websocket_connect(url, headers=actors.auth(caller)) as ws:
+                if caller is None:
+                    ws.send_text("hello")  # not an auth message: refused at once
                 if allowed:
                     if rule == "user":
                         assert ws.receive_json()["type"] == "snapshot"
@@ -196,6 +202,26 @@ class TestWebSockets:
                 want = WS_CLOSE_UNAUTHORIZED if caller is None else WS_CLOSE_FORBIDDEN
                 assert closed.value.code == want, (path, caller)
 
-    def test_browsers_may_pass_the_token_in_the_query(self, actors: Actors) -> None:
+    @pytest.mark.parametrize("path", ["/api/live", "/api/vehicles/{vehicle_id}/stream"])
+    def test_a_first_auth_message_authenticates(self, actors: Actors, path: str) -> None:
+        caller = "vehicle" if "stream" in path else "viewer"
+        with actors.client.websocket_connect(path.format(vehicle_id=actors.vehicle_id)) as ws:
+            ws.send_json({"type": "auth", "token": actors.tokens[caller]})
+            if caller == "viewer":
+                assert ws.receive_json()["type"] == "snapshot"
+            else:
+                ws.send_bytes(b"short")
+                assert ws.receive_json()["status"] == "error"
+
+    def test_a_bad_first_message_token_is_refused(self, actors: Actors) -> None:
+        with actors.client.websocket_connect("/api/live") as ws:
+            ws.send_json({"type": "auth", "token": "nonsense"})
+            with pytest.raises(WebSocketDisconnect) as closed:
+                ws.receive_json()
+        assert closed.value.code == WS_CLOSE_UNAUTHORIZED
+
+    def test_tokens_in_the_url_are_refused(self, actors: Actors) -> None:
         with actors.client.websocket_connect(f"/api/live?token={actors.tokens['viewer']}") as ws:
-            assert ws.receive_json()["type"] == "snapshot"
+            with pytest.raises(WebSocketDisconnect) as closed:
+                ws.receive_json()
+        assert closed.value.code == WS_CLOSE_UNAUTHORIZED and "URL" in closed.value.reason

@@ -154,15 +154,17 @@ def site(topology: Topology, tiny_site_dir: Path) -> int:
 class Watcher(threading.Thread):
     """A ``/api/live`` WebSocket client on one API process, keeping every position message."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, token: str) -> None:
         super().__init__(daemon=True)
         self.url = url
+        self.token = token
         self.positions: list[dict[str, Any]] = []
         self.ready = threading.Event()
         self.done = threading.Event()
 
     def run(self) -> None:
-        with connect(self.url, open_timeout=30) as socket:
+        headers = {"Authorization": f"Bearer {self.token}"}
+        with connect(self.url, open_timeout=30, additional_headers=headers) as socket:
             assert json.loads(socket.recv(30))["type"] == "snapshot"
             self.ready.set()
             while not self.done.is_set():
@@ -180,7 +182,7 @@ class TestScaleOut:
     ) -> None:
         token = topology.headers["Authorization"].removeprefix("Bearer ")
         watchers = [
-            Watcher(base.replace("http", "ws") + f"/api/live?token={token}") for base in topology.apis
+            Watcher(base.replace("http", "ws") + "/api/live", token) for base in topology.apis
         ]
         for watcher in watchers:
             watcher.start()

@@ -23,6 +23,7 @@ from driftmap.errors import DriftmapError
 from driftmap.live.hub import InMemoryHub, LiveHub, RedisHub
 from driftmap.live.ingest import LiveService
 from driftmap.live.latest_frames import LatestFrames, MemoryFrames, RedisFrames
+from driftmap.services.login_guard import LoginGuard
 from driftmap.services.security import secret_key
 from driftmap.store.storage import Storage
 
@@ -61,6 +62,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.secret_key = secret_key(settings)
     app.state.live = live
     app.state.principals = PrincipalCache()
+    app.state.login_guard = LoginGuard.from_settings(settings)
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
     for router in ROUTERS:
         app.include_router(router, prefix="/api")

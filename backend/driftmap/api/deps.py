@@ -1,8 +1,10 @@
 """Request dependencies: settings, storage, a database session per request, and who is calling.
 
 Credentials come as ``Authorization: Bearer <token>``, or the ``driftmap_token`` cookie set at login; a
-WebSocket may also pass ``?token=`` (browsers cannot set headers on WebSockets). A token is either a
-user's login token or a vehicle token (``dmv_...``).
+WebSocket without either sends ``{"type": "auth", "token": "..."}`` as its first message (browsers cannot
+set headers on WebSockets; see :mod:`driftmap.api.ws_auth`). Tokens never travel in URLs. A token is either
+a user's login token or a vehicle token (``dmv_...``). A login token is accepted only while its user is
+active and its token generation is the user's current one (:mod:`driftmap.services.security`).
 
 Roles: ``viewer`` reads (GET); ``surveyor`` also edits groundings, imports drives and builds maps; ``admin``
 may do everything (users, vehicles, sites). A vehicle token may only post frames for its own vehicle.
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Path, Request, WebSocket, status
+from fastapi import Depends, HTTPException, Path, Request, status
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import HTTPConnection
@@ -78,23 +80,19 @@ SessionDep = Annotated[Session, Depends(_session, scope="function")]
 """A session committed when the handler returns (before the response is sent), rolled back if it raises."""
 
 
-def token_of(conn: HTTPConnection, *, allow_query: bool = False) -> str | None:
-    """The bearer token, cookie token or (WebSockets only) ``?token=`` of a request."""
+def token_of(conn: HTTPConnection) -> str | None:
+    """The bearer token or cookie token of a request."""
     header = conn.headers.get("authorization", "")
     scheme, _, value = header.partition(" ")
     if scheme.lower() == "bearer" and value.strip():
         return value.strip()
     cookie = conn.cookies.get(TOKEN_COOKIE)
-    if cookie:
-        return cookie
-    if allow_query:
-        return conn.query_params.get("token") or None
-    return None
+    return cookie or None
 
 
-def principal_of(conn: HTTPConnection, *, allow_query: bool = False) -> Principal | None:
+def principal_of(conn: HTTPConnection) -> Principal | None:
     """Who the credentials of ``conn`` belong to; None when there are none or they are not valid."""
-    token = token_of(conn, allow_query=allow_query)
+    token = token_of(conn)
     return None if token is None else principal_of_token(conn, token)
 
 
@@ -109,10 +107,12 @@ def principal_of_token(conn: HTTPConnection, token: str) -> Principal | None:
                 return None
             return Principal("vehicle", vehicle.id, vehicle.name, site_id=vehicle.site_id)
         key: bytes = conn.app.state.secret_key
-        user_id = security.read_token(key, token)
-        user = session.get(User, user_id) if user_id is not None else None
-        if user is None:
+        claims = security.read_token(key, token)
+        user = session.get(User, claims.user_id) if claims is not None else None
+        if user is None or claims is None:
             return None
+        if user.disabled_at is not None or user.token_generation != claims.generation:
+            return None  # disabled, or the token was revoked
         return Principal("user", user.id, user.username, role=Role(user.role))
 
 
@@ -144,9 +144,10 @@ class PrincipalCache:
         self._entries.clear()
 
 
-async def cached_principal(conn: HTTPConnection, *, allow_query: bool = False) -> Principal | None:
-    """:func:`principal_of` through the app's :class:`PrincipalCache` (the lookup in a worker thread)."""
-    token = token_of(conn, allow_query=allow_query)
+async def cached_principal(conn: HTTPConnection, token: str | None = None) -> Principal | None:
+    """Who ``token`` (default: the request's :func:`token_of`) belongs to, through the app's
+    :class:`PrincipalCache` (the lookup in a worker thread)."""
+    token = token if token is not None else token_of(conn)
     if token is None:
         return None
     cache: PrincipalCache = conn.app.state.principals
@@ -231,8 +232,3 @@ async def _vehicle(
 _vehicle.vehicle_only = True  # type: ignore[attr-defined]  # read by the role-matrix test
 VehicleDep = Annotated[Principal, Depends(_vehicle)]
 """The vehicle of the path's ``vehicle_id``, authenticated by its own token."""
-
-
-async def websocket_principal(websocket: WebSocket) -> Principal | None:
-    """Who opened ``websocket`` (header, cookie or ``?token=``)."""
-    return await cached_principal(websocket, allow_query=True)

@@ -9,12 +9,13 @@ image/jpeg`` or ``image/png``) and answers with a :class:`~driftmap.api.schemas_
 was posted (``X-Frame-T`` carries its ``t``), kept in the server process's memory, or in Redis when
 ``DRIFTMAP_REDIS_URL`` is set so that every API process serves it.
 
-``/api/vehicles/{id}/stream`` (WebSocket, the vehicle's token as bearer header or ``?token=``): each binary
+``/api/vehicles/{id}/stream`` (WebSocket, the vehicle's token as bearer header or in a first ``auth``
+message, :mod:`driftmap.api.ws_auth`): each binary
 message is one frame: ``t`` as an 8-byte big-endian IEEE float64 (seconds), then the JPEG/PNG bytes. The
 server answers each frame with one JSON text message, a FrameEstimate, or ``{"status": "error", "t",
 "code", "detail", "field"}`` for a frame it cannot use (the stream stays open).
 
-``/api/live`` (WebSocket, any logged-in user; ``?token=`` for browsers without the cookie; the messages are
+``/api/live`` (WebSocket, any logged-in user: bearer header, cookie, or a first ``auth`` message; the messages are
 the models of :mod:`driftmap.api.schemas_live`, in the OpenAPI components as ``LiveMessage``): first
 ``{"type": "snapshot", "seq", "stale_after_s", "vehicles": [...]}``, every vehicle with its last position;
 with ``?since=SEQ`` then every ``{"type": "position", ...}`` after SEQ up to the snapshot (to resume after a
@@ -35,17 +36,11 @@ from typing import Any
 from fastapi import APIRouter, Depends, Query, Request, Response, WebSocket, WebSocketDisconnect
 from starlette.requests import ClientDisconnect
 
-from driftmap.api.deps import (
-    VIEWER,
-    WS_CLOSE_FORBIDDEN,
-    WS_CLOSE_UNAUTHORIZED,
-    Principal,
-    VehicleDep,
-    websocket_principal,
-)
+from driftmap.api.deps import VIEWER, WS_CLOSE_FORBIDDEN, WS_CLOSE_UNAUTHORIZED, Principal, VehicleDep
 from driftmap.api.error_handlers import error_body, status_of
 from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
 from driftmap.api.schemas_live import LiveSnapshot, LiveStale, position_message
+from driftmap.api.ws_auth import WebSocketAuthError, websocket_principal
 from driftmap.errors import BadRequestError, DriftmapError, NotFoundError, PayloadTooLargeError
 from driftmap.live.ingest import LiveService
 from driftmap.services import positions as position_service
@@ -129,10 +124,16 @@ def _check_vehicle(request: Request, vehicle_id: int) -> None:
 
 async def _authorise(websocket: WebSocket, vehicle_id: int | None) -> Principal | None:
     """Accept ``websocket``; close it again unless its credentials fit (a user; or vehicle ``vehicle_id``)."""
-    principal = await websocket_principal(websocket)
     await websocket.accept()
+    try:
+        principal = await websocket_principal(websocket)
+    except WebSocketAuthError as exc:
+        await websocket.close(WS_CLOSE_UNAUTHORIZED, f"not authenticated: {exc}"[:120])
+        return None
+    except WebSocketDisconnect:
+        return None
     if principal is None:
-        await websocket.close(WS_CLOSE_UNAUTHORIZED, "not authenticated: send a token")
+        await websocket.close(WS_CLOSE_UNAUTHORIZED, "not authenticated: the token is not valid")
         return None
     allowed = (
         principal.kind == "user"

@@ -36,8 +36,13 @@ class UserCreate(BaseModel):
 
 
 class UserUpdate(BaseModel):
+    """Any change revokes the user's login tokens."""
+
     role: Role | None = None
     password: str | None = None
+    """A new password (an admin's reset)."""
+    disabled: bool | None = None
+    """True disables the user (no login, tokens revoked), False enables again."""
 
 
 class UserRead(BaseModel):
@@ -47,6 +52,15 @@ class UserRead(BaseModel):
     username: str
     role: Role
     created_at: datetime
+    disabled_at: datetime | None = None
+    """When the user was disabled; None for an active user."""
+
+
+class PasswordChange(BaseModel):
+    """A user's own password change."""
+
+    current_password: str
+    new_password: str
 
 
 class VehicleCreate(BaseModel):

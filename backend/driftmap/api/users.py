@@ -1,10 +1,13 @@
-"""Users (admins only): list, create, change role or password, delete."""
+"""Users (admins only): list, create, change role or password, disable, delete.
+
+Any change of a user revokes the user's login tokens; an admin cannot disable or delete themself.
+"""
 
 from __future__ import annotations
 
 from fastapi import APIRouter, Depends, Request, status
 
-from driftmap.api.deps import ADMIN, SessionDep, forget_principals
+from driftmap.api.deps import ADMIN, AdminDep, SessionDep, forget_principals
 from driftmap.api.schemas_access import UserCreate, UserRead, UserUpdate
 from driftmap.services import users as user_service
 
@@ -31,21 +34,24 @@ def get_user(user_id: int, session: SessionDep) -> UserRead:
 
 
 @router.patch("/{user_id}")
-def update_user(user_id: int, body: UserUpdate, session: SessionDep, request: Request) -> UserRead:
-    """Change a user's role or password."""
+def update_user(
+    user_id: int, body: UserUpdate, session: SessionDep, request: Request, admin: AdminDep
+) -> UserRead:
+    """Change a user's role or password (a reset), or disable or enable the user; revokes the user's tokens."""
     user = user_service.get_user(session, user_id)
     role = body.role.value if body.role is not None else None
-    updated = UserRead.model_validate(
-        user_service.update_user(session, user, role=role, password=body.password)
+    changed = user_service.update_user(
+        session, user, role=role, password=body.password, disabled=body.disabled, acting_user_id=admin.id
     )
+    updated = UserRead.model_validate(changed)
     session.commit()
     forget_principals(request)
     return updated
 
 
 @router.delete("/{user_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_user(user_id: int, session: SessionDep, request: Request) -> None:
-    """Remove a user (not the last admin)."""
-    user_service.delete_user(session, user_service.get_user(session, user_id))
+def delete_user(user_id: int, session: SessionDep, request: Request, admin: AdminDep) -> None:
+    """Remove a user (not the last admin, not yourself)."""
+    user_service.delete_user(session, user_service.get_user(session, user_id), acting_user_id=admin.id)
     session.commit()
     forget_principals(request)

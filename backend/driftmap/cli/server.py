@@ -3,15 +3,16 @@
 ``driftmap serve --workers N`` runs N API processes on one port (uvicorn's workers, each building the app
 with :func:`driftmap.api.app.create_app`); they share live state through Redis, so N > 1 needs
 ``DRIFTMAP_REDIS_URL`` (and then no job worker is started beside them: run ``driftmap worker``).
+The job worker beside a single API process is supervised (:mod:`driftmap.cli.supervisor`): restarted when
+it dies, stopped when the server stops or dies. The access log shows paths without query strings
+(:mod:`driftmap.cli.log_config`).
 """
 
 from __future__ import annotations
 
 import inspect
 import logging
-import os
 import signal
-import subprocess
 import sys
 from collections.abc import Callable
 from types import FrameType
@@ -19,13 +20,14 @@ from typing import Annotated, Any
 
 import typer
 
-from driftmap.cli.common import console, err_console, open_storage, user_errors
+from driftmap.cli.common import console, open_storage, user_errors
+from driftmap.cli.log_config import log_config
+from driftmap.cli.supervisor import WorkerSupervisor
 from driftmap.config import get_settings
 from driftmap.services import users as user_service
 
 log = logging.getLogger(__name__)
 user_app = typer.Typer(help="Users of the server and their roles.", no_args_is_help=True)
-WORKER_STOP_TIMEOUT_S = 20.0
 API_PROCESS_HEALTHCHECK_S = 60
 """How long uvicorn waits for an API process to answer its health ping before it kills and restarts it, seconds.
 Its default (5 s) is shorter than a fresh process takes to import driftmap on a busy machine, so the processes
@@ -65,24 +67,6 @@ def user_list() -> None:
                 console.print(f"{user.id}\t{user.username}\t{user.role}")
     finally:
         storage.close()
-
-
-def _start_worker() -> subprocess.Popen[bytes]:
-    process = subprocess.Popen([sys.executable, "-m", "driftmap", "worker"], env=dict(os.environ))
-    err_console.print(f"driftmap: worker process {process.pid} started")
-    return process
-
-
-def _stop_worker(process: subprocess.Popen[bytes]) -> None:
-    """SIGTERM (the worker re-queues its running jobs), then kill if it does not stop in time."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGTERM)
-        try:
-            process.wait(WORKER_STOP_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-    err_console.print(f"driftmap: worker process {process.pid} stopped")
 
 
 def _healthcheck_option(run: Callable[..., None]) -> dict[str, Any]:
@@ -131,19 +115,29 @@ def serve(
             host=host,
             port=port,
             log_level="info",
+            log_config=log_config(),
             ws_max_size=2 * settings.max_frame_bytes,
             **_healthcheck_option(uvicorn.run),
         )
         return
     with user_errors():
         app = create_app(settings)  # opens and upgrades the database before the worker starts
-    process = _start_worker() if worker and settings.redis_url is None else None
+    supervisor = WorkerSupervisor() if worker and settings.redis_url is None else None
+    if supervisor is not None:
+        supervisor.start()
     # uvicorn re-raises SIGTERM after its graceful shutdown; turn it into SystemExit so the worker is stopped.
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
     try:
-        uvicorn.run(app, host=host, port=port, log_level="info", ws_max_size=2 * settings.max_frame_bytes)
+        uvicorn.run(
+            app,
+            host=host,
+            port=port,
+            log_level="info",
+            log_config=log_config(),
+            ws_max_size=2 * settings.max_frame_bytes,
+        )
     except KeyboardInterrupt:
         pass
     finally:
-        if process is not None:
-            _stop_worker(process)
+        if supervisor is not None:
+            supervisor.stop()

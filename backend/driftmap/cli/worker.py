@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+import time
 from typing import Annotated
 
 import typer
@@ -21,12 +25,27 @@ def worker(
     reap_every: Annotated[
         float, typer.Option(help="Seconds between two looks for stale jobs.", min=0.1)
     ] = WorkerTimings.reap_every_s,
+    parent: Annotated[
+        int | None,
+        typer.Option(help="Stop (as on SIGTERM) when process PARENT is gone; driftmap serve passes its pid."),
+    ] = None,
 ) -> None:
     """Run a job worker until interrupted (Ctrl-C lets running jobs finish; SIGTERM re-queues them)."""
     if stale_after <= 2 * heartbeat:
         raise typer.BadParameter("must exceed two heartbeats", param_hint="--stale-after")
+    if parent is not None:
+        threading.Thread(
+            target=_stop_with_parent, args=(parent,), name="driftmap-parent", daemon=True
+        ).start()
     run_worker(
         get_settings(),
         workers=workers,
         timings=WorkerTimings(heartbeat_s=heartbeat, stale_after_s=stale_after, reap_every_s=reap_every),
     )
+
+
+def _stop_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
+    """SIGTERM this process once ``parent_pid`` is no longer its parent (it died, even by SIGKILL)."""
+    while os.getppid() == parent_pid:
+        time.sleep(poll_s)
+    os.kill(os.getpid(), signal.SIGTERM)

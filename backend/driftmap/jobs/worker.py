@@ -4,7 +4,8 @@
 killed processes left behind, re-enqueues queued jobs that are not on the queue (an enqueue lost between a
 commit and a crash), and starts the reaper thread: every
 ``reap_every_s`` it re-queues running jobs whose heartbeat is older than ``stale_after_s``
-(:func:`driftmap.services.jobs.requeue_stale`). Several workers, on one machine with the SQLite queue or on
+(:func:`driftmap.services.jobs.requeue_stale`) and records on its ``workers`` row that this worker is alive
+(:func:`driftmap.services.supervision.worker_seen`, read by ``/api/health``). Several workers, on one machine with the SQLite queue or on
 several with Redis, share the queue; the conditional updates on the jobs row make sure one job runs on one
 worker at a time. A map build fans its drives out as ``map.drive`` subtasks and its loop-closure search as
 ``map.loops`` subtasks (:mod:`driftmap.jobs.map_tasks`): every worker takes them off the queue, and the
@@ -28,6 +29,7 @@ from driftmap.config import Settings
 from driftmap.jobs.queue import JobQueue
 from driftmap.jobs.runtime import JobRuntime, process_worker_prefix
 from driftmap.services import jobs as job_service
+from driftmap.services import supervision
 from driftmap.store.job_models import Job
 from driftmap.store.storage import Storage
 
@@ -115,6 +117,7 @@ class Reaper(threading.Thread):
     def run(self) -> None:
         while True:
             try:
+                supervision.worker_seen(self._storage.db, process_worker_prefix())
                 job_service.requeue_stale(self._storage.db, self._queue.enqueue, self._timings.stale_after_s)
             except Exception:
                 log.warning("stale-job check failed", exc_info=True)
@@ -151,4 +154,7 @@ def run_worker(settings: Settings, *, workers: int = 1, timings: WorkerTimings |
         released = release_own_jobs(queue, storage)
         if released:
             log.warning("re-queued jobs interrupted by the shutdown: %s", released)
-        storage.close()
+        try:
+            supervision.worker_gone(storage.db, process_worker_prefix())
+        finally:
+            storage.close()

@@ -2,7 +2,9 @@
 
 - Passwords are hashed with argon2id (argon2-cffi defaults) and never stored in clear.
 - A login token is ``<payload>.<signature>``: the payload is base64url JSON ``{"sub": user id, "exp": unix
-  seconds}``, the signature base64url HMAC-SHA256 of the payload under the server's secret key.
+  seconds, "gen": the user's token generation}``, the signature base64url HMAC-SHA256 of the payload under
+  the server's secret key. A token is accepted only while ``gen`` equals the user's current
+  ``token_generation``, so raising that revokes every token of the user.
 - A vehicle token is ``dmv_<vehicle id>_<43 random base64url characters>`` (256 bits); only its SHA-256
   is stored, so a leaked database does not leak tokens.
 """
@@ -16,6 +18,7 @@ import json
 import os
 import secrets
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from argon2 import PasswordHasher
@@ -71,16 +74,28 @@ def _unb64(text: str) -> bytes:
     return base64.urlsafe_b64decode(text + "=" * (-len(text) % 4))
 
 
-def issue_token(key: bytes, user_id: int, ttl_s: float, now_s: float | None = None) -> str:
-    """A signed login token for ``user_id`` valid for ``ttl_s`` seconds."""
+@dataclass(frozen=True)
+class TokenClaims:
+    """What a valid, unexpired login token says."""
+
+    user_id: int
+    generation: int
+    """The user's ``token_generation`` when the token was issued."""
+
+
+def issue_token(
+    key: bytes, user_id: int, ttl_s: float, now_s: float | None = None, *, generation: int = 0
+) -> str:
+    """A signed login token for ``user_id`` (at token ``generation``) valid for ``ttl_s`` seconds."""
     now = time.time() if now_s is None else now_s
-    payload = _b64(json.dumps({"sub": user_id, "exp": int(now + ttl_s)}, separators=(",", ":")).encode())
+    claims = {"sub": user_id, "exp": int(now + ttl_s), "gen": generation}
+    payload = _b64(json.dumps(claims, separators=(",", ":")).encode())
     signature = _b64(hmac.new(key, payload.encode(), hashlib.sha256).digest())
     return f"{payload}.{signature}"
 
 
-def read_token(key: bytes, token: str, now_s: float | None = None) -> int | None:
-    """The user id of a valid, unexpired login token; None for anything else."""
+def read_token(key: bytes, token: str, now_s: float | None = None) -> TokenClaims | None:
+    """The claims of a valid, unexpired login token; None for anything else."""
     payload, _, signature = token.partition(".")
     if not payload or not signature:
         return None
@@ -89,11 +104,11 @@ def read_token(key: bytes, token: str, now_s: float | None = None) -> int | None
         return None
     try:
         claims = json.loads(_unb64(payload))
-        user_id, expires = int(claims["sub"]), float(claims["exp"])
-    except (ValueError, KeyError, TypeError):
+        user_id, expires, generation = int(claims["sub"]), float(claims["exp"]), int(claims["gen"])
+    except (ValueError, KeyError, TypeError, OverflowError):
         return None
     now = time.time() if now_s is None else now_s
-    return user_id if now < expires else None
+    return TokenClaims(user_id, generation) if now < expires else None
 
 
 def new_vehicle_token(vehicle_id: int) -> str:

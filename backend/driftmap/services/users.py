@@ -1,4 +1,8 @@
-"""Users of the server: create, list, change role or password, delete, and check a login."""
+"""Users of the server: create, list, change role or password, disable, delete, and check a login.
+
+Changing a user's role or password, disabling the user and logging out raise the user's token generation
+(:func:`revoke_tokens`), which makes every login token issued before invalid.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +12,7 @@ from sqlalchemy.orm import Session
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.services.security import DUMMY_PASSWORD_HASH, hash_password, verify_password
 from driftmap.store.access_models import User
+from driftmap.store.models import utc_now
 
 ROLES = ("admin", "surveyor", "viewer")
 MIN_PASSWORD_LENGTH = 8
@@ -57,22 +62,68 @@ def _admins(session: Session) -> int:
     return session.scalar(select(func.count()).select_from(User).where(User.role == "admin")) or 0
 
 
+def _active_admins(session: Session) -> int:
+    active = (User.role == "admin") & User.disabled_at.is_(None)
+    return session.scalar(select(func.count()).select_from(User).where(active)) or 0
+
+
+def revoke_tokens(user: User) -> None:
+    """Make every login token of ``user`` issued so far invalid (flushed with the session)."""
+    user.token_generation += 1
+
+
 def update_user(
-    session: Session, user: User, *, role: str | None = None, password: str | None = None
+    session: Session,
+    user: User,
+    *,
+    role: str | None = None,
+    password: str | None = None,
+    disabled: bool | None = None,
+    acting_user_id: int | None = None,
 ) -> User:
-    """Change ``user``'s role and/or password; the last admin cannot lose the role."""
-    if role is not None:
-        if user.role == "admin" and role != "admin" and _admins(session) <= 1:
+    """Change ``user``'s role, password and/or disabled state; any change revokes the user's tokens.
+
+    The last active admin cannot lose the role or be disabled, and ``acting_user_id`` (the admin making
+    the change) cannot disable themself.
+    """
+    changed = False
+    if role is not None and role != user.role:
+        if user.role == "admin" and user.disabled_at is None and _active_admins(session) <= 1:
             raise ConflictError(f"{user.username!r} is the last admin; make another admin first")
         user.role = _check_role(role)
+        changed = True
     if password is not None:
         user.password_hash = hash_password(_check_password(password))
+        changed = True
+    if disabled is not None and disabled != (user.disabled_at is not None):
+        if disabled:
+            if user.id == acting_user_id:
+                raise ConflictError("you cannot disable your own account")
+            if user.role == "admin" and _active_admins(session) <= 1:
+                raise ConflictError(f"{user.username!r} is the last active admin and cannot be disabled")
+        user.disabled_at = utc_now() if disabled else None
+        changed = True
+    if changed:
+        revoke_tokens(user)
     session.flush()
     return user
 
 
-def delete_user(session: Session, user: User) -> None:
-    """Remove ``user``; the last admin cannot be removed."""
+class WrongPasswordError(BadInputError):
+    """The current password given for a password change is wrong."""
+
+
+def change_own_password(session: Session, user: User, current: str, new: str) -> User:
+    """A user's own password change: ``current`` must be right; revokes the user's tokens."""
+    if not verify_password(user.password_hash, current):
+        raise WrongPasswordError("the current password is wrong", field="current_password")
+    return update_user(session, user, password=new)
+
+
+def delete_user(session: Session, user: User, *, acting_user_id: int | None = None) -> None:
+    """Remove ``user``; the last admin cannot be removed, nor ``acting_user_id`` (the admin) themself."""
+    if user.id == acting_user_id:
+        raise ConflictError("you cannot delete your own account")
     if user.role == "admin" and _admins(session) <= 1:
         raise ConflictError(f"{user.username!r} is the last admin and cannot be deleted")
     session.delete(user)
@@ -80,7 +131,10 @@ def delete_user(session: Session, user: User) -> None:
 
 
 def authenticate(session: Session, username: str, password: str) -> User | None:
-    """The user when ``password`` is right, else None (same work whether or not the user exists)."""
+    """The user when ``password`` is right, else None (same work whether or not the user exists).
+
+    A disabled user with the right password is returned too; the caller refuses it with its own message.
+    """
     user = session.scalar(select(User).where(User.username == username.strip()))
     if user is None:
         verify_password(DUMMY_PASSWORD_HASH, password)

@@ -28,7 +28,11 @@ from driftmap.store.models import Base, utc_now
 
 
 class User(Base):
-    """A person who logs in; ``role`` is one of admin, surveyor, viewer."""
+    """A person who logs in; ``role`` is one of admin, surveyor, viewer.
+
+    ``token_generation`` is written into every login token; raising it (logout, password, role change,
+    disable) makes the user's outstanding tokens invalid. A user with ``disabled_at`` set cannot log in.
+    """
 
     __tablename__ = "users"
 
@@ -37,6 +41,10 @@ class User(Base):
     password_hash: Mapped[str] = mapped_column(String(200))
     """argon2id hash in PHC string format."""
     role: Mapped[str] = mapped_column(String(20))
+    token_generation: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    """Login tokens carry the generation they were issued under; only the current one is accepted."""
+    disabled_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    """When an admin disabled the user (None: active)."""
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
 

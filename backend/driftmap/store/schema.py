@@ -11,6 +11,7 @@ from driftmap.store import (
     access_models,  # noqa: F401 (registers users, vehicles, positions, live states)
     job_models,  # noqa: F401 (registers the jobs table)
     models,
+    worker_models,  # noqa: F401 (registers the workers table)
 )
 
 metadata = models.Base.metadata
