@@ -7,9 +7,11 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
 from typer.testing import CliRunner
 
 from driftmap.api.app import create_app
+from driftmap.api.deps import WS_CLOSE_UNAUTHORIZED
 from driftmap.cli import app as cli_app
 from driftmap.config import Settings, get_settings
 from driftmap.services import security
@@ -152,3 +154,95 @@ class TestUserAddCommand:
         with storage.db.session() as session:
             assert [u.username for u in user_service.list_users(session)] == ["y"]
         storage.close()
+
+
+def _login(actors: Actors, username: str, password: str = PASSWORD) -> dict[str, str]:
+    response = actors.client.post("/api/auth/login", json={"username": username, "password": password})
+    assert response.status_code == 200, response.text
+    actors.client.cookies.clear()
+    return {"Authorization": f"Bearer {response.json()['access_token']}"}
+
+
+def _me(actors: Actors, headers: dict[str, str]) -> int:
+    return actors.client.get("/api/auth/me", headers=headers).status_code
+
+
+class TestRevocation:
+    def test_logout_revokes_every_token_of_the_user(self, actors: Actors) -> None:
+        first, second = _login(actors, "viewer"), _login(actors, "viewer")
+        assert actors.client.post("/api/auth/logout", headers=first).status_code == 204
+        assert (_me(actors, first), _me(actors, second)) == (401, 401)
+        assert _me(actors, actors.auth("surveyor")) == 200  # other users keep theirs
+        assert _me(actors, _login(actors, "viewer")) == 200  # and a new login works
+
+    def test_an_admin_password_reset_revokes_the_tokens(self, actors: Actors) -> None:
+        me = actors.client.get("/api/auth/me", headers=actors.auth("viewer")).json()
+        reset = actors.client.patch(
+            f"/api/users/{me['id']}", json={"password": "a-new-password"}, headers=actors.auth("admin")
+        )
+        assert reset.status_code == 200
+        assert _me(actors, actors.auth("viewer")) == 401
+        assert _me(actors, _login(actors, "viewer", "a-new-password")) == 200
+
+    def test_a_role_change_revokes_the_tokens(self, actors: Actors) -> None:
+        me = actors.client.get("/api/auth/me", headers=actors.auth("viewer")).json()
+        patched = actors.client.patch(
+            f"/api/users/{me['id']}", json={"role": "surveyor"}, headers=actors.auth("admin")
+        )
+        assert patched.status_code == 200 and patched.json()["role"] == "surveyor"
+        assert _me(actors, actors.auth("viewer")) == 401
+        again = actors.client.get("/api/auth/me", headers=_login(actors, "viewer")).json()
+        assert again["role"] == "surveyor"
+
+    def test_a_revoked_token_cannot_open_a_websocket(self, actors: Actors) -> None:
+        viewer = actors.auth("viewer")
+        actors.client.post("/api/auth/logout", headers=viewer)
+        with (
+            actors.client.websocket_connect("/api/live", headers=viewer) as ws,
+            pytest.raises(WebSocketDisconnect) as closed,
+        ):
+            ws.receive_json()
+        assert closed.value.code == WS_CLOSE_UNAUTHORIZED
+
+
+class TestDisable:
+    def test_a_disabled_user_is_refused_and_enabled_again(self, actors: Actors) -> None:
+        admin = actors.auth("admin")
+        me = actors.client.get("/api/auth/me", headers=actors.auth("surveyor")).json()
+        disabled = actors.client.patch(f"/api/users/{me['id']}", json={"disabled": True}, headers=admin)
+        assert disabled.status_code == 200 and disabled.json()["disabled_at"] is not None
+        assert _me(actors, actors.auth("surveyor")) == 401
+        login = actors.client.post("/api/auth/login", json={"username": "surveyor", "password": PASSWORD})
+        assert login.status_code == 403 and "disabled" in login.json()["detail"]
+        enabled = actors.client.patch(f"/api/users/{me['id']}", json={"disabled": False}, headers=admin)
+        assert enabled.json()["disabled_at"] is None
+        assert _me(actors, _login(actors, "surveyor")) == 200
+
+    def test_an_admin_may_not_disable_or_delete_themself(self, actors: Actors, settings: Settings) -> None:
+        storage: Storage = actors.app.state.storage
+        with storage.db.session() as session:
+            user_service.create_user(session, "admin2", PASSWORD, "admin")  # not the last admin
+        admin = actors.auth("admin")
+        me = actors.client.get("/api/auth/me", headers=admin).json()
+        disable = actors.client.patch(f"/api/users/{me['id']}", json={"disabled": True}, headers=admin)
+        assert disable.status_code == 409 and "your own account" in disable.json()["detail"]
+        delete = actors.client.delete(f"/api/users/{me['id']}", headers=admin)
+        assert delete.status_code == 409 and "your own account" in delete.json()["detail"]
+        assert _me(actors, admin) == 200
+
+
+class TestOwnPassword:
+    def test_changing_your_password_revokes_old_tokens_and_answers_a_new_one(self, actors: Actors) -> None:
+        old = actors.auth("viewer")
+        body = {"current_password": PASSWORD, "new_password": "my-new-password"}
+        changed = actors.client.post("/api/auth/password", json=body, headers=old)
+        assert changed.status_code == 200, changed.text
+        assert _me(actors, old) == 401
+        assert _me(actors, {"Authorization": f"Bearer {changed.json()['access_token']}"}) == 200
+        assert _me(actors, _login(actors, "viewer", "my-new-password")) == 200
+
+    def test_a_wrong_current_password_is_422(self, actors: Actors) -> None:
+        body = {"current_password": "not it at all", "new_password": "my-new-password"}
+        wrong = actors.client.post("/api/auth/password", json=body, headers=actors.auth("viewer"))
+        assert wrong.status_code == 422 and wrong.json()["field"] == "current_password"
+        assert _me(actors, actors.auth("viewer")) == 200

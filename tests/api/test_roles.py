@@ -221,7 +221,9 @@ class TestWebSockets:
         assert closed.value.code == WS_CLOSE_UNAUTHORIZED
 
     def test_tokens_in_the_url_are_refused(self, actors: Actors) -> None:
-        with actors.client.websocket_connect(f"/api/live?token={actors.tokens['viewer']}") as ws:
-            with pytest.raises(WebSocketDisconnect) as closed:
-                ws.receive_json()
+        with (
+            actors.client.websocket_connect(f"/api/live?token={actors.tokens['viewer']}") as ws,
+            pytest.raises(WebSocketDisconnect) as closed,
+        ):
+            ws.receive_json()
         assert closed.value.code == WS_CLOSE_UNAUTHORIZED and "URL" in closed.value.reason

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -158,6 +159,8 @@ class TestReplay:
                 os.kill(int(started.group(1)), signal.SIGTERM)
         text = log.read_text()
         assert "stopping the replay" in text and f"server process {server_pid} stopped" in text
+        serve_log = Path(env["DRIFTMAP_DATA_DIR"]) / "serve.log"
+        assert stat.S_IMODE(serve_log.stat().st_mode) == 0o600  # only its owner reads the server's log
         assert not alive(server_pid)
         with pytest.raises(httpx.TransportError):
             httpx.get(f"{base}/api/health", timeout=2.0)

@@ -181,9 +181,7 @@ class TestScaleOut:
         self, topology: Topology, site: int, tiny_site_dir: Path
     ) -> None:
         token = topology.headers["Authorization"].removeprefix("Bearer ")
-        watchers = [
-            Watcher(base.replace("http", "ws") + "/api/live", token) for base in topology.apis
-        ]
+        watchers = [Watcher(base.replace("http", "ws") + "/api/live", token) for base in topology.apis]
         for watcher in watchers:
             watcher.start()
             assert watcher.ready.wait(30), "a watcher got no snapshot"

@@ -7,6 +7,7 @@ what ``make demo`` runs.
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -28,6 +29,7 @@ from driftmap.services.vehicle_replay import ApiClient, ReplayStats
 
 SERVER_START_DEADLINE_S = 120.0
 SERVER_STOP_TIMEOUT_S = 60.0
+LOG_FILE_MODE = 0o600
 
 
 def _start_server(url: str, log: Path) -> subprocess.Popen[bytes]:
@@ -36,7 +38,10 @@ def _start_server(url: str, log: Path) -> subprocess.Popen[bytes]:
     if parsed.scheme != "http" or parsed.hostname is None:
         raise BadInputError(f"--serve needs an http://HOST:PORT url, got {url!r}", field="--url")
     log.parent.mkdir(parents=True, exist_ok=True)
-    with log.open("ab") as sink:
+    # readable by its owner only: a server log names users and vehicles, and may hold what clients sent
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_APPEND, LOG_FILE_MODE)
+    os.fchmod(fd, LOG_FILE_MODE)  # an existing log too
+    with os.fdopen(fd, "ab") as sink:
         process = subprocess.Popen(
             [
                 sys.executable,

@@ -109,11 +109,15 @@ class FakeSocket implements SocketLike {
   onclose: ((ev: unknown) => void) | null = null;
   onerror: ((ev: unknown) => void) | null = null;
   closed = false;
+  sent: string[] = [];
   constructor(readonly url: string) {}
   close(): void {
     this.closed = true;
   }
-  send(message: unknown): void {
+  send(data: string): void {
+    this.sent.push(data);
+  }
+  receive(message: unknown): void {
     this.onmessage?.({ data: JSON.stringify(message) });
   }
 }
@@ -137,8 +141,8 @@ describe("LiveSocket", () => {
     });
     live.start();
     expect(sockets[0]!.url).toBe("/api/live");
-    sockets[0]!.send({ type: "snapshot", seq: 3, stale_after_s: 10, vehicles: [] });
-    sockets[0]!.send({ type: "position", ...position(4, 1, 1, 1) });
+    sockets[0]!.receive({ type: "snapshot", seq: 3, stale_after_s: 10, vehicles: [] });
+    sockets[0]!.receive({ type: "position", ...position(4, 1, 1, 1) });
     sockets[0]!.onclose?.({});
     expect(timers.map((t) => t.ms)).toEqual([100]);
     timers[0]!.fn();
@@ -146,10 +150,31 @@ describe("LiveSocket", () => {
     sockets[1]!.onclose?.({}); // refused before any snapshot: wait longer
     expect(timers.map((t) => t.ms)).toEqual([100, 200]);
     timers[1]!.fn();
-    sockets[2]!.send({ type: "snapshot", seq: 9, stale_after_s: 10, vehicles: [] });
+    sockets[2]!.receive({ type: "snapshot", seq: 9, stale_after_s: 10, vehicles: [] });
     sockets[2]!.onclose?.({});
     expect(timers[2]!.ms).toBe(100); // a snapshot means the connection worked: back to the first delay
     live.stop();
     expect(timers.length).toBe(3);
+  });
+
+  it("sends the auth message first once open, and no token in the URL", () => {
+    const sockets: FakeSocket[] = [];
+    const live = new LiveSocket({
+      url: () => "/api/live",
+      lastSeq: () => null,
+      authMessage: () => JSON.stringify({ type: "auth", token: "secret" }),
+      onMessage: () => undefined,
+      makeSocket: (url) => {
+        const s = new FakeSocket(url);
+        sockets.push(s);
+        return s;
+      },
+    });
+    live.start();
+    expect(sockets[0]!.sent).toEqual([]);
+    sockets[0]!.onopen?.({});
+    expect(sockets[0]!.sent).toEqual(['{"type":"auth","token":"secret"}']);
+    expect(sockets[0]!.url).not.toContain("secret");
+    live.stop();
   });
 });

@@ -1,4 +1,6 @@
 // The /api/live WebSocket: reconnects by itself with backoff and resumes with ?since=<last seq seen>.
+// Credentials never go in the URL: once open, the socket sends `authMessage()` (the login token as
+// {"type": "auth", "token": ...}) as its first message.
 import { Backoff } from "./backoff";
 import type { LiveMessage } from "./liveState";
 
@@ -7,6 +9,7 @@ export interface SocketLike {
   onmessage: ((ev: { data: unknown }) => void) | null;
   onclose: ((ev: unknown) => void) | null;
   onerror: ((ev: unknown) => void) | null;
+  send(data: string): void;
   close(): void;
 }
 
@@ -15,6 +18,8 @@ export type ConnectionState = "connecting" | "open" | "closed";
 export interface LiveSocketOptions {
   url: (since: number | null) => string;
   lastSeq: () => number | null;
+  /** The first message to send once open (the auth message), or null to send none. */
+  authMessage?: () => string | null;
   onMessage: (message: LiveMessage) => void;
   onState?: (state: ConnectionState, retryInMs?: number) => void;
   makeSocket?: (url: string) => SocketLike;
@@ -57,6 +62,10 @@ export class LiveSocket {
     const socket = make(this.options.url(this.options.lastSeq()));
     this.socket = socket;
     this.options.onState?.("connecting");
+    socket.onopen = () => {
+      const auth = this.options.authMessage?.() ?? null;
+      if (auth !== null) socket.send(auth);
+    };
     socket.onmessage = (ev) => {
       if (typeof ev.data !== "string") return;
       const message = JSON.parse(ev.data) as LiveMessage;

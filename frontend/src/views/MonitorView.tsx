@@ -17,9 +17,14 @@ import { SetStartPanel, useSetStart } from "./SetStart";
 
 function liveUrl(since: number | null): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
-  const query = new URLSearchParams({ token: getToken() ?? "" });
-  if (since !== null) query.set("since", String(since));
-  return `${scheme}://${location.host}/api/live?${query.toString()}`;
+  const query = since === null ? "" : `?${new URLSearchParams({ since: String(since) }).toString()}`;
+  return `${scheme}://${location.host}/api/live${query}`;
+}
+
+/** The socket's first message: the login token (never in the URL, which servers and proxies log). */
+function authMessage(): string | null {
+  const token = getToken();
+  return token ? JSON.stringify({ type: "auth", token }) : null;
 }
 
 /** A band's swatch: a filled dot, a ring for lost (as on the map). */
@@ -65,6 +70,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
     };
     const socket = new LiveSocket({
       url: liveUrl,
+      authMessage,
       lastSeq: () => state.resumeSeq(),
       onMessage: (m) => {
         state.apply(m);
