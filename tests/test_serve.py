@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import re
 import signal
 import struct
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
@@ -27,6 +28,15 @@ pytestmark = pytest.mark.slow  # real server and worker processes
 
 START_DEADLINE_S = 90.0
 STOP_DEADLINE_S = 60.0
+JOB_DEADLINE_S = 240.0
+
+
+def _wait_until(condition: Callable[[], bool], what: str, deadline_s: float = START_DEADLINE_S) -> None:
+    """Poll ``condition`` until it holds; fail naming ``what`` at the deadline."""
+    deadline = time.monotonic() + deadline_s
+    while not condition():
+        assert time.monotonic() < deadline, f"no {what} within {deadline_s} s"
+        time.sleep(0.2)
 
 
 @pytest.fixture
@@ -55,7 +65,10 @@ class TestServe:
         self, server: tuple[subprocess.Popen[bytes], str, Path], env: dict[str, str]
     ) -> None:
         process, base, log = server
-        assert httpx.get(f"{base}/api/health").json()["status"] == "ok"
+        _wait_until(
+            lambda: httpx.get(f"{base}/api/health").json()["status"] == "ok", "health ok with its worker"
+        )
+        assert httpx.get(f"{base}/api/health").json()["workers"] == 1
         assert httpx.get(f"{base}/docs").status_code == 200
         worker_pid = int(re.search(r"worker process (\d+) started", log.read_text()).group(1))  # type: ignore[union-attr]
         assert alive(worker_pid)
@@ -72,12 +85,14 @@ class TestServe:
         token = login.json()["access_token"]
 
         async def snapshot() -> dict:  # type: ignore[type-arg]
-            url = base.replace("http", "ws") + f"/api/live?token={token}"
-            async with websockets.connect(url) as ws:
+            url = base.replace("http", "ws") + "/api/live"
+            async with websockets.connect(url) as ws:  # as a browser does: the token in the first message
+                await ws.send(json.dumps({"type": "auth", "token": token}))
                 message: dict = json.loads(await asyncio.wait_for(ws.recv(), 30.0))  # type: ignore[type-arg]
                 return message
 
         assert asyncio.run(snapshot())["type"] == "snapshot"
+        _assert_no_query_strings_logged(base, log)
 
         process.send_signal(signal.SIGTERM)
         assert process.wait(STOP_DEADLINE_S) == 0 or process.returncode == 128 + signal.SIGTERM
@@ -117,8 +132,11 @@ class TestLiveOnARealServer:
             ws_base = base.replace("http", "ws")
 
             async def run() -> tuple[list[dict], list[dict], list[dict]]:  # type: ignore[type-arg]
-                live_url = f"{ws_base}/api/live?token={login.json()['access_token']}"
-                async with websockets.connect(live_url) as live, httpx.AsyncClient(base_url=base) as client:
+                live_url = f"{ws_base}/api/live"
+                async with (
+                    websockets.connect(live_url, additional_headers=admin) as live,
+                    httpx.AsyncClient(base_url=base) as client,
+                ):
                     assert json.loads(await live.recv())["type"] == "snapshot"
                     answers = []
                     for f in frames[:20]:
@@ -149,3 +167,87 @@ class TestLiveOnARealServer:
         assert sorted(a["t"] for a in streamed) == [f.t for f in frames[20:30]]
         assert [u["seq"] for u in updates[:20]] == [a["seq"] for a in answers]
         assert [u["t"] for u in updates] == sorted(u["t"] for u in updates)
+
+
+def _children(pid: int) -> list[int]:
+    """Pids of the processes whose parent is ``pid`` (from /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (FileNotFoundError, ProcessLookupError, IndexError):
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def _worker_pids(log: Path) -> list[int]:
+    return [int(pid) for pid in re.findall(r"worker process (\d+) started", log.read_text())]
+
+
+def _assert_no_query_strings_logged(base: str, log: Path) -> None:
+    """A token passed in URLs (HTTP and WebSocket) is refused and does not reach the server's log."""
+    secret = "dmv_1_" + "S3cret" * 7  # shaped like a vehicle token
+    assert httpx.get(f"{base}/api/auth/me", params={"token": secret}).status_code == 401
+
+    async def refused() -> int | None:
+        async with websockets.connect(base.replace("http", "ws") + f"/api/live?token={secret}") as ws:
+            with pytest.raises(websockets.ConnectionClosed) as closed:
+                await asyncio.wait_for(ws.recv(), 30.0)
+            return closed.value.rcvd.code if closed.value.rcvd else None
+
+    assert asyncio.run(refused()) == 4401
+    _wait_until(
+        lambda: "GET /api/auth/me HTTP" in log.read_text() and '"WebSocket /api/live"' in log.read_text(),
+        "access log lines",
+    )
+    assert secret not in log.read_text() and "token=" not in log.read_text()
+
+
+class TestSupervision:
+    def test_a_killed_worker_is_restarted_and_a_job_then_finishes_once(
+        self, server: tuple[subprocess.Popen[bytes], str, Path], env: dict[str, str]
+    ) -> None:
+        _process, base, log = server
+        storage = Storage.open(Settings(data_dir=Path(env["DRIFTMAP_DATA_DIR"])))
+        with storage.db.session() as session:
+            user_service.create_user(session, "boss", "long-password", "admin")
+        storage.close()
+        _wait_until(lambda: len(_worker_pids(log)) == 1, "worker start")
+        first = _worker_pids(log)[0]
+        os.kill(first, signal.SIGKILL)
+        _wait_until(lambda: len(_worker_pids(log)) == 2, "worker restart")
+        second = _worker_pids(log)[1]
+        assert second != first and alive(second) and not alive(first)
+        assert f"worker process {first} exited with -9" in log.read_text()
+
+        login = httpx.post(f"{base}/api/auth/login", json={"username": "boss", "password": "long-password"})
+        admin = {"Authorization": f"Bearer {login.json()['access_token']}"}
+        body = {"name": "sim", "size": "tiny", "max_frames_per_drive": 4}
+        job = httpx.post(f"{base}/api/sites/simulate", json=body, headers=admin).json()
+
+        def finished() -> bool:
+            answer = httpx.get(f"{base}/api/jobs/{job['id']}", headers=admin).json()
+            return answer["status"] in ("succeeded", "failed", "cancelled")
+
+        _wait_until(finished, "finished job", JOB_DEADLINE_S)
+        done = httpx.get(f"{base}/api/jobs/{job['id']}", headers=admin).json()
+        assert (done["status"], done["attempts"]) == ("succeeded", 1), done
+        assert done["worker_id"].split(":")[1] == str(second)
+        sites = httpx.get(f"{base}/api/sites", headers=admin).json()["items"]
+        assert [s["name"] for s in sites] == ["sim"]
+        assert httpx.get(f"{base}/api/health").json()["workers"] >= 1
+
+    def test_a_killed_server_leaves_no_process_behind(
+        self, server: tuple[subprocess.Popen[bytes], str, Path]
+    ) -> None:
+        process, _base, log = server
+        _wait_until(lambda: len(_worker_pids(log)) == 1, "worker start")
+        children = _children(process.pid)
+        assert _worker_pids(log)[0] in children
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        _wait_until(
+            lambda: not any(alive(pid) for pid in children), "end of the server's children", STOP_DEADLINE_S
+        )
