@@ -13,7 +13,7 @@ export interface paths {
         };
         /**
          * Health
-         * @description Whether the server is up and its database answers.
+         * @description Whether the server, its database, its job workers and queue, and Redis are working.
          */
         get: operations["health_api_health_get"];
         put?: never;
@@ -55,9 +55,29 @@ export interface paths {
         put?: never;
         /**
          * Logout
-         * @description Forget the login cookie of this browser.
+         * @description Revoke every login token of the caller (if logged in, on every device) and forget the login cookie.
          */
         post: operations["logout_api_auth_logout_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/auth/password": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Change Password
+         * @description Change your own password: revokes all your tokens and answers a new one (422 if the current is wrong).
+         */
+        post: operations["change_password_api_auth_password_post"];
         delete?: never;
         options?: never;
         head?: never;
@@ -124,14 +144,14 @@ export interface paths {
         post?: never;
         /**
          * Delete User
-         * @description Remove a user (not the last admin).
+         * @description Remove a user (not the last admin, not yourself).
          */
         delete: operations["delete_user_api_users__user_id__delete"];
         options?: never;
         head?: never;
         /**
          * Update User
-         * @description Change a user's role or password.
+         * @description Change a user's role or password (a reset), or disable or enable the user; revokes the user's tokens.
          */
         patch: operations["update_user_api_users__user_id__patch"];
         trace?: never;
@@ -1317,6 +1337,27 @@ export interface components {
             status: string;
             /** Version */
             version: string;
+            /**
+             * Problems
+             * @default []
+             */
+            problems: string[];
+            /**
+             * Database
+             * @default ok
+             */
+            database: string;
+            /**
+             * Redis
+             * @default not configured
+             */
+            redis: string;
+            /**
+             * Workers
+             * @default 0
+             */
+            workers: number;
+            queue?: components["schemas"]["QueueHealth"] | null;
         };
         /** JobRead */
         JobRead: {
@@ -1591,6 +1632,16 @@ export interface components {
             limit: number;
         };
         /**
+         * PasswordChange
+         * @description A user's own password change.
+         */
+        PasswordChange: {
+            /** Current Password */
+            current_password: string;
+            /** New Password */
+            new_password: string;
+        };
+        /**
          * PoseArrays
          * @description Optimised poses of a page of mapping frames, drive then frame order (metres, radians).
          */
@@ -1666,6 +1717,17 @@ export interface components {
              * Format: date-time
              */
             received_at: string;
+        };
+        /** QueueHealth */
+        QueueHealth: {
+            /** Queued */
+            queued: number;
+            /** Running */
+            running: number;
+            /** Oldest Queued S */
+            oldest_queued_s: number | null;
+            /** Stalled */
+            stalled: boolean;
         };
         /** ResidualRead */
         ResidualRead: {
@@ -1858,12 +1920,19 @@ export interface components {
              * Format: date-time
              */
             created_at: string;
+            /** Disabled At */
+            disabled_at?: string | null;
         };
-        /** UserUpdate */
+        /**
+         * UserUpdate
+         * @description Any change revokes the user's login tokens.
+         */
         UserUpdate: {
             role?: components["schemas"]["Role"] | null;
             /** Password */
             password?: string | null;
+            /** Disabled */
+            disabled?: boolean | null;
         };
         /** ValidationError */
         ValidationError: {
@@ -2101,6 +2170,15 @@ export interface operations {
                     "application/json": components["schemas"]["Health"];
                 };
             };
+            /** @description The database does not answer. */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Health"];
+                };
+            };
         };
     };
     login_api_auth_login_post: {
@@ -2134,6 +2212,13 @@ export interface operations {
                     "application/json": components["schemas"]["HTTPValidationError"];
                 };
             };
+            /** @description Too many failed logins (or logins at once); see the Retry-After header. */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content?: never;
+            };
         };
     };
     logout_api_auth_logout_post: {
@@ -2147,6 +2232,46 @@ export interface operations {
         responses: {
             /** @description Successful Response */
             204: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content?: never;
+            };
+        };
+    };
+    change_password_api_auth_password_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["PasswordChange"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TokenRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Too many failed logins (or logins at once); see the Retry-After header. */
+            429: {
                 headers: {
                     [name: string]: unknown;
                 };
