@@ -1,6 +1,6 @@
 // Admin: users and roles, vehicles (a new vehicle's token is shown once), sites.
 import { useCallback, useEffect, useState, type FormEvent } from "react";
-import { ApiError, apiDelete, apiGet, apiPost, type Schemas } from "../api/client";
+import { ApiError, apiDelete, apiGet, apiPatch, apiPost, type Schemas } from "../api/client";
 
 type Role = Schemas["Role"];
 
@@ -58,6 +58,7 @@ function Users() {
           <tr>
             <th>Name</th>
             <th>Role</th>
+            <th>Status</th>
             <th />
           </tr>
         </thead>
@@ -66,7 +67,20 @@ function Users() {
             <tr key={u.id} data-testid={`user-row-${u.username}`}>
               <td>{u.username}</td>
               <td>{u.role}</td>
+              <td>{u.disabled_at ? "disabled" : "active"}</td>
               <td>
+                <button
+                  data-testid={`user-toggle-${u.username}`}
+                  title="Disabling logs the user out everywhere"
+                  onClick={() =>
+                    void run(async () => {
+                      await apiPatch("/api/users/{user_id}", { user_id: u.id }, { disabled: !u.disabled_at });
+                      await load();
+                    })
+                  }
+                >
+                  {u.disabled_at ? "Enable" : "Disable"}
+                </button>{" "}
                 <button
                   className="danger"
                   onClick={() =>
