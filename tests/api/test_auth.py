@@ -246,3 +246,14 @@ class TestOwnPassword:
         wrong = actors.client.post("/api/auth/password", json=body, headers=actors.auth("viewer"))
         assert wrong.status_code == 422 and wrong.json()["field"] == "current_password"
         assert _me(actors, actors.auth("viewer")) == 200
+
+
+class TestOpenSockets:
+    def test_an_open_live_socket_closes_once_its_token_is_revoked(self, actors: Actors) -> None:
+        viewer = actors.auth("viewer")
+        with actors.client.websocket_connect("/api/live", headers=viewer) as ws:
+            assert ws.receive_json()["type"] == "snapshot"
+            assert actors.client.post("/api/auth/logout", headers=viewer).status_code == 204
+            with pytest.raises(WebSocketDisconnect) as closed:
+                ws.receive_json()  # no positions come: the next message is the close, within TOKEN_RECHECK_S
+        assert closed.value.code == WS_CLOSE_UNAUTHORIZED and "revoked" in closed.value.reason

@@ -30,6 +30,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import struct
+import time
 from datetime import datetime
 from typing import Any
 
@@ -40,7 +41,7 @@ from driftmap.api.deps import VIEWER, WS_CLOSE_FORBIDDEN, WS_CLOSE_UNAUTHORIZED,
 from driftmap.api.error_handlers import error_body, status_of
 from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
 from driftmap.api.schemas_live import LiveSnapshot, LiveStale, position_message
-from driftmap.api.ws_auth import WebSocketAuthError, websocket_principal
+from driftmap.api.ws_auth import TOKEN_RECHECK_S, WebSocketAuthError, still_valid, websocket_principal
 from driftmap.errors import BadRequestError, DriftmapError, NotFoundError, PayloadTooLargeError
 from driftmap.live.ingest import LiveService
 from driftmap.services import positions as position_service
@@ -237,7 +238,13 @@ async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
                 await websocket.send_json(message)
         sent: dict[int, int] = {}  # seq of the last position sent, by vehicle (the floor before the first)
         backlog: list[dict[str, Any]] = []
+        checked_at = time.monotonic()
         while not receiver.done():
+            if time.monotonic() - checked_at > TOKEN_RECHECK_S:
+                checked_at = time.monotonic()
+                if not await still_valid(websocket):
+                    await websocket.close(WS_CLOSE_UNAUTHORIZED, "the token was revoked or expired")
+                    break
             if subscription.overflowed:
                 subscription.drain()
                 active = [seq for vehicle_id, seq in sent.items() if vehicle_id not in stale]

@@ -9,6 +9,9 @@ without credentials and sends, as its first message, the text
 
 within :data:`AUTH_MESSAGE_TIMEOUT_S`. Tokens in the URL (``?token=``) are refused: URLs end up in access
 logs and browser histories.
+
+A long-lived socket checks its token again with :func:`still_valid` (every :data:`TOKEN_RECHECK_S`), so a
+revoked token does not keep a socket open.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from driftmap.api.deps import Principal, cached_principal, token_of
 
 AUTH_MESSAGE_TIMEOUT_S = 10.0
 """How long a WebSocket without handshake credentials has to send its ``auth`` message, seconds."""
+TOKEN_RECHECK_S = 2.0
+"""How often a long-lived socket checks that its token is still valid, seconds."""
 MAX_AUTH_MESSAGE_CHARS = 4096
 """Longest accepted ``auth`` message (a token is a few hundred characters)."""
 
@@ -66,4 +71,11 @@ async def websocket_principal(
                 "tokens in URLs are refused: send a bearer header or a first auth message"
             )
         token = await _first_message_token(websocket, timeout_s)
+    websocket.state.token = token
     return await cached_principal(websocket, token)
+
+
+async def still_valid(websocket: WebSocket) -> bool:
+    """Whether the token ``websocket`` authenticated with is still valid (not revoked, expired or disabled)."""
+    token = getattr(websocket.state, "token", None)
+    return token is not None and await cached_principal(websocket, token) is not None
