@@ -375,3 +375,21 @@ class TestAdmin:
         p.get_by_role("button", name="Done").click()
         expect(p.get_by_test_id("vehicle-token")).to_have_count(0)
         assert page.errors == []
+
+    def test_disable_a_user_refuses_their_login_and_enable_lets_them_back(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        password = make_user(server, "shift-boss", "viewer")
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-admin").click()
+        row = p.get_by_test_id("user-row-shift-boss")
+        row.get_by_test_id("user-toggle-shift-boss").click()
+        expect(row).to_contain_text("disabled")
+        refused = server.api("POST", "/api/auth/login", json={"username": "shift-boss", "password": password})
+        assert refused.status_code == 403 and "disabled" in refused.json()["detail"]
+        row.get_by_test_id("user-toggle-shift-boss").click()
+        expect(row).to_contain_text("active")
+        login = server.api("POST", "/api/auth/login", json={"username": "shift-boss", "password": password})
+        assert login.status_code == 200
+        assert page.errors == []
