@@ -30,7 +30,7 @@ import asyncio
 import contextlib
 import struct
 from datetime import datetime
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Request, Response, WebSocket, WebSocketDisconnect
 from starlette.requests import ClientDisconnect
@@ -87,7 +87,9 @@ async def _read_body(request: Request, limit: int) -> bytes:
 async def post_frame(
     vehicle: VehicleDep,
     request: Request,
-    t: Seconds = Query(description="The frame's time on the vehicle's clock, seconds; must increase."),
+    t: Annotated[
+        Seconds, Query(description="The frame's time on the vehicle's clock, seconds; must increase.")
+    ],
 ) -> FrameEstimate:
     """Localise one camera frame of this vehicle (its own token only) on its site's latest map."""
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()

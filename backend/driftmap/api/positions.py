@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from fastapi import APIRouter, Depends, Query
 
 from driftmap.api.deps import VIEWER, SessionDep, SettingsDep
@@ -20,9 +22,11 @@ router = APIRouter(tags=["positions"], dependencies=[Depends(VIEWER)])
 def vehicle_positions(
     vehicle_id: Id,
     session: SessionDep,
-    start: Seconds | None = Query(None, description="Earliest frame time t, seconds (vehicle clock)."),
-    end: Seconds | None = Query(None, description="Latest frame time t, seconds."),
-    limit: int = Query(10000, ge=1, le=100000),
+    start: Annotated[
+        Seconds | None, Query(description="Earliest frame time t, seconds (vehicle clock).")
+    ] = None,
+    end: Annotated[Seconds | None, Query(description="Latest frame time t, seconds.")] = None,
+    limit: Annotated[int, Query(ge=1, le=100000)] = 10000,
 ) -> list[PositionRead]:
     """A vehicle's position history between ``start`` and ``end``, in time order."""
     vehicle_service.get_vehicle(session, vehicle_id)
@@ -54,7 +58,8 @@ def latest_positions(
 
 @router.get("/positions")
 def positions_since(
-    session: SessionDep, since: Count = Query(0, description="Positions with a higher seq than this.")
+    session: SessionDep,
+    since: Annotated[Count, Query(description="Positions with a higher seq than this.")] = 0,
 ) -> list[PositionRead]:
     """Every vehicle's positions after sequence number ``since`` (polling clients resume with it)."""
     return [PositionRead.model_validate(r) for r in position_service.since(session, since)]
