@@ -3,9 +3,7 @@ a refused frame never changes the vehicle's state, and image bombs are refused f
 
 from __future__ import annotations
 
-import json
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -13,9 +11,14 @@ import httpx
 import numpy as np
 import pytest
 
-from driftmap.config import Settings
 from driftmap.formats.frame_images import encode_png
-from tests.api.access_helpers import Actors, RecordedFrame, localisation_drive, make_actors, recorded_frames
+from tests.api.access_helpers import (
+    Actors,
+    RecordedFrame,
+    give_drive_camera,
+    localisation_drive,
+    recorded_frames,
+)
 from tests.image_bombs import zero_png
 
 REFUSED_WITHIN_S = 1.0
@@ -24,13 +27,6 @@ REFUSED_WITHIN_S = 1.0
 @pytest.fixture
 def frames(tiny_site_dir: Path) -> list[RecordedFrame]:
     return recorded_frames(localisation_drive(tiny_site_dir), 3)
-
-
-@pytest.fixture
-def actors(built: Path) -> Iterator[Actors]:
-    made = make_actors(Settings(data_dir=built, stale_after_s=3600.0, live_processes=1), site_name="tiny")
-    with made.client:
-        yield made
 
 
 def _post(actors: Actors, data: bytes, t: float | str) -> httpx.Response:
@@ -48,39 +44,37 @@ def _status(response: httpx.Response) -> Any:
 
 
 class TestARefusedFrameChangesNothing:
-    def test_a_bad_t_does_not_block_later_frames(self, actors: Actors, frames: list[RecordedFrame]) -> None:
-        assert _status(_post(actors, frames[0].data, 10.0)) == "processed"
+    def test_a_bad_t_does_not_block_later_frames(
+        self, live_actors: Actors, frames: list[RecordedFrame]
+    ) -> None:
+        assert _status(_post(live_actors, frames[0].data, 10.0)) == "processed"
         for bad in ("inf", "nan", "1e308"):
-            refused = _post(actors, frames[1].data, bad)
+            refused = _post(live_actors, frames[1].data, bad)
             assert refused.status_code == 422 and refused.json()["detail"][0]["loc"] == ["query", "t"], bad
-        assert _status(_post(actors, frames[1].data, 20.0)) == "processed"
+        assert _status(_post(live_actors, frames[1].data, 20.0)) == "processed"
 
     def test_a_frame_the_localiser_refuses_does_not_block_earlier_times(
-        self, actors: Actors, frames: list[RecordedFrame], tiny_site_dir: Path
+        self, live_actors: Actors, frames: list[RecordedFrame], tiny_site_dir: Path
     ) -> None:
-        block = json.loads((localisation_drive(tiny_site_dir) / "drive.json").read_text())["camera"]
-        camera = actors.client.put(
-            f"/api/vehicles/{actors.vehicle_id}/camera", json=block, headers=actors.auth("surveyor")
-        )
-        assert camera.status_code == 200, camera.text
-        assert _status(_post(actors, frames[0].data, 10.0)) == "processed"
+        block = give_drive_camera(live_actors, tiny_site_dir)
+        assert _status(_post(live_actors, frames[0].data, 10.0)) == "processed"
         other_size = encode_png(np.full((block["height"] + 1, block["width"]), 128, dtype=np.uint8))
-        refused = _post(actors, other_size, 30.0)
+        refused = _post(live_actors, other_size, 30.0)
         assert refused.status_code == 422 and refused.json()["field"] == "body"
         assert "camera says" in refused.json()["detail"]
-        assert _status(_post(actors, frames[1].data, 20.0)) == "processed"
-        state = actors.client.get(
-            f"/api/vehicles/{actors.vehicle_id}/live-state", headers=actors.auth("viewer")
+        assert _status(_post(live_actors, frames[1].data, 20.0)) == "processed"
+        state = live_actors.client.get(
+            f"/api/vehicles/{live_actors.vehicle_id}/live-state", headers=live_actors.auth("viewer")
         )
         assert state.status_code == 200, state.text  # the stored state knows nothing of the refused frame
         assert state.json()["last_t_s"] == 20.0 and state.json()["out_of_order"] == 0
 
 
 class TestImageBombs:
-    def test_a_live_frame_declaring_too_many_pixels_is_refused_at_once(self, actors: Actors) -> None:
+    def test_a_live_frame_declaring_too_many_pixels_is_refused_at_once(self, live_actors: Actors) -> None:
         bomb = zero_png(30_000, 30_000)
         start = time.perf_counter()
-        response = _post(actors, bomb, 1.0)
+        response = _post(live_actors, bomb, 1.0)
         assert time.perf_counter() - start < REFUSED_WITHIN_S
         assert response.status_code == 413, response.text
         assert response.json()["field"] == "body" and "30000x30000" in response.json()["detail"]
