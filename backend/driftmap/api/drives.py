@@ -13,7 +13,7 @@ from fastapi.responses import Response
 from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, SettingsDep, StorageDep, SurveyorDep
-from driftmap.api.input_types import Count, Id, Seconds
+from driftmap.api.input_types import Count, Id, Name, Seconds
 from driftmap.api.jobs import QueueDep
 from driftmap.api.schemas_data import (
     DriveCreate,
@@ -153,7 +153,7 @@ def upload_drive_video(
     settings: SettingsDep,
     queue: QueueDep,
     user: SurveyorDep,
-    name: Annotated[str | None, Form(description="Drive name (default: the video's file stem).")] = None,
+    name: Annotated[Name | None, Form(description="Drive name (default: the video's file stem).")] = None,
     kind: Annotated[DriveKind, Form()] = "mapping",
 ) -> JobRead:
     """Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``)."""
