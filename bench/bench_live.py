@@ -6,7 +6,8 @@ camera would: one frame every 1/``--fps`` seconds, posted without waiting for th
 loop), to ``POST /api/vehicles/{id}/frames``. Prints the p50 and p99 latency of the frame endpoint, the
 answers by status, and checks from the stored history that no frame was lost, reordered or processed twice:
 per vehicle, processed + skipped + out of order equals frames sent and the stored positions' ``t`` strictly
-increase. Each vehicle is given the drive's camera, so its frames run the ground-plane odometry too. The baseline is the same frames localised in this process without HTTP (decode + localiser step +
+increase, and the share of each vehicle's frames that was processed (fair scheduling: min/max near 1). Each
+vehicle is given the drive's camera, so its frames run the ground-plane odometry too. The baseline is the same frames localised in this process without HTTP (decode + localiser step +
 database write), one vehicle at a time; the ratio of the HTTP p50 to it is the cost of the server.
 Target (issue 5): 5 vehicles at 10 frames/s, p99 <= 150 ms.
 
@@ -157,6 +158,12 @@ async def load(base: str, frames: list[tuple[float, bytes]], args: argparse.Name
     )
     print(f"frame endpoint latency: p50 {p50:.1f} ms, p99 {p99:.1f} ms (target p99 <= {TARGET_P99_MS:g} ms)")
     print("answers: " + ", ".join(f"{k} {v}" for k, v in sorted(statuses.items())))
+    shares = [r[1].count("processed") / r[3] for r in results]
+    print(
+        "processed per vehicle: "
+        + ", ".join(f"v{k} {share:.0%}" for k, share in enumerate(shares))
+        + f" (min/max {min(shares) / max(shares):.2f})"
+    )
     ok = all(r[2] for r in results)
     print(f"lost, reordered or double-processed frames: {'0' if ok else 'SOME (check failed)'}")
     args.p50 = p50

@@ -62,6 +62,12 @@ class Settings(BaseSettings):
     health_queue_stall_s: float = 600.0
     """``/api/health`` calls the queue stalled when jobs wait this long while no job moves, seconds."""
 
+    # Input limits: requests over them are refused (413/422 naming the field) before any work is done.
+    max_frame_pixels: int = 4096 * 4096
+    """Largest frame (live or drive) width x height, pixels, read from the image header before decoding."""
+    max_json_bytes: int = 1024**2
+    """Largest JSON request body, bytes (uploads have ``max_upload_bytes``, frames ``max_frame_bytes``)."""
+
     def resolved_database_url(self) -> str:
         """The database URL in force: the configured one or the embedded SQLite file."""
         if self.database_url:

@@ -8,9 +8,11 @@ other's vehicles.
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
@@ -141,3 +143,13 @@ def recorded_frames(drive_dir: Path, count: int | None = None) -> list[RecordedF
 def localisation_drive(site_dir: Path) -> Path:
     """The tiny site's first localisation drive folder."""
     return sorted(p for p in (site_dir / "drives").iterdir() if p.name.startswith("loc"))[0]
+
+
+def give_drive_camera(actors: Actors, site_dir: Path) -> dict[str, Any]:
+    """Set the camera of the site's localisation drive as ``actors``' vehicle's camera; returns the block."""
+    block: dict[str, Any] = json.loads((localisation_drive(site_dir) / "drive.json").read_text())["camera"]
+    response = actors.client.put(
+        f"/api/vehicles/{actors.vehicle_id}/camera", json=block, headers=actors.auth("surveyor")
+    )
+    assert response.status_code == 200, response.text
+    return block

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from driftmap.config import Settings
-from tests.api.access_helpers import built_tiny_data, copy_data
+from tests.api.access_helpers import Actors, built_tiny_data, copy_data, make_actors
 from tests.api.data_helpers import ApiUsers, api_users
 from tests.sim_site import import_site
 
@@ -36,3 +36,11 @@ def site_id(users: ApiUsers, mini_site: Path) -> int:
     """Site ``tiny``: the mini site's survey and its mapping and localisation drives, imported into the store."""
     import_site(users.storage, mini_site, name="tiny", kinds=("mapping", "localisation"))
     return int(users.get("/api/sites")["items"][0]["id"])
+
+
+@pytest.fixture
+def live_actors(built: Path) -> Iterator[Actors]:
+    """Users of every role and two vehicles on a private copy of the built tiny site, one localiser process."""
+    made = make_actors(Settings(data_dir=built, stale_after_s=3600.0, live_processes=1), site_name="tiny")
+    with made.client:
+        yield made

@@ -7,7 +7,6 @@ simulator's ground truth. Overload is produced by submitting a burst of frames a
 from __future__ import annotations
 
 import asyncio
-import json
 import math
 import os
 import signal
@@ -34,6 +33,7 @@ from driftmap.store.storage import Storage
 from tests.api.access_helpers import (
     Actors,
     RecordedFrame,
+    give_drive_camera,
     localisation_drive,
     make_actors,
     recorded_frames,
@@ -212,11 +212,7 @@ class TestMotion:
     def test_a_vehicle_with_a_camera_reports_its_motion(
         self, actors: Actors, frames: list[RecordedFrame], tiny_site_dir: Path
     ) -> None:
-        block = json.loads((localisation_drive(tiny_site_dir) / "drive.json").read_text())["camera"]
-        camera = actors.client.put(
-            f"/api/vehicles/{actors.vehicle_id}/camera", json=block, headers=actors.auth("surveyor")
-        )
-        assert camera.status_code == 200, camera.text
+        give_drive_camera(actors, tiny_site_dir)
         answers = [post(actors, f) for f in frames[:60]]
         assert [a["status"] for a in answers] == ["processed"] * len(answers)
         measured = [a for a in answers if a["odometry"]]

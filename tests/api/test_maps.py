@@ -54,6 +54,15 @@ class TestBuildAndRead:
         viewer = users.client.post(f"/api/sites/{site_id}/maps", json={}, headers=users.auth("viewer"))
         assert viewer.status_code == 403
 
+    def test_an_empty_mapping_drive_is_named_before_any_job(self, users: ApiUsers, site_id: int) -> None:
+        drive = users.get(f"/api/drives/{users.get(f'/api/sites/{site_id}/drives')['items'][0]['id']}")
+        body = {"name": "empty-run", "kind": "mapping", "fps": 10.0, "camera": drive["camera"]}
+        created = users.client.post(f"/api/sites/{site_id}/drives", json=body, headers=users.auth("surveyor"))
+        assert created.status_code == 201, created.text
+        response = users.client.post(f"/api/sites/{site_id}/maps", json={}, headers=users.auth("surveyor"))
+        assert response.status_code == 409 and "'empty-run'" in response.json()["detail"]
+        assert users.get("/api/jobs")["total"] == 0
+
 
 class TestCompareAndDelete:
     def test_moving_a_grounding_moves_the_next_version(self, users: ApiUsers, site_id: int) -> None:

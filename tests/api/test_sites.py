@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from driftmap.store.job_models import Job
 from tests.api.data_helpers import ApiUsers, create_site_with_survey, upload_zip
 from tests.formats.test_survey_dxf import draw_plan, dxf_bytes
 from tests.formats.test_survey_limits import HUGE_CIRCLE, REFUSAL_S, plan_with_binary_data
@@ -52,6 +53,44 @@ class TestSiteCrud:
         assert users.client.delete(f"/api/sites/{site_id}", headers=users.auth("admin")).status_code == 204
         assert users.storage.blobs.all_names() == set()
         assert users.get("/api/jobs")["total"] == 0
+
+    def test_deleting_a_site_removes_the_blobs_of_its_failed_builds(self, users: ApiUsers) -> None:
+        site_id = users.client.post("/api/sites", json={"name": "s"}, headers=users.auth("admin")).json()[
+            "id"
+        ]
+        other_id = users.client.post("/api/sites", json={"name": "t"}, headers=users.auth("admin")).json()[
+            "id"
+        ]
+        blobs = users.storage.blobs
+        piece, block, shared = (blobs.put(f"{n}".encode())[0] for n in ("piece", "block", "shared"))
+        with users.storage.db.session() as session:  # what a build that failed after its odometry leaves
+            build = Job(kind="map.build", site_id=site_id, args={"preset": "fast"}, status="failed")
+            session.add(build)
+            session.flush()
+            session.add_all(
+                [
+                    Job(
+                        kind="map.drive",
+                        site_id=site_id,
+                        parent_id=build.id,
+                        args={"drive_id": 1},
+                        result={"piece_sha256": piece},
+                        status="succeeded",
+                    ),
+                    Job(
+                        kind="map.loops",
+                        site_id=site_id,
+                        parent_id=build.id,
+                        args={"search_sha256": shared},
+                        result={"scores_sha256": block},
+                        status="succeeded",
+                    ),
+                    Job(kind="map.loops", site_id=other_id, args={"search_sha256": shared}, status="queued"),
+                ]
+            )
+        assert len(blobs.all_names()) == 3
+        assert users.client.delete(f"/api/sites/{site_id}", headers=users.auth("admin")).status_code == 204
+        assert blobs.all_names() == {shared}  # still named by the other site's job
 
 
 class TestSurvey:

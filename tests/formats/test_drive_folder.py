@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from driftmap.errors import BadInputError, ConflictError
+from driftmap.formats.bounds import MAX_ABS_T_S
 from driftmap.formats.drive_folder import (
     frames_text,
     iter_frame_images,
@@ -365,12 +366,13 @@ class TestFrameImages:
 
 
 FINITE = st.floats(allow_nan=False, allow_infinity=False)
+TIMES = st.floats(-MAX_ABS_T_S, MAX_ABS_T_S)  # frames.csv refuses larger times
 
 
 @st.composite
 def frame_rows(draw: st.DrawFn) -> list[FrameRow]:
     numbers = draw(st.lists(st.integers(0, 10**7), min_size=1, max_size=20, unique=True))
-    times = sorted(draw(st.lists(FINITE, min_size=len(numbers), max_size=len(numbers), unique=True)))
+    times = sorted(draw(st.lists(TIMES, min_size=len(numbers), max_size=len(numbers), unique=True)))
     rows = []
     for frame, t in zip(numbers, times, strict=True):
         truth = draw(st.none() | st.tuples(FINITE, FINITE, FINITE))
@@ -384,6 +386,12 @@ class TestFramesCsvProperties:
         text = frames_text(rows)
         assert parse_frames_csv(text, "frames.csv") == rows
         assert frames_text(parse_frames_csv(text, "frames.csv")) == text
+
+    @pytest.mark.parametrize(("row", "field"), [("0,1e11", "t"), ("0,-1e300", "t"), (f"{2**63},1", "frame")])
+    def test_values_the_store_cannot_hold_are_named(self, row: str, field: str) -> None:
+        with pytest.raises(BadInputError) as info:
+            parse_frames_csv(f"frame,t\n{row}\n", "frames.csv")
+        assert (info.value.file, info.value.line, info.value.field) == ("frames.csv", 2, field)
 
     @settings(max_examples=200)
     @given(st.lists(st.text(alphabet=',.-+e0123456789naif "\r', max_size=30), max_size=6))

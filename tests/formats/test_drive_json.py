@@ -47,6 +47,8 @@ class TestCameraBlock:
         [
             ("width", 0),
             ("width", 32.0),
+            ("width", 100_000),
+            ("height", 2**70),
             ("height", True),
             ("k_y", -0.1),
             ("y_h", float("inf")),

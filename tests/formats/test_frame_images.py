@@ -2,19 +2,28 @@
 
 from __future__ import annotations
 
+import struct
+import time
+
 import cv2
 import numpy as np
 import pytest
 
-from driftmap.errors import BadInputError
+from driftmap.errors import BadInputError, PayloadTooLargeError
 from driftmap.formats.frame_images import (
     check_complete,
     check_frame_image,
+    check_frame_pixels,
     decode_gray,
     encode_png,
+    frame_size,
     image_kind,
 )
 from tests.formats.builders import HEIGHT_PX, WIDTH_PX, make_jpeg, make_png
+from tests.image_bombs import zero_png
+
+BOMB_SIDE_PX = 30_000  # 900 MB of pixels in a 0.9 MB file
+REFUSED_WITHIN_S = 1.0
 
 
 def error_of(data: bytes, width: int = WIDTH_PX, height: int = HEIGHT_PX) -> BadInputError:
@@ -72,6 +81,52 @@ class TestDepthAndSize:
         assert image.dtype == np.uint8
         assert image.shape[:2] == (HEIGHT_PX, WIDTH_PX)
         assert (image.ndim == 2) == (channels == 1)
+
+
+def _jpeg_declaring(width: int, height: int) -> bytes:
+    """A small real JPEG whose frame header (SOF) is patched to declare ``width`` x ``height``."""
+    data = bytearray(make_jpeg(2))
+    sof = data.index(b"\xff\xc0")
+    data[sof + 5 : sof + 9] = struct.pack(">HH", height, width)
+    return bytes(data)
+
+
+class TestSizeFromTheHeader:
+    @pytest.mark.parametrize("make", [make_png, make_jpeg])
+    def test_size_of_real_images(self, make: object) -> None:
+        assert frame_size(make(0, width=45, height=17), "f") == (45, 17)  # type: ignore[operator]
+
+    def test_jpeg_size_is_read_past_other_segments(self) -> None:
+        ok, buf = cv2.imencode(".jpg", np.zeros((9, 13, 3), np.uint8), [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])
+        assert ok
+        assert frame_size(buf.tobytes(), "f") == (13, 9)
+
+    def test_a_header_without_a_size_is_refused(self) -> None:
+        with pytest.raises(BadInputError, match="SOF"):
+            frame_size(b"\xff\xd8\xff\xd9", "f.jpg")
+        with pytest.raises(BadInputError, match="IHDR"):
+            frame_size(make_png(0)[:20], "f.png")
+
+    @pytest.mark.parametrize(
+        "make", [lambda: zero_png(BOMB_SIDE_PX, BOMB_SIDE_PX), lambda: _jpeg_declaring(60_000, 60_000)]
+    )
+    def test_a_bomb_is_refused_by_its_header_at_once(self, make: object) -> None:
+        data = make()  # type: ignore[operator]
+        start = time.perf_counter()
+        with pytest.raises(PayloadTooLargeError, match="pixel limit") as info:
+            check_frame_pixels(data, "frame", 4096 * 4096, field="body")
+        assert time.perf_counter() - start < REFUSED_WITHIN_S
+        assert info.value.field == "body"
+
+    def test_a_frame_within_the_limit_passes(self) -> None:
+        assert check_frame_pixels(make_png(0), "f", WIDTH_PX * HEIGHT_PX) == (WIDTH_PX, HEIGHT_PX)
+
+    def test_a_bomb_of_the_wrong_size_is_refused_before_decoding(self) -> None:
+        data = zero_png(BOMB_SIDE_PX, BOMB_SIDE_PX)
+        start = time.perf_counter()
+        err = error_of(data)
+        assert time.perf_counter() - start < REFUSED_WITHIN_S
+        assert f"{BOMB_SIDE_PX}x{BOMB_SIDE_PX}" in err.reason
 
 
 class TestDecodeGray:

@@ -11,11 +11,13 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI
+from fastapi.exceptions import RequestValidationError
 from fastapi.staticfiles import StaticFiles
 
 from driftmap import __version__
+from driftmap.api.body_guard import BodyGuard
 from driftmap.api.deps import PrincipalCache
-from driftmap.api.error_handlers import driftmap_error_handler
+from driftmap.api.error_handlers import driftmap_error_handler, validation_error_handler
 from driftmap.api.routes import ROUTERS
 from driftmap.api.schemas_live import add_to_openapi, position_message
 from driftmap.config import Settings, get_settings
@@ -63,7 +65,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.live = live
     app.state.principals = PrincipalCache()
     app.state.login_guard = LoginGuard.from_settings(settings)
+    app.add_middleware(BodyGuard, settings=settings)
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
+    app.add_exception_handler(RequestValidationError, validation_error_handler)
     for router in ROUTERS:
         app.include_router(router, prefix="/api")
     add_to_openapi(app)  # the /api/live messages (FastAPI documents no WebSocket)

@@ -13,6 +13,7 @@ from fastapi.responses import Response
 from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, SettingsDep, StorageDep, SurveyorDep
+from driftmap.api.input_types import Count, Id, Name, Seconds
 from driftmap.api.jobs import QueueDep
 from driftmap.api.schemas_data import (
     DriveCreate,
@@ -40,7 +41,7 @@ THUMBNAIL_WIDTH_PX = 160
 CALIBRATION_MAX_BYTES = 1024 * 1024
 
 
-def drive_by_id(session: SessionDep, drive_id: int) -> Drive:
+def drive_by_id(session: SessionDep, drive_id: Id) -> Drive:
     """The drive of the path's ``drive_id`` (404 when missing)."""
     drive = session.get(Drive, drive_id)
     if drive is None:
@@ -62,9 +63,9 @@ def _read(session: SessionDep, drive: Drive) -> DriveRead:
 
 @router.get("/sites/{site_id}/drives", dependencies=[Depends(VIEWER)])
 def list_drives(
-    site_id: int,
+    site_id: Id,
     session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=500)] = 100,
 ) -> Page[DriveRead]:
     """The site's drives, oldest first, with duration, grounding count and whether they have ground truth."""
@@ -85,7 +86,7 @@ def list_drives(
 
 
 @router.post("/sites/{site_id}/drives", status_code=status.HTTP_201_CREATED)
-def create_drive(site_id: int, body: DriveCreate, session: SessionDep, _user: SurveyorDep) -> DriveRead:
+def create_drive(site_id: Id, body: DriveCreate, session: SessionDep, _user: SurveyorDep) -> DriveRead:
     """An empty drive; post its frames one by one to ``/api/drives/{id}/frames``."""
     drive = uploads.create_empty_drive(
         session,
@@ -98,7 +99,7 @@ def create_drive(site_id: int, body: DriveCreate, session: SessionDep, _user: Su
     return _read(session, drive)
 
 
-def _ensure_new_name(session: SessionDep, site_id: int, name: str) -> None:
+def _ensure_new_name(session: SessionDep, site_id: Id, name: str) -> None:
     if session.scalar(select(Drive.id).where(Drive.site_id == site_id, Drive.name == name)) is not None:
         raise ConflictError(f"the site already has a drive named {name!r}")
 
@@ -109,7 +110,7 @@ def _ensure_new_name(session: SessionDep, site_id: int, name: str) -> None:
     dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
 )
 def upload_drive_zip(
-    site_id: int,
+    site_id: Id,
     file: UploadFile,
     session: SessionDep,
     storage: StorageDep,
@@ -144,7 +145,7 @@ def upload_drive_zip(
     dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
 )
 def upload_drive_video(
-    site_id: int,
+    site_id: Id,
     video: UploadFile,
     calibration: UploadFile,
     session: SessionDep,
@@ -152,7 +153,7 @@ def upload_drive_video(
     settings: SettingsDep,
     queue: QueueDep,
     user: SurveyorDep,
-    name: Annotated[str | None, Form(description="Drive name (default: the video's file stem).")] = None,
+    name: Annotated[Name | None, Form(description="Drive name (default: the video's file stem).")] = None,
     kind: Annotated[DriveKind, Form()] = "mapping",
 ) -> JobRead:
     """Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``)."""
@@ -188,13 +189,13 @@ def upload_drive_video(
 
 
 @router.get("/drives/{drive_id}", dependencies=[Depends(VIEWER)])
-def get_drive(drive_id: int, session: SessionDep) -> DriveRead:
+def get_drive(drive_id: Id, session: SessionDep) -> DriveRead:
     """One drive with its camera block."""
     return _read(session, drive_by_id(session, drive_id))
 
 
 @router.patch("/drives/{drive_id}")
-def update_drive(drive_id: int, body: DriveUpdate, session: SessionDep, _user: SurveyorDep) -> DriveRead:
+def update_drive(drive_id: Id, body: DriveUpdate, session: SessionDep, _user: SurveyorDep) -> DriveRead:
     """Rename a drive."""
     drive = drive_by_id(session, drive_id)
     if body.name is not None and body.name.strip() != drive.name:
@@ -205,7 +206,7 @@ def update_drive(drive_id: int, body: DriveUpdate, session: SessionDep, _user: S
 
 
 @router.delete("/drives/{drive_id}", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(ADMIN)])
-def delete_drive(drive_id: int, session: SessionDep, storage: StorageDep) -> None:
+def delete_drive(drive_id: Id, session: SessionDep, storage: StorageDep) -> None:
     """Delete a drive with its frames, groundings and the frame images no other drive uses."""
     candidates = deletion.delete_drive(session, drive_by_id(session, drive_id))
     session.commit()
@@ -214,9 +215,9 @@ def delete_drive(drive_id: int, session: SessionDep, storage: StorageDep) -> Non
 
 @router.get("/drives/{drive_id}/frames", dependencies=[Depends(VIEWER)])
 def list_frames(
-    drive_id: int,
+    drive_id: Id,
     session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=100_000)] = 10_000,
 ) -> FrameArrays:
     """A page of the drive's frames as parallel arrays (frame number, time, ground truth when known)."""
@@ -272,14 +273,12 @@ async def _image_body(request: Request) -> bytes:
     },
 )
 def add_frame(
-    drive_id: int,
+    drive_id: Id,
     data: Annotated[bytes, Depends(_image_body)],
     session: SessionDep,
     storage: StorageDep,
-    t: Annotated[float, Query(description="Seconds since the drive's start; must increase.")],
-    index: Annotated[
-        int | None, Query(ge=0, description="Frame number (default: one past the last).")
-    ] = None,
+    t: Annotated[Seconds, Query(description="Seconds since the drive's start; must increase.")],
+    index: Annotated[Count | None, Query(description="Frame number (default: one past the last).")] = None,
 ) -> FrameRead:
     """Append one frame (PNG or JPEG body of the camera's size) to a drive built frame by frame."""
     drive = drive_by_id(session, drive_id)
@@ -289,7 +288,7 @@ def add_frame(
     return FrameRead.model_validate(frame)
 
 
-def _frame(session: SessionDep, drive_id: int, index: int) -> Frame:
+def _frame(session: SessionDep, drive_id: Id, index: int) -> Frame:
     frame = session.scalar(select(Frame).where(Frame.drive_id == drive_id, Frame.index == index))
     if frame is None:
         drive_by_id(session, drive_id)
@@ -311,7 +310,7 @@ _IMAGE_RESPONSES: dict[int | str, dict[str, object]] = {200: {"content": {"image
     response_class=Response,
     responses=_IMAGE_RESPONSES,
 )
-def frame_image(drive_id: int, index: int, session: SessionDep, storage: StorageDep) -> Response:
+def frame_image(drive_id: Id, index: Count, session: SessionDep, storage: StorageDep) -> Response:
     """The frame's original image file (PNG or JPEG, as recorded)."""
     frame = _frame(session, drive_id, index)
     media = "image/png" if frame.image_ext == ".png" else "image/jpeg"
@@ -325,8 +324,8 @@ def frame_image(drive_id: int, index: int, session: SessionDep, storage: Storage
     responses={200: {"content": {"image/png": {}}}},
 )
 def frame_thumbnail(
-    drive_id: int,
-    index: int,
+    drive_id: Id,
+    index: Count,
     session: SessionDep,
     storage: StorageDep,
     width: Annotated[int, Query(ge=16, le=1024, description="Thumbnail width, pixels.")] = THUMBNAIL_WIDTH_PX,
@@ -350,7 +349,7 @@ def frame_thumbnail(
 
 @router.post("/drives/{drive_id}/localise", status_code=status.HTTP_202_ACCEPTED)
 def localise_drive(
-    drive_id: int, body: LocaliseCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
+    drive_id: Id, body: LocaliseCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
 ) -> JobRead:
     """Localise every frame of a stored drive against a map version (a ``drive.localise`` job)."""
     drive = drive_by_id(session, drive_id)

@@ -4,12 +4,14 @@ the latest map, and import/export a drive's ``groundings.csv``."""
 from __future__ import annotations
 
 from typing import Annotated
+from urllib.parse import quote
 
 from fastapi import APIRouter, Depends, Query, UploadFile, status
 from fastapi.responses import Response
 
 from driftmap.api.deps import VIEWER, SessionDep, SurveyorDep
 from driftmap.api.drives import drive_by_id
+from driftmap.api.input_types import Count, Id
 from driftmap.api.schemas_data import (
     GroundingCreate,
     GroundingImportRead,
@@ -25,17 +27,28 @@ router = APIRouter(tags=["groundings"])
 CSV_MAX_BYTES = 16 * 1024 * 1024
 
 
-def _view(session: SessionDep, site_id: int, grounding_id: int) -> GroundingRead:
+def attachment(filename: str) -> str:
+    """A ``Content-Disposition`` header value for downloading ``filename`` (RFC 6266).
+
+    ``filename*`` carries the name as percent-encoded UTF-8 (RFC 5987); the plain ``filename`` is an ASCII
+    fallback for old clients, with control characters, quotes, backslashes and non-ASCII letters as ``_``.
+    """
+    ascii_name = "".join(c if " " <= c <= "~" and c not in '"\\' else "_" for c in filename)
+    utf8 = quote(filename.encode("utf-8", "backslashreplace"), safe="")
+    return f"attachment; filename=\"{ascii_name}\"; filename*=UTF-8''{utf8}"
+
+
+def _view(session: SessionDep, site_id: Id, grounding_id: Id) -> GroundingRead:
     views, _total = grounding_service.list_groundings(session, site_id, limit=1_000_000)
     return GroundingRead.model_validate(next(v for v in views if v.id == grounding_id))
 
 
 @router.get("/sites/{site_id}/groundings", dependencies=[Depends(VIEWER)])
 def list_groundings(
-    site_id: int,
+    site_id: Id,
     session: SessionDep,
-    drive_id: int | None = None,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    drive_id: Id | None = None,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
 ) -> Page[GroundingRead]:
     """The site's groundings (or one drive's), with each one's residual in the latest map version."""
@@ -48,7 +61,7 @@ def list_groundings(
 
 @router.post("/drives/{drive_id}/groundings", status_code=status.HTTP_201_CREATED)
 def create_grounding(
-    drive_id: int, body: GroundingCreate, session: SessionDep, user: SurveyorDep
+    drive_id: Id, body: GroundingCreate, session: SessionDep, user: SurveyorDep
 ) -> GroundingRead:
     """Ground a frame of a mapping drive at a surveyed point (x east, y north, metres)."""
     drive = drive_by_id(session, drive_id)
@@ -58,7 +71,7 @@ def create_grounding(
 
 @router.patch("/groundings/{grounding_id}")
 def update_grounding(
-    grounding_id: int, body: GroundingUpdate, session: SessionDep, _user: SurveyorDep
+    grounding_id: Id, body: GroundingUpdate, session: SessionDep, _user: SurveyorDep
 ) -> GroundingRead:
     """Move a grounding's surveyed point."""
     grounding = grounding_service.get_grounding(session, grounding_id)
@@ -67,7 +80,7 @@ def update_grounding(
 
 
 @router.delete("/groundings/{grounding_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_grounding(grounding_id: int, session: SessionDep, _user: SurveyorDep) -> None:
+def delete_grounding(grounding_id: Id, session: SessionDep, _user: SurveyorDep) -> None:
     """Remove a grounding."""
     grounding_service.delete_grounding(session, grounding_service.get_grounding(session, grounding_id))
 
@@ -78,19 +91,19 @@ def delete_grounding(grounding_id: int, session: SessionDep, _user: SurveyorDep)
     response_class=Response,
     responses={200: {"content": {"text/csv": {}}}},
 )
-def export_groundings(drive_id: int, session: SessionDep) -> Response:
+def export_groundings(drive_id: Id, session: SessionDep) -> Response:
     """The drive's groundings as ``groundings.csv`` (``frame,x,y``)."""
     drive = drive_by_id(session, drive_id)
     return Response(
         grounding_service.export_csv(session, drive),
         media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="{drive.name}-groundings.csv"'},
+        headers={"Content-Disposition": attachment(f"{drive.name}-groundings.csv")},
     )
 
 
 @router.put("/drives/{drive_id}/groundings.csv")
 def import_groundings(
-    drive_id: int, file: UploadFile, session: SessionDep, user: SurveyorDep
+    drive_id: Id, file: UploadFile, session: SessionDep, user: SurveyorDep
 ) -> GroundingImportRead:
     """Replace the drive's groundings with a ``groundings.csv`` (multipart ``file``); errors name the line."""
     drive = drive_by_id(session, drive_id)

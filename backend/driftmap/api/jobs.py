@@ -12,6 +12,7 @@ from fastapi.responses import Response, StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
 from driftmap.api.deps import SURVEYOR, VIEWER, SessionDep, StorageDep
+from driftmap.api.input_types import Count, Id
 from driftmap.api.schemas_data import JobRead, Page
 from driftmap.errors import NotFoundError
 from driftmap.jobs.queue import JobQueue
@@ -41,13 +42,13 @@ QueueDep = Annotated[JobQueue, Depends(_queue)]
 @router.get("/jobs", dependencies=[Depends(VIEWER)])
 def list_jobs(
     session: SessionDep,
-    site_id: int | None = None,
+    site_id: Id | None = None,
     status: JobStatus | None = None,
     kind: JobKind | None = None,
     parent_id: Annotated[
-        int | None, Query(description="List this job's subtasks instead of the top-level jobs.")
+        Id | None, Query(description="List this job's subtasks instead of the top-level jobs.")
     ] = None,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
 ) -> Page[JobRead]:
     """Top-level jobs (or the subtasks of ``parent_id``), newest first, optionally of one site, status or kind."""
@@ -60,23 +61,23 @@ def list_jobs(
 
 
 @router.get("/jobs/{job_id}", dependencies=[Depends(VIEWER)])
-def get_job(job_id: int, session: SessionDep) -> JobRead:
+def get_job(job_id: Id, session: SessionDep) -> JobRead:
     """One job: status, progress (0-1) within its stage, error or result."""
     return JobRead.model_validate(job_service.get_job(session, job_id))
 
 
 @router.post("/jobs/{job_id}/cancel", dependencies=[Depends(SURVEYOR)])
-def cancel_job(job_id: int, session: SessionDep) -> JobRead:
+def cancel_job(job_id: Id, session: SessionDep) -> JobRead:
     """Cancel a job: a queued one never starts, a running one stops at its next progress report."""
     return JobRead.model_validate(job_service.cancel(session, job_id))
 
 
-def _snapshot(storage: Storage, job_id: int) -> dict[str, object]:
+def _snapshot(storage: Storage, job_id: Id) -> dict[str, object]:
     with storage.db.session() as session:
         return JobRead.model_validate(job_service.get_job(session, job_id)).model_dump(mode="json")
 
 
-async def _events(request: Request, storage: Storage, job_id: int) -> AsyncIterator[str]:
+async def _events(request: Request, storage: Storage, job_id: Id) -> AsyncIterator[str]:
     last: dict[str, object] | None = None
     quiet_s = 0.0
     while True:
@@ -99,7 +100,7 @@ async def _events(request: Request, storage: Storage, job_id: int) -> AsyncItera
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}}},
 )
-def job_events(job_id: int, request: Request, storage: StorageDep, session: SessionDep) -> StreamingResponse:
+def job_events(job_id: Id, request: Request, storage: StorageDep, session: SessionDep) -> StreamingResponse:
     """Server-Sent Events: an ``event: job`` with the job as JSON at every change, until it finishes."""
     job_service.get_job(session, job_id)  # 404 before the stream starts
     return StreamingResponse(
@@ -115,7 +116,7 @@ def job_events(job_id: int, request: Request, storage: StorageDep, session: Sess
     response_class=Response,
     responses={200: {"content": {"text/csv": {}}}},
 )
-def localisation_csv(job_id: int, session: SessionDep, storage: StorageDep) -> Response:
+def localisation_csv(job_id: Id, session: SessionDep, storage: StorageDep) -> Response:
     """The ``frame,node,x,y,score,matched`` CSV of a finished drive.localise job."""
     job = job_service.get_job(session, job_id)
     sha = (job.result or {}).get("csv_sha256")

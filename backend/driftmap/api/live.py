@@ -32,13 +32,14 @@ import contextlib
 import struct
 import time
 from datetime import datetime
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Request, Response, WebSocket, WebSocketDisconnect
 from starlette.requests import ClientDisconnect
 
 from driftmap.api.deps import VIEWER, WS_CLOSE_FORBIDDEN, WS_CLOSE_UNAUTHORIZED, Principal, VehicleDep
 from driftmap.api.error_handlers import error_body, status_of
+from driftmap.api.input_types import Id, Seconds
 from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
 from driftmap.api.schemas_live import LiveSnapshot, LiveStale, position_message
 from driftmap.api.ws_auth import TOKEN_RECHECK_S, WebSocketAuthError, still_valid, websocket_principal
@@ -82,7 +83,9 @@ async def _read_body(request: Request, limit: int) -> bytes:
 async def post_frame(
     vehicle: VehicleDep,
     request: Request,
-    t: float = Query(description="The frame's time on the vehicle's clock, seconds; must increase."),
+    t: Annotated[
+        Seconds, Query(description="The frame's time on the vehicle's clock, seconds; must increase.")
+    ],
 ) -> FrameEstimate:
     """Localise one camera frame of this vehicle (its own token only) on its site's latest map."""
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
@@ -106,7 +109,7 @@ async def post_frame(
         200: {"content": dict.fromkeys(IMAGE_TYPES, _IMAGE_BODY), "description": "The frame's bytes."}
     },
 )
-async def latest_frame(vehicle_id: int, request: Request) -> Response:
+async def latest_frame(vehicle_id: Id, request: Request) -> Response:
     """The vehicle's last localised frame (404 before its first; without Redis, 404 too when another server
     process localised it)."""
     await asyncio.to_thread(_check_vehicle, request, vehicle_id)

@@ -8,6 +8,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query, status
 
 from driftmap.api.deps import ADMIN, VIEWER, SessionDep, StorageDep, SurveyorDep
+from driftmap.api.input_types import Count, Id
 from driftmap.api.jobs import QueueDep
 from driftmap.api.schemas_data import JobRead, Page
 from driftmap.api.schemas_maps import (
@@ -29,13 +30,13 @@ from driftmap.store.models import MapVersion
 router = APIRouter(tags=["maps"])
 
 
-def _version(session: SessionDep, site_id: int, version: int) -> MapVersion:
+def _version(session: SessionDep, site_id: Id, version: Id) -> MapVersion:
     return map_service.get_map_version(session, site_by_id(session, site_id), version)
 
 
 @router.post("/sites/{site_id}/maps", status_code=status.HTTP_202_ACCEPTED)
 def build_map(
-    site_id: int, body: MapBuildCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
+    site_id: Id, body: MapBuildCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
 ) -> JobRead:
     """Start building the next map version from the site's mapping drives and groundings (a job)."""
     site = site_by_id(session, site_id)
@@ -48,9 +49,9 @@ def build_map(
 
 @router.get("/sites/{site_id}/maps", dependencies=[Depends(VIEWER)])
 def list_versions(
-    site_id: int,
+    site_id: Id,
     session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
 ) -> Page[MapVersionRead]:
     """The site's map versions, newest first."""
@@ -62,7 +63,7 @@ def list_versions(
 
 @router.get("/sites/{site_id}/maps/compare", dependencies=[Depends(VIEWER)])
 def compare_versions(
-    site_id: int,
+    site_id: Id,
     session: SessionDep,
     a: Annotated[int, Query(description="The earlier map version.")],
     b: Annotated[int, Query(description="The later map version.")],
@@ -74,7 +75,7 @@ def compare_versions(
 
 
 @router.get("/sites/{site_id}/maps/{version}", dependencies=[Depends(VIEWER)])
-def get_version(site_id: int, version: int, session: SessionDep) -> MapVersionDetail:
+def get_version(site_id: Id, version: Id, session: SessionDep) -> MapVersionDetail:
     """One map version: build parameters and figures, row counts, residual mean and maximum."""
     record = _version(session, site_id, version)
     return MapVersionDetail(
@@ -86,10 +87,10 @@ def get_version(site_id: int, version: int, session: SessionDep) -> MapVersionDe
 
 @router.get("/sites/{site_id}/maps/{version}/poses", dependencies=[Depends(VIEWER)])
 def get_poses(
-    site_id: int,
-    version: int,
+    site_id: Id,
+    version: Id,
     session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=1_000_000)] = 100_000,
 ) -> PoseArrays:
     """A page of optimised poses as parallel arrays (drive then frame order)."""
@@ -97,20 +98,20 @@ def get_poses(
 
 
 @router.get("/sites/{site_id}/maps/{version}/closures", dependencies=[Depends(VIEWER)])
-def get_closures(site_id: int, version: int, session: SessionDep) -> list[ClosureRead]:
+def get_closures(site_id: Id, version: Id, session: SessionDep) -> list[ClosureRead]:
     """The loop closures found in the build, with their SAD score and whether the optimiser kept them."""
     rows = map_views.closure_rows(session, _version(session, site_id, version))
     return [ClosureRead(**r) for r in rows]
 
 
 @router.get("/sites/{site_id}/maps/{version}/nodes", dependencies=[Depends(VIEWER)])
-def get_nodes(site_id: int, version: int, session: SessionDep, storage: StorageDep) -> NodeArrays:
+def get_nodes(site_id: Id, version: Id, session: SessionDep, storage: StorageDep) -> NodeArrays:
     """The topological map: node centres and edges."""
     return NodeArrays(**map_views.node_arrays(session, storage.blobs, _version(session, site_id, version)))
 
 
 @router.get("/sites/{site_id}/maps/{version}/residuals", dependencies=[Depends(VIEWER)])
-def get_residuals(site_id: int, version: int, session: SessionDep) -> list[ResidualRead]:
+def get_residuals(site_id: Id, version: Id, session: SessionDep) -> list[ResidualRead]:
     """Grounding residuals (optimised minus surveyed), largest first."""
     rows = map_service.residual_rows(session, _version(session, site_id, version))
     return [ResidualRead(**vars(r)) for r in rows]
@@ -119,7 +120,7 @@ def get_residuals(site_id: int, version: int, session: SessionDep) -> list[Resid
 @router.delete(
     "/sites/{site_id}/maps/{version}", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(ADMIN)]
 )
-def delete_version(site_id: int, version: int, session: SessionDep, storage: StorageDep) -> None:
+def delete_version(site_id: Id, version: Id, session: SessionDep, storage: StorageDep) -> None:
     """Delete a map version with its poses, closures, residuals and nodes."""
     candidates = deletion.delete_map_version(session, _version(session, site_id, version))
     session.commit()

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from fastapi import APIRouter, Depends, Query
 
 from driftmap.api.deps import VIEWER, SessionDep, SettingsDep
+from driftmap.api.input_types import Count, Id, Seconds
 from driftmap.api.schemas_access import LiveStateRead, PositionRead, VehicleLatestRead
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.services import positions as position_service
@@ -17,11 +20,13 @@ router = APIRouter(tags=["positions"], dependencies=[Depends(VIEWER)])
 
 @router.get("/vehicles/{vehicle_id}/positions")
 def vehicle_positions(
-    vehicle_id: int,
+    vehicle_id: Id,
     session: SessionDep,
-    start: float | None = Query(None, description="Earliest frame time t, seconds (vehicle clock)."),
-    end: float | None = Query(None, description="Latest frame time t, seconds."),
-    limit: int = Query(10000, ge=1, le=100000),
+    start: Annotated[
+        Seconds | None, Query(description="Earliest frame time t, seconds (vehicle clock).")
+    ] = None,
+    end: Annotated[Seconds | None, Query(description="Latest frame time t, seconds.")] = None,
+    limit: Annotated[int, Query(ge=1, le=100000)] = 10000,
 ) -> list[PositionRead]:
     """A vehicle's position history between ``start`` and ``end``, in time order."""
     vehicle_service.get_vehicle(session, vehicle_id)
@@ -32,7 +37,7 @@ def vehicle_positions(
 
 
 @router.get("/vehicles/{vehicle_id}/live-state")
-def vehicle_live_state(vehicle_id: int, session: SessionDep) -> LiveStateRead:
+def vehicle_live_state(vehicle_id: Id, session: SessionDep) -> LiveStateRead:
     """A vehicle's frame counts: processed, skipped under overload, refused as out of order."""
     vehicle_service.get_vehicle(session, vehicle_id)
     state = session.get(VehicleLiveState, vehicle_id)
@@ -44,7 +49,7 @@ def vehicle_live_state(vehicle_id: int, session: SessionDep) -> LiveStateRead:
 
 @router.get("/positions/latest")
 def latest_positions(
-    session: SessionDep, settings: SettingsDep, site_id: int | None = None
+    session: SessionDep, settings: SettingsDep, site_id: Id | None = None
 ) -> list[VehicleLatestRead]:
     """Every vehicle's last known position with its ``stale`` flag."""
     rows = position_service.latest(session, settings.stale_after_s, site_id)
@@ -53,7 +58,8 @@ def latest_positions(
 
 @router.get("/positions")
 def positions_since(
-    session: SessionDep, since: int = Query(0, ge=0, description="Positions with a higher seq than this.")
+    session: SessionDep,
+    since: Annotated[Count, Query(description="Positions with a higher seq than this.")] = 0,
 ) -> list[PositionRead]:
     """Every vehicle's positions after sequence number ``since`` (polling clients resume with it)."""
     return [PositionRead.model_validate(r) for r in position_service.since(session, since)]

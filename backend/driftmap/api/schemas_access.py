@@ -7,6 +7,7 @@ from datetime import datetime
 from pydantic import BaseModel, ConfigDict, Field
 
 from driftmap.api.deps import Role
+from driftmap.api.input_types import Finite, Id, Name
 
 
 class LoginRequest(BaseModel):
@@ -64,8 +65,8 @@ class PasswordChange(BaseModel):
 
 
 class VehicleCreate(BaseModel):
-    name: str = Field(min_length=1, max_length=200)
-    site_id: int
+    name: Name
+    site_id: Id
 
 
 class VehicleRead(BaseModel):
@@ -106,11 +107,11 @@ class VehicleCamera(BaseModel):
 class StartRequest(BaseModel):
     """A vehicle's known position (survey frame), to seed its live localiser."""
 
-    x: float
+    x: Finite
     """Survey-frame metres (east)."""
-    y: float
+    y: Finite
     """Survey-frame metres (north)."""
-    radius_m: float = 10.0
+    radius_m: Finite = 10.0
     """How sure the start is, metres (0-200): the belief covers the map's nodes within this of the nearest."""
 
 

@@ -7,12 +7,17 @@ Families per resource: ``XCreate`` (request), ``XUpdate`` (partial request), ``X
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Generic, Literal, TypeVar
+from typing import Annotated, Any, Generic, Literal, TypeVar
 
+from annotated_types import Ge, Le, Len
 from pydantic import BaseModel, ConfigDict, Field
+
+from driftmap.api.input_types import CameraSide, Count, Description, Finite, Id, Name
+from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 
 T = TypeVar("T")
 DriveKind = Literal["mapping", "localisation"]
+MAX_FPS = 10_000.0  # frames per second above any camera's
 
 
 class Page(BaseModel, Generic[T]):
@@ -25,13 +30,13 @@ class Page(BaseModel, Generic[T]):
 
 
 class SiteCreate(BaseModel):
-    name: str = Field(min_length=1, max_length=200)
-    description: str = ""
+    name: Name
+    description: Description = ""
 
 
 class SiteUpdate(BaseModel):
-    name: str | None = Field(default=None, min_length=1, max_length=200)
-    description: str | None = None
+    name: Name | None = None
+    description: Description | None = None
 
 
 class SiteRead(BaseModel):
@@ -46,11 +51,12 @@ class SiteRead(BaseModel):
 class SiteSimulate(BaseModel):
     """A synthetic site to render and import as a new site (a ``site.simulate`` job)."""
 
-    name: str = Field(min_length=1, max_length=200)
-    seed: int = Field(default=0, ge=0)
+    name: Name
+    seed: Annotated[Count, Le(2**32 - 1)] = 0
+    """Seed of the random layout and rendering (numpy seeds are 32-bit)."""
     size: Literal["tiny", "small", "medium", "large"] = "tiny"
     obscurants: bool = False
-    max_frames_per_drive: int | None = Field(default=None, ge=2)
+    max_frames_per_drive: Annotated[Count, Ge(2)] | None = None
 
 
 class SurveyMapRead(BaseModel):
@@ -83,27 +89,29 @@ class CameraBlock(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    width: int
-    height: int
-    ground_roi: list[int]
-    k_x: float
-    k_y: float
-    y_c: float
-    y_h: float
-    forward_sign: int = 1
+    width: CameraSide
+    height: CameraSide
+    ground_roi: Annotated[list[Annotated[int, Ge(0), Le(MAX_CAMERA_SIDE_PX)]], Len(4, 4)]
+    k_x: Finite
+    k_y: Finite
+    y_c: Finite
+    y_h: Finite
+    forward_sign: Annotated[int, Ge(-1), Le(1)] = 1
+    """1 or -1 (checked with the rest of the block)."""
 
 
 class DriveCreate(BaseModel):
     """An empty drive whose frames are then posted one by one."""
 
-    name: str = Field(min_length=1, max_length=200)
+    name: Name
     kind: DriveKind = "mapping"
-    fps: float = Field(gt=0)
+    fps: Annotated[Finite, Field(gt=0, le=MAX_FPS)]
+    """Frames per second of the camera."""
     camera: CameraBlock
 
 
 class DriveUpdate(BaseModel):
-    name: str | None = Field(default=None, min_length=1, max_length=200)
+    name: Name | None = None
 
 
 class DriveRead(BaseModel):
@@ -150,20 +158,20 @@ class FrameArrays(BaseModel):
 class LocaliseCreate(BaseModel):
     """Localise a stored drive against a map version (a ``drive.localise`` job)."""
 
-    map_version: int | None = Field(default=None, description="Map version (default: latest).")
+    map_version: Id | None = Field(default=None, description="Map version (default: latest).")
     sesame: bool = True
     temporal: bool = True
 
 
 class GroundingCreate(BaseModel):
-    frame: int = Field(ge=0, description="Frame number of the drive.")
-    x: float = Field(description="Surveyed x (east), metres.")
-    y: float = Field(description="Surveyed y (north), metres.")
+    frame: Count = Field(description="Frame number of the drive.")
+    x: Finite = Field(description="Surveyed x (east), metres.")
+    y: Finite = Field(description="Surveyed y (north), metres.")
 
 
 class GroundingUpdate(BaseModel):
-    x: float | None = None
-    y: float | None = None
+    x: Finite | None = None
+    y: Finite | None = None
 
 
 class GroundingRead(BaseModel):

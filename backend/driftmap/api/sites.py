@@ -8,6 +8,7 @@ from fastapi import APIRouter, Depends, Query, UploadFile, status
 from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, VIEWER, AdminDep, SessionDep, SettingsDep, StorageDep
+from driftmap.api.input_types import Count, Id
 from driftmap.api.jobs import QueueDep
 from driftmap.api.schemas_data import (
     JobRead,
@@ -29,7 +30,7 @@ from driftmap.store.models import Site, SurveyMap
 router = APIRouter(tags=["sites"])
 
 
-def site_by_id(session: SessionDep, site_id: int) -> Site:
+def site_by_id(session: SessionDep, site_id: Id) -> Site:
     """The site of the path's ``site_id`` (404 when missing)."""
     return site_service.get_site(session, site_id)
 
@@ -37,7 +38,7 @@ def site_by_id(session: SessionDep, site_id: int) -> Site:
 @router.get("/sites", dependencies=[Depends(VIEWER)])
 def list_sites(
     session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[Count, Query()] = 0,
     limit: Annotated[int, Query(ge=1, le=500)] = 100,
 ) -> Page[SiteRead]:
     """Every site, oldest first."""
@@ -64,13 +65,13 @@ def simulate_site(body: SiteSimulate, session: SessionDep, queue: QueueDep, user
 
 
 @router.get("/sites/{site_id}", dependencies=[Depends(VIEWER)])
-def get_site(site_id: int, session: SessionDep) -> SiteRead:
+def get_site(site_id: Id, session: SessionDep) -> SiteRead:
     """One site."""
     return SiteRead.model_validate(site_by_id(session, site_id))
 
 
 @router.patch("/sites/{site_id}", dependencies=[Depends(ADMIN)])
-def update_site(site_id: int, body: SiteUpdate, session: SessionDep) -> SiteRead:
+def update_site(site_id: Id, body: SiteUpdate, session: SessionDep) -> SiteRead:
     """Rename a site or change its description."""
     site = site_by_id(session, site_id)
     if body.name is not None and body.name.strip() != site.name:
@@ -85,7 +86,7 @@ def update_site(site_id: int, body: SiteUpdate, session: SessionDep) -> SiteRead
 
 
 @router.delete("/sites/{site_id}", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(ADMIN)])
-def delete_site(site_id: int, session: SessionDep, storage: StorageDep) -> None:
+def delete_site(site_id: Id, session: SessionDep, storage: StorageDep) -> None:
     """Delete a site with its plans, drives, frames, groundings, map versions and jobs."""
     candidates = deletion.delete_site(session, site_by_id(session, site_id))
     session.commit()
@@ -98,7 +99,7 @@ def delete_site(site_id: int, session: SessionDep, storage: StorageDep) -> None:
     dependencies=[Depends(ADMIN), Depends(check_content_length)],
 )
 def upload_survey(
-    site_id: int, file: UploadFile, session: SessionDep, storage: StorageDep, settings: SettingsDep
+    site_id: Id, file: UploadFile, session: SessionDep, storage: StorageDep, settings: SettingsDep
 ) -> SurveyMapRead:
     """Upload the site's surveyed DXF plan (multipart field ``file``); the newest plan is the one in use."""
     site = site_by_id(session, site_id)
@@ -112,7 +113,7 @@ def upload_survey(
 
 
 @router.get("/sites/{site_id}/survey", dependencies=[Depends(VIEWER)])
-def list_survey_maps(site_id: int, session: SessionDep) -> list[SurveyMapRead]:
+def list_survey_maps(site_id: Id, session: SessionDep) -> list[SurveyMapRead]:
     """The site's uploaded plans, newest first."""
     site = site_by_id(session, site_id)
     rows = session.scalars(
@@ -123,7 +124,7 @@ def list_survey_maps(site_id: int, session: SessionDep) -> list[SurveyMapRead]:
 
 @router.get("/sites/{site_id}/survey/layers", dependencies=[Depends(VIEWER)])
 def survey_layers_of(
-    site_id: int,
+    site_id: Id,
     session: SessionDep,
     zoom: Annotated[float | None, Query(description="Map zoom (0: the plan spans 256 px).")] = None,
     tolerance_m: Annotated[float | None, Query(description="Simplification tolerance, metres.")] = None,

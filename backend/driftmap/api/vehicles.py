@@ -18,6 +18,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends, Request, status
 
 from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, StorageDep, forget_principals
+from driftmap.api.input_types import Id
 from driftmap.api.schemas_access import (
     StartRead,
     StartRequest,
@@ -55,19 +56,19 @@ def create_vehicle(body: VehicleCreate, session: SessionDep) -> VehicleWithToken
 
 
 @router.get("", dependencies=[Depends(VIEWER)])
-def list_vehicles(session: SessionDep, site_id: int | None = None) -> list[VehicleRead]:
+def list_vehicles(session: SessionDep, site_id: Id | None = None) -> list[VehicleRead]:
     """Every vehicle, or those of one site."""
     return [VehicleRead.model_validate(v) for v in vehicle_service.list_vehicles(session, site_id)]
 
 
 @router.get("/{vehicle_id}", dependencies=[Depends(VIEWER)])
-def get_vehicle(vehicle_id: int, session: SessionDep) -> VehicleRead:
+def get_vehicle(vehicle_id: Id, session: SessionDep) -> VehicleRead:
     """One vehicle."""
     return VehicleRead.model_validate(vehicle_service.get_vehicle(session, vehicle_id))
 
 
 @router.post("/{vehicle_id}/token", dependencies=[Depends(ADMIN)])
-def rotate_token(vehicle_id: int, session: SessionDep, request: Request) -> VehicleWithToken:
+def rotate_token(vehicle_id: Id, session: SessionDep, request: Request) -> VehicleWithToken:
     """Give the vehicle a new token; the old one stops working."""
     vehicle = vehicle_service.get_vehicle(session, vehicle_id)
     token = vehicle_service.rotate_token(session, vehicle)
@@ -77,7 +78,7 @@ def rotate_token(vehicle_id: int, session: SessionDep, request: Request) -> Vehi
 
 
 @router.delete("/{vehicle_id}", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(ADMIN)])
-def delete_vehicle(vehicle_id: int, session: SessionDep, request: Request) -> None:
+def delete_vehicle(vehicle_id: Id, session: SessionDep, request: Request) -> None:
     """Remove a vehicle with its position history."""
     vehicle_service.delete_vehicle(session, vehicle_service.get_vehicle(session, vehicle_id))
     session.commit()
@@ -85,7 +86,7 @@ def delete_vehicle(vehicle_id: int, session: SessionDep, request: Request) -> No
 
 
 @router.get("/{vehicle_id}/camera", dependencies=[Depends(VIEWER)])
-def get_camera(vehicle_id: int, session: SessionDep) -> VehicleCamera:
+def get_camera(vehicle_id: Id, session: SessionDep) -> VehicleCamera:
     """The vehicle's camera block (404 when it has none)."""
     vehicle = vehicle_service.get_vehicle(session, vehicle_id)
     if vehicle.camera is None:
@@ -94,7 +95,7 @@ def get_camera(vehicle_id: int, session: SessionDep) -> VehicleCamera:
 
 
 @router.put("/{vehicle_id}/camera", dependencies=[Depends(SURVEYOR)], openapi_extra=_CAMERA_BODY)
-def put_camera(vehicle_id: int, session: SessionDep, block: Annotated[Any, Body()]) -> VehicleCamera:
+def put_camera(vehicle_id: Id, session: SessionDep, block: Annotated[Any, Body()]) -> VehicleCamera:
     """Set the vehicle's camera (a drive.json ``camera`` block); its live localisation restarts."""
     vehicle = vehicle_service.get_vehicle(session, vehicle_id)
     return _camera_block(vehicle_service.set_camera(session, vehicle, block))
@@ -103,13 +104,13 @@ def put_camera(vehicle_id: int, session: SessionDep, block: Annotated[Any, Body(
 @router.delete(
     "/{vehicle_id}/camera", status_code=status.HTTP_204_NO_CONTENT, dependencies=[Depends(SURVEYOR)]
 )
-def delete_camera(vehicle_id: int, session: SessionDep) -> None:
+def delete_camera(vehicle_id: Id, session: SessionDep) -> None:
     """Remove the vehicle's camera (404 when it has none); its live localisation restarts."""
     vehicle_service.delete_camera(session, vehicle_service.get_vehicle(session, vehicle_id))
 
 
 @router.post("/{vehicle_id}/start", dependencies=[Depends(SURVEYOR)])
-def post_start(vehicle_id: int, body: StartRequest, session: SessionDep, storage: StorageDep) -> StartRead:
+def post_start(vehicle_id: Id, body: StartRequest, session: SessionDep, storage: StorageDep) -> StartRead:
     """Seed the vehicle's live localisation at a known position on its site's latest map."""
     seeded = live_start.seed_known_start(session, storage.blobs, vehicle_id, body.x, body.y, body.radius_m)
     return StartRead(

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from driftmap.core.imaging.lens import Lens
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
+from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 from driftmap.formats.drive_json import (
     CAMERA_KEYS,
     camera_to_json,
@@ -70,8 +71,14 @@ def read_camera_file(path: Path) -> dict[str, Any]:
         raise BadInputError("the camera block must be a JSON object", file=path, line=1, field="camera")
     for key in ("width", "height"):
         v = block.get(key)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v <= 0):
-            raise BadInputError(f"must be a positive integer, found {v!r}", file=path, field=f"camera.{key}")
+        if v is not None and (
+            isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_CAMERA_SIDE_PX
+        ):
+            raise BadInputError(
+                f"must be an integer from 1 to {MAX_CAMERA_SIDE_PX} pixels, found {v!r}",
+                file=path,
+                field=f"camera.{key}",
+            )
     if block.get("lens") is not None:
         parse_lens_block(block["lens"], text, path)
     return dict(block)

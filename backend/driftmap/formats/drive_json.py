@@ -15,6 +15,7 @@ from typing import Any, cast
 from driftmap.core.imaging.lens import LENS_MODELS, Lens
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
+from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 from driftmap.formats.records import (
     DRIVE_FORMAT,
     DRIVE_FORMAT_LENS,
@@ -250,7 +251,8 @@ def parse_camera_block(block: object, text: str, file: str | Path) -> CameraMode
         file: the file name used in error messages.
 
     Raises:
-        BadInputError: a missing or ill-typed key, or a ``ground_roi`` outside the frame.
+        BadInputError: a missing or ill-typed key, a width or height outside 1 to ``MAX_CAMERA_SIDE_PX``
+            pixels, or a ``ground_roi`` outside the frame.
     """
     if not isinstance(block, dict):
         raise BadInputError(
@@ -283,8 +285,8 @@ def parse_camera_block(block: object, text: str, file: str | Path) -> CameraMode
 
     width, height = integer("width"), integer("height")
     for key, size in (("width", width), ("height", height)):
-        if size <= 0:
-            raise bad(key, f"must be positive, found {size}")
+        if not 1 <= size <= MAX_CAMERA_SIDE_PX:
+            raise bad(key, f"must be 1 to {MAX_CAMERA_SIDE_PX} pixels, found {size}")
     roi = value("ground_roi")
     if (
         not isinstance(roi, list)

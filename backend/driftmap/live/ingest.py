@@ -2,9 +2,11 @@
 
 Each vehicle has a lane: at most one frame of it is being localised (in a localiser worker process,
 :mod:`driftmap.live.workers`, so the event loop stays responsive) and at most ``queue_depth`` wait
-behind it, ordered by ``t``. A frame whose
-``t`` is not after the newest frame handed to the localiser (or equals a waiting one) is refused as
-``out_of_order``. When the waiting room overflows, its oldest frame is skipped on purpose: its caller gets
+behind it, ordered by ``t``. A frame whose ``t`` is not after the newest frame handed to the localiser (or
+equals a waiting one) is refused as ``out_of_order``. A frame refused as bad input (a ``t`` that is not a
+finite number of seconds, an image that is not a PNG/JPEG, declares more than ``max_frame_pixels`` or cannot
+be localised) changes nothing: the lane's newest ``t`` goes back to that of the frame handed on before it.
+When the waiting room overflows, its oldest frame is skipped on purpose: its caller gets
 ``status="skipped"``. Both counts are stored with the vehicle's next processed frame. Frames are never
 reordered and never processed twice; every posted frame gets exactly one answer.
 
@@ -24,7 +26,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from driftmap.config import Settings
-from driftmap.formats.frame_images import check_complete
+from driftmap.formats.bounds import check_t_s
+from driftmap.formats.frame_images import check_complete, check_frame_pixels
 from driftmap.live.hub import InMemoryHub, LiveHub, Message
 from driftmap.live.latest_frames import LatestFrames, MemoryFrames
 from driftmap.live.localise import FrameOutcome, FrameStatus
@@ -147,10 +150,13 @@ class LiveService:
     async def submit(self, vehicle_id: int, name: str, site_id: int, t: float, data: bytes) -> FrameOutcome:
         """Localise a frame (PNG or JPEG bytes) of a vehicle in its turn; returns its outcome.
 
-        The bytes are checked for a complete PNG/JPEG at once (BadInputError) and decoded only when the frame's
-        turn comes, so frames skipped under overload cost nothing.
+        ``t`` (seconds) and the bytes are checked at once, the bytes for a complete PNG/JPEG of at most
+        ``max_frame_pixels`` pixels by its header (BadInputError, PayloadTooLargeError); they are decoded only
+        when the frame's turn comes, so frames skipped under overload cost nothing.
         """
+        t = check_t_s(t, "t")
         check_complete(data, "frame")
+        check_frame_pixels(data, "frame", self.settings.max_frame_pixels, field="body")
         lane = self._lanes.get(vehicle_id)
         if lane is None:
             lane = self._lanes[vehicle_id] = _Lane(vehicle_id, name, site_id)
@@ -230,12 +236,14 @@ class LiveService:
                     await self._store_counts(lane)
                     continue
                 item = lane.waiting.popleft()
-                lane.started_t = item.t
+                previous_t, lane.started_t = lane.started_t, item.t
                 counts = lane.in_flight = lane.unsaved_skips, lane.unsaved_out_of_order
                 lane.unsaved_skips = lane.unsaved_out_of_order = 0
                 try:
                     outcome = await self.workers.localise(lane.vehicle_id, item.t, item.data, counts)
                 except Exception as exc:
+                    if lane.started_t == item.t:  # a refused frame leaves the order as it was
+                        lane.started_t = previous_t
                     lane.in_flight = (0, 0)
                     lane.unsaved_skips += counts[0]
                     lane.unsaved_out_of_order += counts[1]

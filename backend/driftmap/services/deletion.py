@@ -1,13 +1,16 @@
 """Deleting sites, drives and map versions with their rows, then the blobs nothing refers to any more.
 
 Rows go inside the caller's transaction (foreign keys cascade in the database); the blobs they referred to
-are returned as candidates, and :func:`delete_unreferenced_blobs` removes those still unreferenced once the
+are returned as candidates (for a site also those its jobs name in their args and results, keys ending in
+``_sha256``: uploads waiting for import, odometry pieces and loop-closure blocks of failed builds,
+localisation CSVs), and :func:`delete_unreferenced_blobs` removes those still unreferenced once the
 caller has committed, so a rolled-back delete never loses a blob.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
@@ -15,6 +18,7 @@ from sqlalchemy.orm import Session
 from driftmap.errors import ConflictError
 from driftmap.services.localisation import LOCALISER_DB_KEY
 from driftmap.store.blobs import BlobStore
+from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, Frame, MapPose, MapVersion, Site, SurveyMap
 from driftmap.store.storage import Storage
 
@@ -25,6 +29,17 @@ def _version_blobs(version: MapVersion) -> set[str]:
     if isinstance(extra, str):
         shas.add(extra)
     return shas
+
+
+def _named_blobs(rows: Iterable[tuple[dict[str, Any] | None, dict[str, Any] | None]]) -> set[str]:
+    """The blobs named by jobs' ``(args, result)``: string values of keys ending in ``_sha256``."""
+    return {
+        value
+        for args, result in rows
+        for values in (args or {}, result or {})
+        for key, value in values.items()
+        if key.endswith("_sha256") and isinstance(value, str)
+    }
 
 
 def delete_map_version(session: Session, version: MapVersion) -> set[str]:
@@ -69,12 +84,15 @@ def delete_site(session: Session, site: Site) -> set[str]:
     candidates |= set(session.scalars(select(SurveyMap.dxf_sha256).where(SurveyMap.site_id == site.id)))
     for version in session.scalars(select(MapVersion).where(MapVersion.site_id == site.id)):
         candidates |= _version_blobs(version)
+    candidates |= _named_blobs(
+        session.execute(select(Job.args, Job.result).where(Job.site_id == site.id)).all()
+    )
     session.execute(delete(Site).where(Site.id == site.id))
     return candidates
 
 
 def referenced(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` that a frame, a survey map or a map version still refers to."""
+    """Those of ``shas`` that a frame, a survey map, a map version or a job still refers to."""
     wanted = set(shas)
     found: set[str] = set()
     items = sorted(wanted)
@@ -89,6 +107,7 @@ def referenced(session: Session, shas: Iterable[str]) -> set[str]:
         extra = (stats or {}).get(LOCALISER_DB_KEY)
         if extra in wanted:
             found.add(extra)
+    found |= _named_blobs(session.execute(select(Job.args, Job.result)).all()) & wanted
     return found
 
 

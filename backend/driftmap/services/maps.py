@@ -259,7 +259,26 @@ def pose_rows(session: Session, version: MapVersion) -> list[PoseRow]:
 
 
 def ensure_buildable(session: Session, site: Site) -> None:
-    """Refuse a build for a site with no grounded mapping drive (the map could not be placed)."""
+    """Refuse a build for a site with a mapping drive without frames (nothing to map: name it and delete it
+    or post its frames), or with no grounded mapping drive (the map could not be placed).
+
+    Raises:
+        ConflictError: either case, naming the empty drives.
+    """
+    empty = session.scalars(
+        select(Drive.name)
+        .where(
+            Drive.site_id == site.id,
+            Drive.kind == "mapping",
+            ~select(Frame.id).where(Frame.drive_id == Drive.id).exists(),
+        )
+        .order_by(Drive.id)
+    ).all()
+    if empty:
+        names = ", ".join(repr(n) for n in empty)
+        raise ConflictError(
+            f"site {site.name!r} has mapping drives without frames: {names}; add their frames or delete them"
+        )
     grounded = session.scalar(
         select(func.count())
         .select_from(Grounding)

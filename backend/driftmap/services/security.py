@@ -126,4 +126,4 @@ def vehicle_id_of_token(token: str) -> int | None:
     if not token.startswith(VEHICLE_TOKEN_PREFIX):
         return None
     head, _, rest = token.removeprefix(VEHICLE_TOKEN_PREFIX).partition("_")
-    return int(head) if head.isdigit() and rest else None
+    return int(head) if head.isdigit() and len(head) <= 18 and rest else None  # ids are 64-bit

@@ -1,0 +1,39 @@
+"""Bounded types of request fields, path and query parameters: ids, counts, timestamps and texts.
+
+Every integer a client sends ends up in a 64-bit database column and every timestamp in float64 arithmetic,
+so the request models and routes use these types instead of bare ``int``, ``float`` and ``str``: a value
+out of range is a 422 naming its field (``loc``), and the OpenAPI document states the ranges.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from annotated_types import Ge, Le
+from pydantic import AllowInfNan, StringConstraints
+
+from driftmap.formats.bounds import INT64_MAX, INT64_MIN, MAX_ABS_T_S, MAX_CAMERA_SIDE_PX
+
+NAME_MAX_CHARS = 200
+"""Longest name of a site, drive or vehicle, characters."""
+DESCRIPTION_MAX_CHARS = 10_000
+"""Longest description of a site, characters."""
+
+Id = Annotated[int, Ge(1), Le(INT64_MAX)]
+"""The id of a stored row (site, drive, vehicle, job, grounding, map version number)."""
+Count = Annotated[int, Ge(0), Le(INT64_MAX)]
+"""A non-negative number that is stored: a frame number, a position ``seq``, a seed."""
+Int64 = Annotated[int, Ge(INT64_MIN), Le(INT64_MAX)]
+"""Any integer that is stored (64 bits)."""
+Seconds = Annotated[float, AllowInfNan(False), Ge(-MAX_ABS_T_S), Le(MAX_ABS_T_S)]
+"""A timestamp, seconds: finite and within ``MAX_ABS_T_S`` of zero."""
+Finite = Annotated[float, AllowInfNan(False)]
+"""A finite number (no NaN, no infinity)."""
+CameraSide = Annotated[int, Ge(1), Le(MAX_CAMERA_SIDE_PX)]
+"""A camera's frame width or height, pixels."""
+Name = Annotated[
+    str, StringConstraints(min_length=1, max_length=NAME_MAX_CHARS, pattern=r"^[^\x00-\x1f\x7f]+$")
+]
+"""A non-empty name of at most ``NAME_MAX_CHARS`` characters, without control characters (line breaks)."""
+Description = Annotated[str, StringConstraints(max_length=DESCRIPTION_MAX_CHARS)]
+"""A free-text description of at most ``DESCRIPTION_MAX_CHARS`` characters."""

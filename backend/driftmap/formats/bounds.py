@@ -1,0 +1,62 @@
+"""Ranges of input values that driftmap can store and compute with: integers, timestamps, image sizes.
+
+The database holds integers in 64 bits (SQLite ``INTEGER``, PostgreSQL ``bigint``) and times as float64
+seconds; a value outside these ranges would fail deep inside a driver (a server error) or poison later
+arithmetic (an infinite duration, a speed of NaN). Every reader of user input checks against the limits
+here and names the field at fault.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from driftmap.errors import BadInputError
+
+INT64_MIN = -(2**63)
+INT64_MAX = 2**63 - 1
+MAX_ABS_T_S = 1e10
+"""Largest timestamp magnitude, seconds (about 317 years: Unix time in seconds fits, nanoseconds do not)."""
+MAX_CAMERA_SIDE_PX = 16384
+"""Largest camera width or height, pixels (a camera block asking for more is refused)."""
+
+
+def check_t_s(
+    t_s: float, field: str = "t", *, file: str | Path | None = None, line: int | None = None
+) -> float:
+    """Check a timestamp is a finite number of seconds within ``MAX_ABS_T_S`` of zero.
+
+    Args:
+        t_s: the timestamp, seconds.
+        field: the name of the field it came from, for the error message.
+        file: the file it came from, if any.
+        line: the 1-based line of ``file``, if any.
+
+    Returns:
+        ``t_s`` as a float.
+
+    Raises:
+        BadInputError: NaN, infinite or too large, naming ``field``.
+    """
+    value = float(t_s)
+    if not math.isfinite(value) or abs(value) > MAX_ABS_T_S:
+        raise BadInputError(
+            f"must be a finite number of seconds within ±{MAX_ABS_T_S:g}, got {value!r}",
+            field=field,
+            file=file,
+            line=line,
+        )
+    return value
+
+
+def check_int64(value: int, field: str, *, file: str | Path | None = None, line: int | None = None) -> int:
+    """Check an integer fits the database's 64-bit integers.
+
+    Raises:
+        BadInputError: outside ``[INT64_MIN, INT64_MAX]``, naming ``field`` (and ``file``, ``line``).
+    """
+    if not INT64_MIN <= value <= INT64_MAX:
+        raise BadInputError(
+            f"must be a 64-bit integer ({INT64_MIN} to {INT64_MAX})", field=field, file=file, line=line
+        )
+    return value
