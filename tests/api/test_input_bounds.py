@@ -65,6 +65,7 @@ PATH_AND_QUERY = [
     (f"/api/sites/1/drives?offset={HUGE}", ["query", "offset"]),
     (f"/api/positions?since={HUGE}", ["query", "since"]),
     (f"/api/vehicles?site_id={-HUGE - 1}", ["query", "site_id"]),
+    (f"/api/users/{HUGE}", ["path", "user_id"]),
 ]
 
 

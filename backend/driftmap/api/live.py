@@ -39,7 +39,7 @@ from starlette.requests import ClientDisconnect
 
 from driftmap.api.deps import VIEWER, WS_CLOSE_FORBIDDEN, WS_CLOSE_UNAUTHORIZED, Principal, VehicleDep
 from driftmap.api.error_handlers import error_body, status_of
-from driftmap.api.input_types import Id, Seconds
+from driftmap.api.input_types import Count, Id, Seconds
 from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
 from driftmap.api.schemas_live import LiveSnapshot, LiveStale, position_message
 from driftmap.api.ws_auth import TOKEN_RECHECK_S, WebSocketAuthError, still_valid, websocket_principal
@@ -220,7 +220,7 @@ def _since(websocket: WebSocket, seq: int, upto: int | None = None) -> list[dict
 
 
 @router.websocket("/live")
-async def live_updates(websocket: WebSocket, since: int | None = None) -> None:
+async def live_updates(websocket: WebSocket, since: Count | None = None) -> None:
     """Positions of every vehicle as they arrive: a snapshot, then updates (see the module docstring)."""
     if await _authorise(websocket, None) is None:
         return

@@ -8,6 +8,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends, Request, status
 
 from driftmap.api.deps import ADMIN, AdminDep, SessionDep, forget_principals
+from driftmap.api.input_types import Id
 from driftmap.api.schemas_access import UserCreate, UserRead, UserUpdate
 from driftmap.services import users as user_service
 
@@ -28,14 +29,14 @@ def create_user(body: UserCreate, session: SessionDep) -> UserRead:
 
 
 @router.get("/{user_id}")
-def get_user(user_id: int, session: SessionDep) -> UserRead:
+def get_user(user_id: Id, session: SessionDep) -> UserRead:
     """One user."""
     return UserRead.model_validate(user_service.get_user(session, user_id))
 
 
 @router.patch("/{user_id}")
 def update_user(
-    user_id: int, body: UserUpdate, session: SessionDep, request: Request, admin: AdminDep
+    user_id: Id, body: UserUpdate, session: SessionDep, request: Request, admin: AdminDep
 ) -> UserRead:
     """Change a user's role or password (a reset), or disable or enable the user; revokes the user's tokens."""
     user = user_service.get_user(session, user_id)
@@ -50,7 +51,7 @@ def update_user(
 
 
 @router.delete("/{user_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_user(user_id: int, session: SessionDep, request: Request, admin: AdminDep) -> None:
+def delete_user(user_id: Id, session: SessionDep, request: Request, admin: AdminDep) -> None:
     """Remove a user (not the last admin, not yourself)."""
     user_service.delete_user(session, user_service.get_user(session, user_id), acting_user_id=admin.id)
     session.commit()

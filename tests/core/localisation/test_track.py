@@ -1,5 +1,5 @@
 """The continuous track's own rules on hand-made cases: fixes while standing, edges across the heading, a
-guessed heading checked by b(i)'s step, a wrong heading corrected by the fixes."""
+guessed heading checked by b(i)'s step, a wrong heading corrected by the fixes, a strayed track re-anchored."""
 
 from __future__ import annotations
 
@@ -128,3 +128,32 @@ class TestHeadingFromTheFixes:
         start = replace(heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.05), speed_mps=5.0)
         _, yaws = drive_east(start, 60)
         assert max(abs(y - 0.05) for y in yaws) < 1e-9
+
+
+class TestStrayed:
+    def test_sure_fixes_far_from_the_track_take_its_confidence_then_move_it(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        fix = np.array([0.0, p.stray_m + 1.0])  # beside the track, inside the gate
+        for k in range(1, p.stray_frames):
+            track, disagree = correct(track, fix, True, True, p, travel_m=0.5)
+            assert disagree and track.strayed == k and track.wT[1] < fix[1] - 2.0
+        track, disagree = correct(track, fix, True, True, p, travel_m=0.5)
+        assert not disagree and tuple(track.wT[:2]) == pytest.approx(tuple(fix))
+        assert not track.has_heading  # re-acquired from the tunnel it is on
+
+    def test_doubtful_fixes_do_not(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        for _ in range(2 * p.stray_frames):
+            track, disagree = correct(
+                track, np.array([0.0, p.stray_m + 1.0]), True, True, p, 0.5, steers=False
+            )
+            assert not disagree
+        assert track.strayed == 0 and track.has_heading
+
+    def test_stored_and_read_back(self) -> None:
+        track = replace(heading(TrackState.at((1.0, 2.0), 0.5), 0.3), strayed=3, flip_left_m=-1.5)
+        back = TrackState.from_arrays(track.to_arrays())
+        assert (back.strayed, back.flip_left_m) == (3, -1.5)
+        assert TrackState.from_arrays(track.to_arrays()[:10]).strayed == 0

@@ -81,6 +81,8 @@ class TrackParams:
     turning_rad_per_m: float = 0.03  # odometry turning sharper than this is a turn: no heading pull
     fix_spacing_m: float = 2.5  # with odometry: one independent fix per this much travel, metres
     fix_reach_m: float = 7.5  # the place fix: the best reference of the nodes this near b(i) (path), metres
+    stray_m: float = 6.0  # a sure fix further than this from the track: the track has strayed, metres
+    stray_frames: int = 5  # ... so many sure fixes in a row re-anchor it there
 
     def __post_init__(self) -> None:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m", "fix_spacing_m"):
@@ -111,6 +113,7 @@ class TrackState:
         heading_checked: the heading, one of an edge's two ways when it was set, has been checked against
             the way b(i) stepped to a neighbouring node (:func:`check_heading`).
         flip_left_m: the same sum across the direction of travel (to its left), metres.
+        strayed: sure fixes in a row further than ``stray_m`` from the track.
     """
 
     wT: F64
@@ -121,6 +124,7 @@ class TrackState:
     held: int = 0
     heading_checked: bool = False
     flip_left_m: float = 0.0
+    strayed: int = 0
 
     @classmethod
     def empty(cls) -> TrackState:
@@ -142,7 +146,7 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(10,) float64 packed for the localiser's stored state."""
+        """(11,) float64 packed for the localiser's stored state."""
         packed = np.r_[
             self.wT,
             self.var_m2,
@@ -152,19 +156,22 @@ class TrackState:
             self.held,
             float(self.heading_checked),
             self.flip_left_m,
+            self.strayed,
         ]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays`; 8 or 9 values (stored before the heading check or the sideways
-        evidence) are read with those as checked and 0; other sizes: no track."""
+        """Inverse of :meth:`to_arrays`; 8 to 10 values (stored before the heading check, the sideways
+        evidence or the stray count) are read with those as checked and 0; other sizes: no track."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size not in (8, 9, 10):
+        if a.size not in (8, 9, 10, 11):
             return cls.empty()
         checked = bool(a[8]) if a.size >= 9 else True
-        left = float(a[9]) if a.size == 10 else 0.0
-        return cls(a[:3].copy(), float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]), checked, left)
+        left = float(a[9]) if a.size >= 10 else 0.0
+        strayed = int(a[10]) if a.size == 11 else 0
+        base = (float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]))
+        return cls(a[:3].copy(), *base, checked, left, strayed)
 
 
 def _wrap(angle_rad: float) -> float:
@@ -213,18 +220,24 @@ def correct(
 
     ``travel_m`` is the distance driven since the last frame by odometry (None without odometry: every
     frame's fix counts whole). Only a fix that ``steers`` (a sure one) adds to the evidence of a wrong
-    heading: doubtful fixes metres off, while the views are ambiguous, would turn a right heading.
+    heading: doubtful fixes metres off, while the views are ambiguous, would turn a right heading. A sure
+    fix further than ``stray_m`` from the track (inside the gate) means the track has strayed, by a wrong
+    heading or odometry run away: the frame's position is not vouched for, and ``stray_frames`` of them in a
+    row re-anchor the track at the fix.
 
     Returns:
-        The new track, and whether it disagrees with the fix (a doubtful far fix was not followed: the
-        position reported is the track's, and the frame gets no confidence).
+        The new track, and whether it disagrees with the fix (a doubtful far fix was not followed, or a
+        sure fix lies further than ``stray_m`` from it: the position reported is the track's, and the frame
+        gets no confidence).
     """
     fix = np.asarray(fix_m, dtype=np.float64)
     r2 = params.fix_sigma_m**2
     # the fixes of consecutive frames are one node's centre over and over: with odometry they count as one
     # independent fix per fix_spacing_m driven (none while standing), else each frame's fix is pulled
     # towards many times and the track drifts to the centre of the node it stands in
-    r2_pull = r2 if travel_m is None else r2 * params.fix_spacing_m / max(travel_m, 1e-9)
+    # (a track without a heading does not move with odometry: every fix counts whole, as without it)
+    dead_reckons = travel_m is not None and state.has_heading
+    r2_pull = r2 * params.fix_spacing_m / max(travel_m or 0.0, 1e-9) if dead_reckons else r2
     if not state.has_position:
         return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident), False
     off = float(np.hypot(*(fix - state.wT[:2])))
@@ -234,6 +247,10 @@ def correct(
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
         return replace(anchored, speed_mps=state.speed_mps), False
     state = replace(state, trusted=state.trusted or confident, held=0)
+    strayed = state.strayed + 1 if steers and off > params.stray_m else 0
+    if strayed >= params.stray_frames:  # sure fixes keep saying the track is elsewhere: it is
+        anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, True)
+        return replace(anchored, speed_mps=state.speed_mps), False
     gain = state.var_m2 / (state.var_m2 + max(r2_pull, r2))
     wT = state.wT.copy()
     innovation = fix - wT[:2]
@@ -249,7 +266,7 @@ def correct(
             if abs(turn) >= params.turn_min_rad:
                 wT[2], flip, left = _wrap(wT[2] + turn), 0.0, 0.0
                 var = max(var, (2.0 * params.fix_sigma_m) ** 2)  # it ran the wrong way: let the fixes pull
-    return replace(state, wT=wT, var_m2=var, flip_m=flip, flip_left_m=left), False
+    return replace(state, wT=wT, var_m2=var, flip_m=flip, flip_left_m=left, strayed=strayed), strayed > 0
 
 
 def check_heading(
