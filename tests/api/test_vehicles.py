@@ -103,7 +103,7 @@ class TestCamera:
         assert actors.client.get(detail, headers=viewer).json()["has_camera"] is False
         put = actors.client.put(url, json={**CAMERA, "note": "ignored"}, headers=surveyor)
         assert put.status_code == 200, put.text
-        assert put.json() == {**CAMERA, "ground_homography": None}
+        assert put.json() == {**CAMERA, "ground_homography": None, "lens": None}
         assert actors.client.get(url, headers=viewer).json() == put.json()
         assert actors.client.get(detail, headers=viewer).json()["has_camera"] is True
         listed = actors.client.get("/api/vehicles", headers=viewer).json()
@@ -113,6 +113,11 @@ class TestCamera:
             url, json={**CAMERA, "k_x": 0.5, "ground_homography": homography}, headers=actors.auth("admin")
         )
         assert admin_put.status_code == 200 and admin_put.json()["ground_homography"] == homography
+        lens = {"model": "fisheye", "K": [[60.0, 0.0, 32.0], [0.0, 60.0, 24.0], [0.0, 0.0, 1.0]]}
+        lens["distortion"] = [0.01, -0.002, 0.0, 0.0]
+        with_lens = actors.client.put(url, json={**CAMERA, "lens": lens}, headers=surveyor)
+        assert with_lens.status_code == 200, with_lens.text
+        assert with_lens.json()["lens"] == lens == actors.client.get(url, headers=viewer).json()["lens"]
         assert actors.client.delete(url, headers=surveyor).status_code == 204
         assert actors.client.get(url, headers=viewer).status_code == 404
         assert actors.client.delete(url, headers=surveyor).status_code == 404

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -81,6 +82,17 @@ class VehicleRead(BaseModel):
     """The vehicle has a calibrated camera (``/api/vehicles/{id}/camera``): its frames carry odometry."""
 
 
+class CameraLens(BaseModel):
+    """A camera block's ``lens`` (formats.md): the model, intrinsics and distortion."""
+
+    model: Literal["pinhole", "fisheye"]
+    """``pinhole`` (radial-tangential distortion) or ``fisheye`` (equidistant)."""
+    K: list[list[float]]
+    """3x3 intrinsic matrix, pixels."""
+    distortion: list[float]
+    """Distortion coefficients: pinhole k1, k2, p1, p2[, k3...]; fisheye k1..k4."""
+
+
 class VehicleCamera(BaseModel):
     """A vehicle camera's calibration: the ``camera`` block of drive.json (formats.md), same keys and rules."""
 
@@ -102,6 +114,8 @@ class VehicleCamera(BaseModel):
     """1 when image content moves down as the vehicle drives forward, else -1."""
     ground_homography: list[list[float]] | None
     """Optional 3x3 map from pixel (u, v, 1) to the floor point in the vehicle frame, metres (null: none)."""
+    lens: CameraLens | None = None
+    """The lens model (``driftmap-drive/2``); null: an ideal pinhole without distortion."""
 
 
 class StartRequest(BaseModel):

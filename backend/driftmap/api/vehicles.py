@@ -41,7 +41,7 @@ _CAMERA_BODY = {
 
 
 def _camera_block(stored: dict[str, Any]) -> VehicleCamera:
-    return VehicleCamera.model_validate({"ground_homography": None, **stored})
+    return VehicleCamera.model_validate({"ground_homography": None, "lens": None, **stored})
 
 
 def _with_token(vehicle: object, token: str) -> VehicleWithToken:

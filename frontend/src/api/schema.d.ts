@@ -1085,6 +1085,21 @@ export interface components {
         } & {
             [key: string]: unknown;
         };
+        /**
+         * CameraLens
+         * @description A camera block's ``lens`` (formats.md): the model, intrinsics and distortion.
+         */
+        CameraLens: {
+            /**
+             * Model
+             * @enum {string}
+             */
+            model: "pinhole" | "fisheye";
+            /** K */
+            K: number[][];
+            /** Distortion */
+            distortion: number[];
+        };
         /** ClosureRead */
         ClosureRead: {
             /** Drive A */
@@ -1970,6 +1985,7 @@ export interface components {
             forward_sign: number;
             /** Ground Homography */
             ground_homography: number[][] | null;
+            lens?: components["schemas"]["CameraLens"] | null;
         };
         /** VehicleCreate */
         VehicleCreate: {
