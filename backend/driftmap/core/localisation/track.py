@@ -221,7 +221,7 @@ def correct(
     ``travel_m`` is the distance driven since the last frame by odometry (None without odometry: every
     frame's fix counts whole). Only a fix that ``steers`` (a sure one) adds to the evidence of a wrong
     heading: doubtful fixes metres off, while the views are ambiguous, would turn a right heading. A sure
-    fix further than ``stray_m`` from the track (inside the gate) means the track has strayed, by a wrong
+    fix further than ``stray_m`` from a ``dead_reckoned`` track (inside the gate) means it has strayed, by a wrong
     heading or odometry run away: the frame's position is not vouched for, and ``stray_frames`` of them in a
     row re-anchor the track at the fix.
 
@@ -247,7 +247,7 @@ def correct(
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
         return replace(anchored, speed_mps=state.speed_mps), False
     state = replace(state, trusted=state.trusted or confident, held=0)
-    strayed = state.strayed + 1 if steers and off > params.stray_m else 0
+    strayed = state.strayed + 1 if dead_reckoned and steers and off > params.stray_m else 0
     if strayed >= params.stray_frames:  # sure fixes keep saying the track is elsewhere: it is
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, True)
         return replace(anchored, speed_mps=state.speed_mps), False
