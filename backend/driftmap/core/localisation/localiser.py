@@ -334,7 +334,7 @@ class Localiser:
         sure: bool = True,
     ) -> tuple[TrackState, bool, bool]:
         """The continuous track after this frame: moved by odometry, corrected by the place fix ``fix_m``
-        (where b(i)'s best-matching reference frame was taken, :meth:`LocaliserMap.fix_m`) unless the
+        (where the best-matching reference near b(i) was taken, :meth:`LocaliserMap.place_fix`) unless the
         frame is lost (``raw``, the uncalibrated ``score x distinct``, is 0), kept on the mapped tunnels around it
         (:mod:`driftmap.core.localisation.track`); whether the vehicle moves (odometry speed, else a changed
         view); and whether the track and b(i) disagree (a doubtful far b(i) the dead-reckoned track did not
