@@ -145,7 +145,11 @@ class TestCamera:
         bad = actors.client.put(url, json={**CAMERA, **change}, headers=surveyor)
         assert bad.status_code == 422 and bad.json()["field"] == field, bad.text
         assert field in bad.json()["detail"]
-        assert actors.client.get(url, headers=surveyor).json() == {**CAMERA, "ground_homography": None, "lens": None}
+        assert actors.client.get(url, headers=surveyor).json() == {
+            **CAMERA,
+            "ground_homography": None,
+            "lens": None,
+        }
 
     def test_a_missing_key_or_a_non_object_is_named(self, actors: Actors) -> None:
         url, surveyor = self._url(actors), actors.auth("surveyor")
