@@ -220,7 +220,10 @@ class Localiser:
         gap_s = t_s - s.last_t_s if np.isfinite(s.last_t_s) else 0.0
         if motion is None and self.odometry is not None:
             motion = self.odometry.step(frame, t_s)
-        prior = self._predict(s, gap_s, motion)
+        if not np.isfinite(s.last_t_s) or hmm.is_global(s.belief):
+            prior = s.belief  # a global belief stays as it is (pi of a flat belief favours well-linked nodes)
+        else:
+            prior = self.transitions.predict_driven(s.belief, gap_s, motion)
         prior, turns = self._check_turns(prior, s.turns, motion)
         nodes = hmm.select_states(prior, p.n_t)
         probes = np.setdiff1d(self._probes(s.steps), nodes) if nodes.size < lm.n_nodes else nodes[:0]
@@ -281,27 +284,6 @@ class Localiser:
             moving_now,
             confidence,
         )
-
-    def _predict(self, s: LocaliserState, gap_s: float, motion: OdometryStep | None) -> F64:
-        """The prior ``pi X_{i-1}`` of this frame.
-
-        A global belief stays as it is (pi of a flat belief would favour well-linked nodes). Without a
-        usable odometry step, eq. 9-10's reach of max speed x the frame gap applies. With one, the belief
-        moves by the distance driven: the share ``alpha = (|dx| + sd) / odometry_hop_m`` (at most 1) of it
-        takes one minimum-reach transition and the rest stays, so a stopped vehicle's belief (a stationary
-        step) does not spread and a moving one's spreads one node per ``odometry_hop_m`` metres driven.
-        """
-        if not np.isfinite(s.last_t_s) or hmm.is_global(s.belief):
-            return s.belief
-        if motion is None:
-            return self.transitions.predict(s.belief, gap_s)
-        if motion.stationary:
-            return s.belief
-        alpha = min(1.0, (abs(motion.dx_m) + motion.sigma_xy_m) / self.params.odometry_hop_m)
-        if alpha <= 0.0:
-            return s.belief
-        moved = self.transitions.predict(s.belief, 0.0)
-        return np.asarray((1.0 - alpha) * s.belief + alpha * moved, dtype=np.float64)
 
     def _check_turns(
         self, prior: F64, history: TurnHistory, motion: OdometryStep | None

@@ -1,9 +1,9 @@
 """Where the belief may move between frames ([SSLAM] eq. 9-10): the transition matrices pi per reach A_t,
 and the direct steps between nodes longer than the minimum reach that a frame may still take.
 
-:class:`TransitionModel` is the predict step of :mod:`driftmap.core.localisation.hmm`'s filter; the
-localiser's odometry-gated transition (:mod:`driftmap.core.localisation.localiser`) mixes it by the distance
-driven.
+:class:`TransitionModel` is the predict step of :mod:`driftmap.core.localisation.hmm`'s filter: by the speed
+bound (eq. 9-10, :meth:`TransitionModel.predict`) or, with a usable odometry step, by the distance driven
+(:meth:`TransitionModel.predict_driven`).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 from scipy.sparse import csr_array
 
 from driftmap.core.localisation.hmm import HmmParams
+from driftmap.core.odometry.step import OdometryStep
 from driftmap.core.topomap.distances import transition_matrix
 from driftmap.core.types import F64, I64
 
@@ -101,6 +102,24 @@ class TransitionModel:
         if pi is None:
             return np.full(belief.size, 1.0 / belief.size)
         return np.asarray(pi @ belief, dtype=np.float64)
+
+    def predict_driven(self, belief: F64, gap_s: float, motion: OdometryStep | None) -> F64:
+        """(M,) float64 prior ``pi X_{i-1}`` gated by the frame's odometry step ``motion``.
+
+        Without a usable step, eq. 9-10's reach of max speed x the frame gap applies (:meth:`predict`). With
+        one, the belief moves by the distance driven: the share ``alpha = (|dx| + sd) / odometry_hop_m`` (at most 1) of
+        it takes one minimum-reach transition and the rest stays, so a stopped vehicle's belief (a stationary
+        step) does not spread and a moving one's spreads one node per ``odometry_hop_m`` metres driven (:class:`HmmParams`).
+        """
+        if motion is None:
+            return self.predict(belief, gap_s)
+        if motion.stationary:
+            return belief
+        alpha = min(1.0, (abs(motion.dx_m) + motion.sigma_xy_m) / self.params.odometry_hop_m)
+        if alpha <= 0.0:
+            return belief
+        moved = self.predict(belief, 0.0)
+        return np.asarray((1.0 - alpha) * belief + alpha * moved, dtype=np.float64)
 
     @property
     def cached(self) -> int:
