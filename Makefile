@@ -77,12 +77,14 @@ typecheck: $(VENV)/.installed-dev
 imports: $(VENV)/.installed-dev
 	$(BIN)/lint-imports
 
-# Every test on the embedded SQLite default, then again on PostgreSQL (a private server) the tests marked `db`:
-# those that touch the database (tests/conftest.py marks them). The topology test (tests/topology) always runs
-# on PostgreSQL + Redis, so once is enough. Each run prints its 15 slowest steps.
+# Every test on the embedded SQLite default, then again on PostgreSQL (a private server) the tests of the server
+# side that touch the database (marked `db` by tests/conftest.py): store, services, API, jobs and live. The CLI,
+# the reports and the browser tests call those same services, so one database is enough for them; the topology
+# test (tests/topology) always runs on PostgreSQL + Redis. Each run prints its 15 slowest steps.
+PG_TESTS := tests/store tests/services tests/api tests/jobs tests/live
 pytest: $(VENV)/.installed-dev frontend system-packages
 	$(BIN)/pytest -q --durations=15 --database sqlite
-	$(BIN)/pytest -q --durations=15 --database postgresql -m "db and not topology"
+	$(BIN)/pytest -q --durations=15 --database postgresql -m db $(PG_TESTS)
 
 test: lint typecheck imports frontend-lint frontend-test pytest
 

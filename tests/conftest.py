@@ -7,7 +7,7 @@ and in the processes it starts) reads.
 
 Which tests touch the database is decided here, not by hand: a test is marked ``db`` when it uses a database
 fixture (:data:`DB_FIXTURES`) or lives where every test is about the server side (:data:`DB_PATHS`), and
-``make test`` runs only ``-m db`` on PostgreSQL. A test that is not marked ``db`` runs with a database URL and
+``make test`` runs the ``db`` tests of the store, services, API, jobs and live on PostgreSQL. A test that is not marked ``db`` runs with a database URL and
 a database server that fail on first use (:data:`UNMARKED_DATABASE_URL`), so one that reaches the database
 another way fails on SQLite too instead of silently missing the PostgreSQL run.
 """
