@@ -30,10 +30,10 @@ from driftmap.core.imaging.images import preprocess
 from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
 from driftmap.core.localisation import hmm
 from driftmap.core.localisation.localiser import Estimate, Localiser
-from driftmap.core.localisation.map import LocaliserMap
+from driftmap.core.localisation.map import LocaliserMap, mapped_paths
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.sesame.masks import SESAME_DEFAULT, SesameParams
-from driftmap.core.types import ProgressFn
+from driftmap.core.types import F64, I64, ProgressFn
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import LocalisationRow
 from driftmap.formats.drive_json import parse_camera_block
@@ -133,6 +133,23 @@ def _reference_positions(session: Session, version: MapVersion, n_refs: int) -> 
     return np.asarray(rows, dtype=np.float64).reshape(-1, 2)
 
 
+def _mapped_paths(session: Session, version: MapVersion, max_gap_m: float) -> tuple[F64 | None, I64]:
+    """The version's mapped trajectories (:func:`~driftmap.core.localisation.map.mapped_paths`): each mapping
+    drive's optimised poses in frame order; (None, empty) when it has no poses."""
+    rows = session.execute(
+        select(Frame.drive_id, MapPose.x_m, MapPose.y_m)
+        .join(Frame, MapPose.frame_id == Frame.id)
+        .where(MapPose.map_version_id == version.id)
+        .order_by(Frame.drive_id, Frame.index)
+    ).all()
+    if not rows:
+        return None, np.zeros((0, 2), dtype=np.int64)
+    drive = np.asarray([r[0] for r in rows], dtype=np.int64)
+    chain_ptr = np.r_[0, np.flatnonzero(np.diff(drive)) + 1, drive.size].astype(np.int64)
+    xy = np.asarray([(r[1], r[2]) for r in rows], dtype=np.float64)
+    return mapped_paths(xy, chain_ptr, max_gap_m=max_gap_m)
+
+
 def load_version_localiser_map(
     session: Session, blobs: BlobStore, version: MapVersion, *, holistic: bool = False
 ) -> LocaliserMap:
@@ -149,6 +166,7 @@ def load_version_localiser_map(
         log.info("map version %s has no localisation database blob; decoding its node frames", version.id)
         stored = _thumbs_from_frames(session, blobs, version, topomap.n_nodes, image_params)
     thumbs, node_ptr = stored
+    path_xy_m, path_segments = _mapped_paths(session, version, topomap.params.max_frame_step_m)
     if node_ptr.shape != (topomap.n_nodes + 1,):
         raise BadInputError(
             f"map version {version.version}: database has {node_ptr.size - 1} nodes, map {topomap.n_nodes}",
@@ -163,6 +181,8 @@ def load_version_localiser_map(
         image_params=image_params,
         edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
         ref_xy_m=None if holistic else _reference_positions(session, version, int(thumbs.shape[0])),
+        path_xy_m=path_xy_m,
+        path_segments=path_segments,
     )
 
 

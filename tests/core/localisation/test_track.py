@@ -157,3 +157,31 @@ class TestStrayed:
         back = TrackState.from_arrays(track.to_arrays())
         assert (back.strayed, back.flip_left_m) == (3, -1.5)
         assert TrackState.from_arrays(track.to_arrays()[:10]).strayed == 0
+
+
+class TestCoasting:
+    def moving(self) -> TrackState:
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        for _ in range(10):
+            track = predict(track, step(0.3), 0.1, TRACK_DEFAULT)  # 3 m/s east
+        return track
+
+    def test_an_unusable_step_of_a_moving_vehicle_coasts_on_fading(self) -> None:
+        p = TRACK_DEFAULT
+        track = self.moving()
+        x0, v0 = float(track.wT[0]), track.speed_mps
+        one = predict(track, None, 0.1, p)
+        two = predict(one, None, 0.1, p)
+        assert one.wT[0] - x0 == pytest.approx(v0 * 0.1)
+        assert two.wT[0] - one.wT[0] == pytest.approx(v0 * p.coast_fade * 0.1)
+        assert two.var_m2 > track.var_m2
+
+    def test_a_long_gap_coasts_at_most_coast_max_s(self) -> None:
+        track = self.moving()
+        after = predict(track, None, 30.0, TRACK_DEFAULT)
+        assert after.wT[0] - track.wT[0] == pytest.approx(track.speed_mps * TRACK_DEFAULT.coast_max_s)
+
+    def test_without_a_measured_speed_it_holds(self) -> None:
+        track = heading(TrackState.at((2.0, 0.0), 0.5, trusted=True), 0.0)  # no odometry yet: speed NaN
+        after = predict(track, None, 0.1, TRACK_DEFAULT)
+        assert after.wT[0] == 2.0 and math.isnan(after.speed_mps)

@@ -345,12 +345,16 @@ class Localiser:
                 )
         else:
             moving = not still
-        around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
-        edges = lm.edges_near(np.r_[around, evidence.near(lm.adjacency_m, around, tp.snap_radius_m)])
+        if lm.path_xy_m is not None and track.has_position:
+            vertices, edges = lm.path_xy_m, lm.path_near(track.wT[:2], tp.snap_max_m)
+        else:
+            around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
+            vertices = lm.centres_m
+            edges = lm.edges_near(np.r_[around, evidence.near(lm.adjacency_m, around, tp.snap_radius_m)])
         turning = motion is not None and abs(motion.dtheta_rad) > tp.turning_rad_per_m * max(
             abs(motion.dx_m), 0.05
         )
-        snapped = localiser_track.snap(track, lm.centres_m, edges, moving, tp, motion is not None, turning)
+        snapped = localiser_track.snap(track, vertices, edges, moving, tp, motion is not None, turning)
         return snapped, moving, disagree
 
     def _estimate(

@@ -8,11 +8,13 @@ frames. It is immutable and shared: several localisers (one per vehicle) can run
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csr_array
+from scipy.spatial import cKDTree
 
 from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
 from driftmap.core.localisation import evidence, hmm, transitions
@@ -21,7 +23,7 @@ from driftmap.core.topomap.model import TopoMap
 from driftmap.core.types import F32, F64, I64
 from driftmap.errors import BadInputError
 
-__all__ = ["LocaliserMap", "build_localiser_map"]
+__all__ = ["LocaliserMap", "build_localiser_map", "mapped_paths"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,6 +42,10 @@ class LocaliserMap:
         ref_xy_m: (S, 2) float64 where each reference thumbnail was taken: its frame's optimised pose, survey
             frame, metres; the place fix of a frame is the position of the reference it matched best, finer
             than the node centre. None: unknown (the fix is the node centre).
+        path_xy_m: (P, 2) float64 vertices of the mapped trajectories (the optimised poses of the mapping
+            drives, :func:`mapped_paths`), survey frame, metres; the continuous track follows them. None:
+            unknown (the track follows ``edges``).
+        path_segments: (Q, 2) int64 vertex pairs of ``path_xy_m`` driven between directly.
     """
 
     thumbs: NDArray[np.float32]
@@ -50,8 +56,11 @@ class LocaliserMap:
     image_params: ImageParams = IMAGES_DEFAULT
     edges: I64 = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     ref_xy_m: F64 | None = None
+    path_xy_m: F64 | None = None
+    path_segments: I64 = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     _long_steps: dict[float, I64] = field(default_factory=dict, init=False, repr=False)
     _turns: dict[TurnParams, F64] = field(default_factory=dict, init=False, repr=False)
+    _path_index: list[tuple[cKDTree, float]] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self) -> None:
         m = self.centres_m.shape[0]
@@ -73,6 +82,14 @@ class LocaliserMap:
             raise BadInputError(
                 f"ref_xy_m must be ({self.thumbs.shape[0]}, 2), got {self.ref_xy_m.shape}", field="ref_xy_m"
             )
+        if self.path_xy_m is not None:
+            n, seg = self.path_xy_m.shape[0], np.asarray(self.path_segments)
+            if self.path_xy_m.shape != (n, 2) or not np.all(np.isfinite(self.path_xy_m)):
+                raise BadInputError("path_xy_m must be (P, 2) finite metres", field="path_xy_m")
+            if seg.ndim != 2 or seg.shape[1] != 2 or (seg.size and (seg.min() < 0 or seg.max() >= n)):
+                raise BadInputError(
+                    f"path_segments must be (Q, 2) vertex indices below {n}", field="path_segments"
+                )
 
     def fix_m(self, node: int, ref: int) -> F64:
         """(2,) float64 the place fix of a frame whose b(i) is ``node`` and whose best reference frame was
@@ -103,6 +120,20 @@ class LocaliserMap:
             return self.edges
         keep = np.isin(self.edges, nodes).any(axis=1)
         return np.asarray(self.edges[keep], dtype=np.int64)
+
+    def path_near(self, xy_m: F64, radius_m: float) -> I64:
+        """(K, 2) int64 the mapped path segments (:attr:`path_segments`) that may pass within ``radius_m``
+        metres of the survey point (2,) ``xy_m`` (their midpoints within ``radius_m`` plus the longest
+        half segment); (0, 2) without paths."""
+        if self.path_xy_m is None or self.path_segments.size == 0:
+            return np.zeros((0, 2), dtype=np.int64)
+        if not self._path_index:
+            ends = self.path_xy_m[self.path_segments]
+            half = 0.5 * float(np.max(np.hypot(*(ends[:, 1] - ends[:, 0]).T)))
+            self._path_index.append((cKDTree(ends.mean(axis=1)), half))
+        tree, half = self._path_index[0]
+        near = tree.query_ball_point(np.asarray(xy_m, dtype=np.float64), radius_m + half)
+        return np.asarray(self.path_segments[np.sort(np.asarray(near, dtype=np.int64))], dtype=np.int64)
 
     @property
     def n_nodes(self) -> int:
@@ -148,8 +179,8 @@ def build_localiser_map(
             frame index (every frame of every chain; only the chosen ones are read).
         image_params: the pre-processing that made the thumbnails.
         frame_xy_m: (F, 2) float64 optimised positions of the map's frames by flat frame index, survey frame,
-            metres; the chosen ones become the references' positions (:attr:`LocaliserMap.ref_xy_m`). None:
-            fixes at node centres.
+            metres; the chosen ones become the references' positions (:attr:`LocaliserMap.ref_xy_m`), all of
+            them the mapped paths (:func:`mapped_paths`). None: fixes at node centres, the track on ``edges``.
 
     Returns:
         The :class:`LocaliserMap`.
@@ -160,6 +191,11 @@ def build_localiser_map(
             f"need ({topomap.frame_ids.shape[0]}, H, W) thumbnails, got {thumbs.shape}",
             field="thumbs_by_flat_frame_index",
         )
+    path_xy_m, path_segments = (None, np.zeros((0, 2), dtype=np.int64))
+    if frame_xy_m is not None:  # the flat frame index runs chain by chain, each in frame order
+        path_xy_m, path_segments = mapped_paths(
+            frame_xy_m, topomap.chain_ptr, max_gap_m=topomap.params.max_frame_step_m
+        )
     return LocaliserMap(
         thumbs=np.ascontiguousarray(thumbs[topomap.chosen]),
         node_ptr=np.asarray(topomap.chosen_ptr, dtype=np.int64),
@@ -169,4 +205,43 @@ def build_localiser_map(
         image_params=image_params,
         edges=np.asarray(topomap.edges, dtype=np.int64).reshape(-1, 2),
         ref_xy_m=None if frame_xy_m is None else np.asarray(frame_xy_m, dtype=np.float64)[topomap.chosen],
+        path_xy_m=path_xy_m,
+        path_segments=path_segments,
+    )
+
+
+def mapped_paths(xy_m: F64, chain_ptr: I64, step_m: float = 1.0, max_gap_m: float = 10.0) -> tuple[F64, I64]:
+    """The mapped trajectories as polylines for the continuous track to follow.
+
+    Args:
+        xy_m: (F, 2) float64 optimised positions of the map's frames by flat frame index, survey frame,
+            metres; NaN rows (a frame without a pose) break their chain.
+        chain_ptr: (C + 1,) int64 offsets of the drives' chains in the flat frame index.
+        step_m: a vertex is kept every this much travel along a chain, metres (a standing vehicle's poses
+            collapse to one).
+        max_gap_m: consecutive kept vertices further apart than this are not joined (a gap in the drive).
+
+    Returns:
+        (P, 2) float64 vertices and (Q, 2) int64 segments (vertex pairs, consecutive along a chain).
+    """
+    xy = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
+    vertices: list[tuple[float, float]] = []
+    segments: list[tuple[int, int]] = []
+    for c in range(len(chain_ptr) - 1):
+        last = -1
+        for x, y in xy[int(chain_ptr[c]) : int(chain_ptr[c + 1])].tolist():
+            if not (math.isfinite(x) and math.isfinite(y)):
+                last = -1
+                continue
+            if last >= 0:
+                gap = math.hypot(x - vertices[last][0], y - vertices[last][1])
+                if gap < step_m:
+                    continue
+                if gap <= max_gap_m:
+                    segments.append((last, len(vertices)))
+            vertices.append((x, y))
+            last = len(vertices) - 1
+    return (
+        np.asarray(vertices, dtype=np.float64).reshape(-1, 2),
+        np.asarray(segments, dtype=np.int64).reshape(-1, 2),
     )

@@ -7,7 +7,9 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
 * **predict** (:func:`predict`): with a usable odometry step (eq. 1-2, :mod:`driftmap.core.localisation.motion`)
   the pose is composed with the step's ``prev_T_curr`` (rear-axle arc) and the variance grows with the step's
   ``sigma_xy_m`` plus ``step_sigma_frac`` of its length; without one the vehicle may have moved anywhere within
-  ``free_speed_mps`` x the gap (a random walk), and heading is held.
+  ``free_speed_mps`` x the gap (a random walk), and heading is held. A vehicle whose odometry measured it
+  moving coasts on at its running speed through an unusable step (blur, a dropped frame), the speed fading
+  by ``coast_fade`` per such step and for at most ``coast_max_s`` of a long gap: holding it still would leave the track a step behind every time.
 * **correct** (:func:`correct`): the place fix, the centre of the HMM's b(i) of a frame that is not lost,
   pulls the position with the Kalman gain ``var / (var + r)``, ``r = fix_sigma_m^2`` (a node centre is within
   half a node spacing of the vehicle: ``fix_sigma_m`` ~ N / sqrt(12) plus the centre's own scatter). The
@@ -18,8 +20,9 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   restart; the heading becomes unknown again), unless the track is dead-reckoned by odometry and trusted (a
   confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
   (at most ``max_hold_frames`` in a row) and the frame, whose place and track disagree, gets no confidence.
-* **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge (segments
-  between directly driven node centres) around it when it lies beside one within ``snap_max_m`` (with
+* **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge around it
+  (a segment of the mapped paths, :func:`driftmap.core.localisation.map.mapped_paths`, or without them of
+  the edges between directly driven node centres) when it lies beside one within ``snap_max_m`` (with
   odometry, only onto edges within ``snap_max_turn_rad`` of the measured heading: a vehicle turning into a
   drawpoint or stub the map has no edge for leaves the tunnel it crossed), so
   positions and trails stay in the tunnels (past the end of every edge, at a dead end or a gap in the
@@ -73,13 +76,17 @@ class TrackParams:
     fix_min_confidence: float = (
         0.3  # a far fix re-anchors a trusted track at this raw confidence (X x distinct)
     )
-    snap_radius_m: float = 15.0  # the track snaps to edges of the nodes within this path length of it
+    snap_radius_m: float = 15.0  # without mapped paths: to edges of the nodes within this path length of it
     snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
     snap_max_turn_rad: float = 0.6  # ... and only to edges within this of the track's heading (either way)
     max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
     check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path) checks a new heading's way
     turning_rad_per_m: float = 0.03  # odometry turning sharper than this is a turn: no heading pull
     fix_spacing_m: float = 2.5  # with odometry: one independent fix per this much travel, metres
+    coast_fade: float = 0.7  # per unusable odometry step, the share of the running speed the track keeps
+    coast_max_s: float = (
+        1.0  # ... and it coasts at most this long per step (a longer gap: it may have stopped)
+    )
     fix_reach_m: float = 7.5  # the place fix: the best reference of the nodes this near b(i) (path), metres
     stray_m: float = 6.0  # a sure fix further than this from the track: the track has strayed, metres
     stray_frames: int = 5  # ... so many sure fixes in a row re-anchor it there
@@ -88,7 +95,7 @@ class TrackParams:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m", "fix_spacing_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"TrackParams.{name} must be positive, got {getattr(self, name)}")
-        for name in ("heading_pull", "speed_memory", "flip_memory"):
+        for name in ("heading_pull", "speed_memory", "flip_memory", "coast_fade"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise ValueError(f"TrackParams.{name} must be in (0, 1], got {getattr(self, name)}")
 
@@ -192,7 +199,13 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
     gap = max(gap_s, 0.0)
     if step is None:
         var = state.var_m2 + (params.free_speed_mps * gap) ** 2
-        return replace(state, var_m2=var, speed_mps=math.nan)
+        if not (state.has_heading and math.isfinite(state.speed_mps)):
+            return replace(state, var_m2=var, speed_mps=math.nan)
+        # an unusable step of a vehicle measured moving: it coasts on at its running speed, which fades
+        wT = state.wT.copy()
+        coast_m = state.speed_mps * min(gap, params.coast_max_s)
+        wT[:2] += coast_m * np.array([math.cos(wT[2]), math.sin(wT[2])])
+        return replace(state, wT=wT, var_m2=var, speed_mps=state.speed_mps * params.coast_fade)
     sd = step.sigma_xy_m + params.step_sigma_frac * abs(step.dx_m)
     speed = step.dx_m / gap if gap > 0 else 0.0
     a = params.speed_memory
@@ -305,7 +318,8 @@ def _nearest_on_edges(
     xy: F64, centres_m: F64, edges: I64, heading_rad: float = math.nan, max_turn_rad: float = math.pi
 ) -> tuple[F64, float, float] | None:
     """The nearest point to ``xy`` on one of the segments ``edges`` (K, 2) of ``centres_m``
-    (its foot of the perpendicular), its distance and the segment's direction (radians); None when ``xy``
+    (its foot of the perpendicular, or the vertex two of the segments share when ``xy`` lies in the wedge
+    outside a bend between them), its distance and the segment's direction (radians); None when ``xy``
     lies beside no segment (past the end of every one: a dead end, or a gap in the mapped edges, where
     pulling it back to the end would stop it). With a finite ``heading_rad`` only segments whose direction
     is within ``max_turn_rad`` of it (either way along the segment) count: a vehicle driving across a
@@ -316,12 +330,16 @@ def _nearest_on_edges(
     ab = b - a
     length2 = np.einsum("ij,ij->i", ab, ab)
     t = np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0)
-    beside = (t >= 0.0) & (t <= 1.0) & (length2 > 0)
+    usable = length2 > 0
     if math.isfinite(heading_rad):
-        beside &= _axial_rad(np.arctan2(ab[:, 1], ab[:, 0]), heading_rad) <= max_turn_rad
+        usable &= _axial_rad(np.arctan2(ab[:, 1], ab[:, 0]), heading_rad) <= max_turn_rad
+    ends, count = np.unique(edges[usable].ravel(), return_counts=True)
+    shared = ends[count >= 2]  # a vertex joining two segments: no dead end
+    inner = ((t < 0.0) & np.isin(edges[:, 0], shared)) | ((t > 1.0) & np.isin(edges[:, 1], shared))
+    beside = usable & (((t >= 0.0) & (t <= 1.0)) | inner)
     if not beside.any():
         return None
-    points = a + t[:, None] * ab
+    points = a + np.clip(t, 0.0, 1.0)[:, None] * ab
     dist = np.where(beside, np.hypot(*(points - xy).T), np.inf)
     k = int(np.argmin(dist))
     return points[k], float(dist[k]), math.atan2(float(ab[k, 1]), float(ab[k, 0]))
