@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import click
 import typer
 
 from driftmap.cli.common import console, open_storage, user_errors
@@ -15,6 +14,7 @@ from driftmap.formats.tables import write_text_atomic
 from driftmap.services import exports as export_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
+from driftmap.services.exports import MapFormat, PositionFormat
 
 positions_app = typer.Typer(help="Vehicle position history: export.", no_args_is_help=True)
 
@@ -28,12 +28,7 @@ def map_export(
         Path | None, typer.Option("--poses", help="Poses CSV to write (drive,frame,x,y,yaw).")
     ] = None,
     fmt: Annotated[
-        str | None,
-        typer.Option(
-            "--format",
-            click_type=click.Choice(export_service.MAP_FORMATS),
-            help="Format of --out (docs/formats.md, Exports).",
-        ),
+        MapFormat | None, typer.Option("--format", help="Format of --out (docs/formats.md, Exports).")
     ] = None,
     out: OutOption = None,
     version: Annotated[int | None, typer.Option(help="Map version (default: latest).")] = None,
@@ -75,14 +70,7 @@ def map_export(
 @positions_app.command("export")
 def positions_export(
     site: SiteArgument,
-    fmt: Annotated[
-        str,
-        typer.Option(
-            "--format",
-            click_type=click.Choice(export_service.POSITION_FORMATS),
-            help="File format (docs/formats.md, Exports).",
-        ),
-    ],
+    fmt: Annotated[PositionFormat, typer.Option("--format", help="File format (docs/formats.md, Exports).")],
     out: Annotated[Path, typer.Option("--out", help="File to write.")],
     vehicle: Annotated[
         str | None, typer.Option("--vehicle", help="Only this vehicle (default: every vehicle of the site).")
