@@ -5,7 +5,8 @@ MIT Killian). A vertex is a pose [x, y, theta] (metres, radians) in the file's w
 ``i j dx dy dtheta`` is the measured pose of vertex j in vertex i with an information matrix given by its
 upper triangle, in g2o order ``I11 I12 I13 I22 I23 I33`` or TORO order ``xx xy yy tt xt yt``. Every error
 names the file, the 1-based line and the field at fault. :func:`to_pose_graph` turns a graph into the
-odometry chains and loop closures of :mod:`driftmap.core.graph.posegraph`.
+odometry chains and loop closures of :mod:`driftmap.core.graph.posegraph`; :func:`g2o_text` writes a graph
+back as g2o (the map export's pose graph).
 """
 
 from __future__ import annotations
