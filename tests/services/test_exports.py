@@ -162,6 +162,14 @@ class TestMapExports:
         odometry = graph.edge_ij[: len(rows) - len(DRIVES)]
         assert np.all(odometry[:, 1] == odometry[:, 0] + 1)
 
+    def test_one_drive_keeps_its_own_edges_and_closures(self, store: Storage) -> None:
+        rows = [r for r in parse_poses_csv(_map(store, "csv").text, "p.csv") if r.drive == "map-01"]
+        graph = parse_g2o(_map(store, "g2o", drive="map-01").text)
+        np.testing.assert_array_equal(graph.wTi, [[r.x_m, r.y_m, r.yaw_rad] for r in rows])
+        assert graph.edge_ij.shape[0] >= len(rows) - 1 and graph.edge_ij.max() < len(rows)
+        msp = ezdxf.read(io.StringIO(_map(store, "dxf", drive="map-01", closures=True).text)).modelspace()
+        assert {e.dxf.layer for e in msp.query("LWPOLYLINE")} == {"DRIVE-map-01"}
+
     def test_refusals(self, store: Storage) -> None:
         with pytest.raises(BadInputError) as caught:
             _map(store, "shp")

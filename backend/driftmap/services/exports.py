@@ -127,7 +127,11 @@ def _pose_graph(session: Session, version: MapVersion, poses: _MapPoses) -> G2oG
     row_of = {fid: r for r, fid in enumerate(poses.frame_ids)}
     wTi = np.array([[p.x_m, p.y_m, p.yaw_rad] for p in poses.rows], dtype=np.float64).reshape(-1, 3)
     pairs = [(r - 1, r) for r in range(1, len(poses.rows)) if poses.rows[r].drive == poses.rows[r - 1].drive]
-    pairs += [(row_of[a], row_of[b]) for a, b, ok in _closures(session, version) if ok]
+    pairs += [
+        (row_of[a], row_of[b])
+        for a, b, ok in _closures(session, version)
+        if ok and a in row_of and b in row_of  # both ends among the exported drives
+    ]
     grounded = session.scalars(
         select(MapGroundingResidual.frame_id).where(MapGroundingResidual.map_version_id == version.id)
     )
@@ -179,17 +183,19 @@ def export_map(
         ]
         text = g2o_text(_pose_graph(session, version, poses), comments)
     elif fmt == "dxf":
-        xy = {fid: (p.x_m, p.y_m) for fid, p in zip(poses.frame_ids, poses.rows, strict=True)}
-        segments = [
-            ClosureSegment(xy[a], xy[b], ok)
-            for a, b, ok in _closures(session, version)
-            if a in xy and b in xy
-        ]
+        segments = None
+        if closures:
+            xy = {fid: (p.x_m, p.y_m) for fid, p in zip(poses.frame_ids, poses.rows, strict=True)}
+            segments = [
+                ClosureSegment(xy[a], xy[b], ok)
+                for a, b, ok in _closures(session, version)
+                if a in xy and b in xy  # both ends among the exported drives
+            ]
         marks = None
         if nodes:
             arrays = node_arrays(session, blobs, version)
             marks = NodeMarks(list(zip(arrays["x_m"], arrays["y_m"], strict=True)), arrays["edges"])
-        text = map_dxf_text(tracks, marks, segments if closures else None)
+        text = map_dxf_text(tracks, marks, segments)
     else:
         text = _trajectory_text(fmt, tracks, f"{site.name} map version {version.version}", about, "drive")
     suffix = f"-{drive}" if drive is not None else ""
