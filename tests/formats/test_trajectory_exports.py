@@ -1,5 +1,5 @@
-"""Tests of driftmap.formats.trajectory_exports and position_exports: every format written, read back by its
-reader (evo for TUM and KITTI, json, an XML parser, the CSV reader) and compared with what was written."""
+"""Tests of driftmap.formats.trajectory_exports: every format written, read back by its reader (evo for TUM
+and KITTI, json, an XML parser) and compared with what was written."""
 
 from __future__ import annotations
 
@@ -13,14 +13,8 @@ import pytest
 from evo.tools import file_interface
 
 from driftmap.errors import BadInputError
-from driftmap.formats.csv_exports import PoseRow, parse_poses_csv, poses_text
-from driftmap.formats.position_exports import (
-    PositionRow,
-    parse_positions_csv,
-    positions_text,
-    tracks_from_positions,
-    write_positions_csv,
-)
+from driftmap.formats.csv_exports import PoseRow
+from driftmap.formats.position_exports import tracks_from_positions
 from driftmap.formats.trajectory_exports import (
     COORDINATES_MEMBER,
     KML_NAMESPACE,
@@ -35,6 +29,7 @@ from driftmap.formats.trajectory_exports import (
     tum_text,
     yaw_quaternion,
 )
+from tests.formats.test_position_exports import POSITIONS
 
 POSES = [
     PoseRow("map-01", 0, 13702.25, 56911.5, 0.3, 0.0),
@@ -42,11 +37,6 @@ POSES = [
     PoseRow("map-01", 2, 13704.0, 56912.75, -3.1, 0.2),
     PoseRow("map 02", 0, 13690.5, 56900.0, -1.2, 0.0),
     PoseRow("map 02", 5, 13691.0, 56899.0, 0.0, 0.5),
-]
-POSITIONS = [
-    PositionRow("lhd-1", 100.0, 10.5, 20.25, 0.5, 3, 0.9, True, False, 1.5),
-    PositionRow("lhd-1", 100.5, 11.0, 20.5, None, 4, 0.2, False, True, None),
-    PositionRow("truck, 2", 7.0, -5.0, 1.0, -2.0, 0, 0.5, True, False, -0.25),
 ]
 PLANE_TOLERANCE_M = 1e-9  # a pose read back through a rotation matrix or quaternion, metres / radians
 
@@ -64,14 +54,6 @@ class TestTracks:
         ]
         assert [p.frame for p in tracks[1].poses] == [0, 5]
 
-    def test_positions_become_one_track_per_vehicle(self) -> None:
-        tracks = tracks_from_positions(POSITIONS)
-        assert [(t.name, t.kind, len(t.poses)) for t in tracks] == [
-            ("lhd-1", "vehicle", 2),
-            ("truck, 2", "vehicle", 1),
-        ]
-        assert tracks[0].poses[1].yaw_rad is None and tracks[0].poses[1].frame is None
-
     def test_poses_without_time_are_refused(self) -> None:
         with pytest.raises(ValueError, match="no time"):
             tracks_from_poses([PoseRow("d", 0, 0.0, 0.0, 0.0)])
@@ -82,34 +64,6 @@ class TestTracks:
         assert caught.value.field == "drive" and "'map-01', 'map 02'" in str(caught.value)
         with pytest.raises(BadInputError, match="no poses"):
             one_track([], "KITTI", "vehicle")
-
-
-class TestCsv:
-    def test_timed_poses_read_back(self) -> None:
-        text = poses_text(POSES, with_time=True)
-        assert text.splitlines()[0] == "drive,frame,t,x,y,yaw"
-        assert parse_poses_csv(text, "poses.csv") == POSES
-
-    def test_untimed_poses_are_written_as_before(self) -> None:
-        text = poses_text(POSES)
-        assert text.splitlines()[0] == "drive,frame,x,y,yaw"
-        assert parse_poses_csv(text, "poses.csv") == [
-            PoseRow(r.drive, r.frame, r.x_m, r.y_m, r.yaw_rad) for r in POSES
-        ]
-
-    def test_positions_read_back(self, tmp_path: Path) -> None:
-        path = tmp_path / "positions.csv"
-        write_positions_csv(path, POSITIONS)
-        lines = path.read_text(encoding="utf-8").splitlines()
-        assert lines[0] == "vehicle,t,x,y,yaw,node,confidence,matched,lost,speed"
-        assert lines[2] == "lhd-1,100.5,11.0,20.5,,4,0.2,0,1,"
-        assert parse_positions_csv(path.read_text(encoding="utf-8"), path) == POSITIONS
-
-    def test_position_flags_must_be_0_or_1(self) -> None:
-        text = positions_text(POSITIONS[:1]).replace(",1,0,", ",yes,0,")
-        with pytest.raises(BadInputError) as caught:
-            parse_positions_csv(text, "p.csv")
-        assert (caught.value.line, caught.value.field) == (2, "matched")
 
 
 class TestTum:
