@@ -56,6 +56,16 @@ class TestExamples:
         assert text.splitlines()[:2] == ["drive,frame,x,y,yaw", '"east, 1",0,12.31,-4.02,1.5708']
         assert read_poses_csv(tmp_path / "poses.csv") == rows
 
+    def test_poses_with_time(self, tmp_path: Path) -> None:
+        rows = [PoseRow("east", 0, 12.31, -4.02, 1.5708, 0.0), PoseRow("east", 1, 12.5, -4.0, 1.5, 0.1)]
+        write_poses_csv(tmp_path / "poses.csv", rows, with_time=True)
+        text = (tmp_path / "poses.csv").read_text()
+        assert text.splitlines()[:2] == ["drive,frame,t,x,y,yaw", "east,0,0.0,12.31,-4.02,1.5708"]
+        assert read_poses_csv(tmp_path / "poses.csv") == rows
+        assert poses_text(rows).splitlines()[1] == "east,0,12.31,-4.02,1.5708"  # the t-less file as before
+        with pytest.raises(ValueError, match="no time"):
+            poses_text([PoseRow("east", 0, 0.0, 0.0, 0.0)], with_time=True)
+
     def test_localisation(self, tmp_path: Path) -> None:
         rows = [
             LocalisationRow(0, 17, 1.5, 2.5, 0.25, True, 1.5, -0.5, True, 0.75),

@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from driftmap.errors import BadInputError
-from driftmap.formats.g2o import parse_g2o, read_g2o, read_pose_table, to_pose_graph
+from driftmap.formats.g2o import (
+    G2oGraph,
+    g2o_text,
+    parse_g2o,
+    read_g2o,
+    read_pose_table,
+    relative_poses,
+    to_pose_graph,
+)
 from tests.outside_data import SHARED_DATA
 
 DATA = SHARED_DATA / "posegraphs"
@@ -143,3 +151,22 @@ class TestToPoseGraph:
         np.testing.assert_allclose(chains[0].information[0], np.diag([4.0, 4.0, 9.0]))
         assert [(c.a, c.b) for c in closures] == [((0, 0), (0, 1)), ((1, 1), (0, 0))]
         assert closures[0].aTb == (1.1, 0.0, 0.0)
+
+
+class TestWriter:
+    def test_a_written_graph_reads_back_identical(self) -> None:
+        g = parse_g2o(G2O + "FIX 0\n")
+        again = parse_g2o(g2o_text(g, ["a comment"]))
+        for field in ("vertex_ids", "wTi", "edge_ij", "iTj", "information", "fixed"):
+            np.testing.assert_array_equal(getattr(again, field), getattr(g, field))
+
+    def test_relative_poses_are_the_pose_of_j_in_i(self) -> None:
+        wTi = np.array([[1.0, 2.0, np.pi / 2], [1.0, 5.0, -np.pi / 2 + 0.1]])
+        iTj = relative_poses(wTi, np.array([[0, 1]]))
+        np.testing.assert_allclose(iTj, [[3.0, 0.0, -np.pi + 0.1]], atol=1e-12)
+
+    def test_non_finite_poses_are_refused(self) -> None:
+        g = parse_g2o(G2O)
+        broken = G2oGraph(**{**vars(g), "wTi": np.full_like(g.wTi, np.nan)})
+        with pytest.raises(ValueError, match="non-finite"):
+            g2o_text(broken)

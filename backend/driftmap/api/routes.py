@@ -9,7 +9,20 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from driftmap.api import auth, drives, groundings, health, jobs, live, maps, positions, sites, users, vehicles
+from driftmap.api import (
+    auth,
+    drives,
+    exports,
+    groundings,
+    health,
+    jobs,
+    live,
+    maps,
+    positions,
+    sites,
+    users,
+    vehicles,
+)
 
 ROUTERS: list[APIRouter] = [
     health.router,
@@ -22,6 +35,7 @@ ROUTERS: list[APIRouter] = [
     drives.router,
     groundings.router,
     maps.router,
+    exports.router,
     jobs.router,
 ]
 

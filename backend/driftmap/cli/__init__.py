@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from driftmap.cli import camera, data, localise, maps, replay, server, vpr, worker
+from driftmap.cli import camera, data, exports, localise, maps, replay, server, vpr, worker
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -16,7 +16,9 @@ app = typer.Typer(
 app.add_typer(data.site_app, name="site")
 app.add_typer(data.drive_app, name="drive")
 app.add_typer(data.db_app, name="db")
+maps.map_app.command("export")(exports.map_export)
 app.add_typer(maps.map_app, name="map")
+app.add_typer(exports.positions_app, name="positions")
 maps.report_app.command("localisation")(localise.report_localisation)
 app.add_typer(maps.report_app, name="report")
 app.add_typer(vpr.vpr_app, name="vpr")

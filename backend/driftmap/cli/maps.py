@@ -103,21 +103,6 @@ def _stats_line(stats: dict[str, float | int]) -> str:
     return ", ".join(f"{k.replace('_', ' ')} {stats.get(k, 0)}" for k in keys) + f"; {seconds:.1f} s"
 
 
-@map_app.command("export")
-def map_export(
-    site: Annotated[str, typer.Argument(help="Site name.")],
-    poses: Annotated[Path, typer.Option("--poses", help="Poses CSV to write (drive,frame,x,y,yaw).")],
-    version: Annotated[int | None, typer.Option(help="Map version (default: latest).")] = None,
-) -> None:
-    """Write the optimised poses of a map version as the formats.md poses CSV."""
-    storage = open_storage()
-    with user_errors(), storage.db.session() as session:
-        record = map_service.get_map_version(session, site_service.get_site(session, site), version)
-        rows = map_service.pose_rows(session, record)
-        write_poses_csv(poses, rows)
-        console.print(f"wrote {len(rows)} poses of map version {record.version} to {poses}")
-
-
 @map_app.command("show")
 def map_show(
     site: Annotated[str, typer.Argument(help="Site name.")],

@@ -89,7 +89,7 @@ class PoseRow:
     """One row of the map poses export: a mapping-drive frame's pose in the survey frame.
 
     ``x_m, y_m`` is the floor point under the camera (metres), ``yaw_rad`` the heading counter-clockwise
-    from +x (radians).
+    from +x (radians); ``t_s`` the frame's time, seconds since the drive's start (None when not carried).
     """
 
     drive: str
@@ -97,36 +97,45 @@ class PoseRow:
     x_m: float
     y_m: float
     yaw_rad: float
+    t_s: float | None = None
 
 
 POSES_HEADER: tuple[str, ...] = ("drive", "frame", "x", "y", "yaw")
+#: the header of ``map export --format csv``: the poses with each frame's time
+TIMED_POSES_HEADER: tuple[str, ...] = ("drive", "frame", "t", "x", "y", "yaw")
 
 
-def poses_text(rows: Iterable[PoseRow]) -> str:
-    """Poses CSV text, header ``drive,frame,x,y,yaw``."""
-    return table_text(
-        POSES_HEADER,
-        (
-            [
-                _name(r.drive, "drive"),
-                str(int(r.frame)),
-                format_float(r.x_m, field="x"),
-                format_float(r.y_m, field="y"),
-                format_float(r.yaw_rad, field="yaw"),
-            ]
-            for r in rows
-        ),
-    )
+def poses_text(rows: Iterable[PoseRow], *, with_time: bool = False) -> str:
+    """Poses CSV text, header ``drive,frame,x,y,yaw`` or, ``with_time``, ``drive,frame,t,x,y,yaw``."""
+
+    def cells(r: PoseRow) -> list[str]:
+        timed = [format_float(_time(r), field="t")] if with_time else []
+        return [
+            _name(r.drive, "drive"),
+            str(int(r.frame)),
+            *timed,
+            format_float(r.x_m, field="x"),
+            format_float(r.y_m, field="y"),
+            format_float(r.yaw_rad, field="yaw"),
+        ]
+
+    return table_text(TIMED_POSES_HEADER if with_time else POSES_HEADER, (cells(r) for r in rows))
 
 
-def write_poses_csv(path: Path, rows: Iterable[PoseRow]) -> None:
-    """Write the poses CSV atomically."""
-    write_text_atomic(path, poses_text(rows))
+def _time(row: PoseRow) -> float:
+    if row.t_s is None:
+        raise ValueError(f"drive {row.drive!r} frame {row.frame} has no time t")
+    return row.t_s
+
+
+def write_poses_csv(path: Path, rows: Iterable[PoseRow], *, with_time: bool = False) -> None:
+    """Write the poses CSV atomically (:func:`poses_text`)."""
+    write_text_atomic(path, poses_text(rows, with_time=with_time))
 
 
 def parse_poses_csv(text: str, file: str | Path) -> list[PoseRow]:
-    """Parse poses CSV text; each (drive, frame) may appear once."""
-    _, table = read_table(text, file, [POSES_HEADER])
+    """Parse poses CSV text, with or without the ``t`` column; each (drive, frame) may appear once."""
+    header, table = read_table(text, file, [POSES_HEADER, TIMED_POSES_HEADER])
     out: list[PoseRow] = []
     seen: set[tuple[str, int]] = set()
     for row in table:
@@ -139,7 +148,8 @@ def parse_poses_csv(text: str, file: str | Path) -> list[PoseRow]:
             )
         seen.add((drive, frame))
         x, y, yaw = (parse_float(cells[k], file=file, line=line, field=k) for k in ("x", "y", "yaw"))
-        out.append(PoseRow(drive, frame, x, y, yaw))
+        t = parse_float(cells["t"], file=file, line=line, field="t") if "t" in header else None
+        out.append(PoseRow(drive, frame, x, y, yaw, t))
     return out
 
 

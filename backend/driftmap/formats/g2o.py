@@ -5,13 +5,15 @@ MIT Killian). A vertex is a pose [x, y, theta] (metres, radians) in the file's w
 ``i j dx dy dtheta`` is the measured pose of vertex j in vertex i with an information matrix given by its
 upper triangle, in g2o order ``I11 I12 I13 I22 I23 I33`` or TORO order ``xx xy yy tt xt yt``. Every error
 names the file, the 1-based line and the field at fault. :func:`to_pose_graph` turns a graph into the
-odometry chains and loop closures of :mod:`driftmap.core.graph.posegraph`.
+odometry chains and loop closures of :mod:`driftmap.core.graph.posegraph`; :func:`g2o_text` writes a graph
+back as g2o (the map export's pose graph).
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -230,3 +232,46 @@ def to_pose_graph(graph: G2oGraph) -> tuple[list[OdometryChain], list[LoopConstr
             )
         )
     return chains, closures
+
+
+def relative_poses(wTi: NDArray[np.float64], edge_ij: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The pose of j in i for every edge: (K, 3) [dx_m, dy_m, dtheta_rad], dtheta wrapped to [-pi, pi).
+
+    Args:
+        wTi: (N, 3) poses [x_m, y_m, theta_rad] in one world frame.
+        edge_ij: (K, 2) row indices (i, j) into ``wTi``.
+    """
+    wTi = np.asarray(wTi, dtype=np.float64).reshape(-1, 3)
+    ij = np.asarray(edge_ij, dtype=np.int64).reshape(-1, 2)
+    a, b = wTi[ij[:, 0]], wTi[ij[:, 1]]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    dtheta = (b[:, 2] - a[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, dtheta], axis=1)
+
+
+def g2o_text(graph: G2oGraph, comments: Sequence[str] = ()) -> str:
+    """The text of a 2-D g2o file that :func:`parse_g2o` reads back as ``graph``.
+
+    ``#`` comment lines first, then one ``VERTEX_SE2 id x y theta`` per vertex, one
+    ``EDGE_SE2 i j dx dy dtheta I11 I12 I13 I22 I23 I33`` per edge (in ``graph`` order) and, when vertices
+    are fixed, one ``FIX`` line. Numbers are written with :func:`repr` (read back identical).
+
+    Raises:
+        ValueError: a non-finite number (g2o readers refuse them).
+    """
+    if not (np.all(np.isfinite(graph.wTi)) and np.all(np.isfinite(graph.iTj))):
+        raise ValueError("pose graph has non-finite poses or measurements")
+    ids = graph.vertex_ids
+
+    def numbers(values: NDArray[np.float64]) -> str:
+        return " ".join(repr(float(v)) for v in values)
+
+    lines = [f"# {c}" for c in comments]
+    lines += [f"VERTEX_SE2 {int(v)} {numbers(p)}" for v, p in zip(ids, graph.wTi, strict=True)]
+    upper = np.triu_indices(3)
+    for (i, j), measured, info in zip(graph.edge_ij, graph.iTj, graph.information, strict=True):
+        lines.append(f"EDGE_SE2 {int(ids[i])} {int(ids[j])} {numbers(measured)} {numbers(info[upper])}")
+    if graph.fixed.size:
+        lines.append("FIX " + " ".join(str(int(ids[r])) for r in graph.fixed))
+    return "\n".join(lines) + "\n"

@@ -73,7 +73,8 @@ def read_table(
     accepted = [tuple(h) for h in headers]
     if found not in accepted:
         wanted = " or ".join(f"'{','.join(h)}'" for h in accepted)
-        best = max(accepted, key=len)
+        # the header the file meant: the longest shared start, then the longest header
+        best = max(accepted, key=lambda h: (_shared_start(found, h), len(h)))
         if len(found) > len(best) and found[: len(best)] == best:
             bad_field = found[len(best)]
         else:
@@ -99,6 +100,14 @@ def read_table(
             )
         rows.append(CsvRow(index, dict(zip(found, cells, strict=True))))
     return found, rows
+
+
+def _shared_start(a: Sequence[str], b: Sequence[str]) -> int:
+    """How many leading column names ``a`` and ``b`` share."""
+    n = 0
+    while n < min(len(a), len(b)) and a[n] == b[n]:
+        n += 1
+    return n
 
 
 def _split_line(line: str, file: str | Path, index: int) -> list[str]:

@@ -921,6 +921,46 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/sites/{site_id}/maps/{version}/export": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Export Map
+         * @description A map version's optimised poses as a file: CSV, GeoJSON, DXF, KML, TUM, KITTI or the g2o pose graph.
+         */
+        get: operations["export_map_api_sites__site_id__maps__version__export_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/sites/{site_id}/positions/export": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Export Positions
+         * @description The position history of the site's vehicles (or one) between ``since`` and ``until`` as a file.
+         */
+        get: operations["export_positions_api_sites__site_id__positions_export_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/jobs": {
         parameters: {
             query?: never;
@@ -4145,6 +4185,94 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["ResidualRead"][];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    export_map_api_sites__site_id__maps__version__export_get: {
+        parameters: {
+            query: {
+                /** @description File format (docs/formats.md, Exports). */
+                format: "csv" | "geojson" | "dxf" | "kml" | "tum" | "kitti" | "g2o";
+                /** @description Only this mapping drive (needed by tum and kitti). */
+                drive?: string | null;
+                /** @description DXF: add the NODES layer. */
+                nodes?: boolean;
+                /** @description DXF: add the CLOSURES layers. */
+                closures?: boolean;
+            };
+            header?: never;
+            path: {
+                site_id: number;
+                version: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description The file. */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": unknown;
+                    "application/geo+json": unknown;
+                    "image/vnd.dxf": unknown;
+                    "application/vnd.google-earth.kml+xml": unknown;
+                    "text/plain": unknown;
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    export_positions_api_sites__site_id__positions_export_get: {
+        parameters: {
+            query: {
+                /** @description File format (docs/formats.md, Exports). */
+                format: "csv" | "geojson" | "kml" | "tum";
+                /** @description Only this vehicle (default: every vehicle). */
+                vehicle?: string | null;
+                /** @description Earliest frame time t, seconds (vehicle clock). */
+                since?: number | null;
+                /** @description Latest frame time t, seconds (vehicle clock). */
+                until?: number | null;
+            };
+            header?: never;
+            path: {
+                site_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description The file. */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": unknown;
+                    "application/geo+json": unknown;
+                    "application/vnd.google-earth.kml+xml": unknown;
+                    "text/plain": unknown;
                 };
             };
             /** @description Validation Error */
