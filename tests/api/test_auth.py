@@ -114,7 +114,7 @@ class TestUsers:
         admin = actors.auth("admin")
         me = actors.client.get("/api/auth/me", headers=admin).json()
         demote = actors.client.patch(f"/api/users/{me['id']}", json={"role": "viewer"}, headers=admin)
-        assert demote.status_code == 409
+        assert demote.status_code == 409 and "last active admin" in demote.json()["detail"]
         assert actors.client.delete(f"/api/users/{me['id']}", headers=admin).status_code == 409
 
 

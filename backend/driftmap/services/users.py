@@ -58,13 +58,18 @@ def list_users(session: Session) -> list[User]:
     return list(session.scalars(select(User).order_by(User.id)))
 
 
-def _admins(session: Session) -> int:
-    return session.scalar(select(func.count()).select_from(User).where(User.role == "admin")) or 0
+def _other_active_admins(session: Session, user: User) -> int:
+    """How many enabled admins there are besides ``user``."""
+    others = (User.role == "admin") & User.disabled_at.is_(None) & (User.id != user.id)
+    return session.scalar(select(func.count()).select_from(User).where(others)) or 0
 
 
-def _active_admins(session: Session) -> int:
-    active = (User.role == "admin") & User.disabled_at.is_(None)
-    return session.scalar(select(func.count()).select_from(User).where(active)) or 0
+def _refuse_losing_the_last_admin(session: Session, user: User, change: str) -> None:
+    """Refuse ``change`` (e.g. "deleted") when ``user`` is the only enabled admin: nobody could administer."""
+    if user.role == "admin" and user.disabled_at is None and _other_active_admins(session, user) == 0:
+        raise ConflictError(
+            f"{user.username!r} is the last active admin and cannot be {change}; make another user admin first"
+        )
 
 
 def revoke_tokens(user: User) -> None:
@@ -88,9 +93,9 @@ def update_user(
     """
     changed = False
     if role is not None and role != user.role:
-        if user.role == "admin" and user.disabled_at is None and _active_admins(session) <= 1:
-            raise ConflictError(f"{user.username!r} is the last admin; make another admin first")
-        user.role = _check_role(role)
+        new_role = _check_role(role)
+        _refuse_losing_the_last_admin(session, user, f"made {new_role}")
+        user.role = new_role
         changed = True
     if password is not None:
         user.password_hash = hash_password(_check_password(password))
@@ -99,8 +104,7 @@ def update_user(
         if disabled:
             if user.id == acting_user_id:
                 raise ConflictError("you cannot disable your own account")
-            if user.role == "admin" and _active_admins(session) <= 1:
-                raise ConflictError(f"{user.username!r} is the last active admin and cannot be disabled")
+            _refuse_losing_the_last_admin(session, user, "disabled")
         user.disabled_at = utc_now() if disabled else None
         changed = True
     if changed:
@@ -121,11 +125,10 @@ def change_own_password(session: Session, user: User, current: str, new: str) ->
 
 
 def delete_user(session: Session, user: User, *, acting_user_id: int | None = None) -> None:
-    """Remove ``user``; the last admin cannot be removed, nor ``acting_user_id`` (the admin) themself."""
+    """Remove ``user``; the last active admin cannot be removed, nor ``acting_user_id`` (the admin) themself."""
     if user.id == acting_user_id:
         raise ConflictError("you cannot delete your own account")
-    if user.role == "admin" and _admins(session) <= 1:
-        raise ConflictError(f"{user.username!r} is the last admin and cannot be deleted")
+    _refuse_losing_the_last_admin(session, user, "deleted")
     session.delete(user)
     session.flush()
 
