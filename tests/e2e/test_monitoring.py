@@ -200,6 +200,44 @@ class TestObscuredCamera:
         assert page.errors == []
 
 
+class TestLatestFrame:
+    def test_the_panel_shows_exactly_the_selected_vehicles_latest_frame(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path
+    ) -> None:
+        frames = recorded_frames(localisation_drive(tiny_site_dir), 9)
+        names = ("cam-1", "cam-2", "cam-3")
+        last_t = {}
+        for k, name in enumerate(names):  # each on its own clock, so a frame's time tells whose it is
+            vehicle = Vehicle(server, name)
+            for i in range(3):
+                last_t[name] = 3000.0 + 100.0 * k + FRAME_PERIOD_S * i
+                assert vehicle.post(last_t[name], frames[3 * k + i].data)["status"] == "processed"
+        p = page.page
+        log_in(p, server)
+        p.get_by_test_id("nav-monitor").click()
+        details = p.get_by_test_id("vehicle-details")
+        for name in (*names, "cam-1", "cam-3", "cam-2"):
+            p.get_by_test_id(f"vehicle-row-{name}").click()
+            expect(details.locator("h3").first).to_contain_text(name)
+            frame = details.get_by_test_id("latest-frame")
+            expect(frame).to_have_attribute("data-vehicle", name)
+            expect(details.locator("img")).to_have_count(1)
+            expect(frame).to_have_attribute("data-t", re.compile(rf"^{re.escape(str(last_t[name]))}"))
+            expect(details.get_by_test_id("latest-frame-caption")).to_contain_text(name)
+            # one time format: a drive clock as elapsed drive time
+            expect(details.get_by_test_id("latest-frame-caption")).to_contain_text(
+                f"+0:{int(last_t[name]) // 60 % 60:02d}:"
+            )
+        # full size on a click, Escape closes it
+        details.get_by_test_id("latest-frame").click()
+        full = p.get_by_test_id("frame-full")
+        expect(full).to_contain_text("cam-2")
+        assert full.locator("img").evaluate("img => img.naturalWidth") == 320
+        p.keyboard.press("Escape")
+        expect(full).to_have_count(0)
+        assert page.errors == []
+
+
 def _readout_at(page: Page, px: float, py: float) -> tuple[float, float]:
     """The survey point under the mouse at page pixel ``(px, py)``, read from the map's grid readout."""
     readout = page.get_by_test_id("grid-readout")

@@ -1,5 +1,8 @@
 // Replay of a vehicle's position history: a clock over [start, end] of frame time that plays at a speed,
 // the pose at any time between two stored positions, and the vehicle-clock formatting of the range inputs.
+import { EPOCH_CLOCK_S, formatTime } from "./time";
+
+export { EPOCH_CLOCK_S };
 
 export interface TrackPoint {
   t: number; // frame time on the vehicle's clock, seconds
@@ -10,9 +13,6 @@ export interface TrackPoint {
   lost: boolean;
   obscured?: boolean | null;
 }
-
-/** A vehicle clock beyond this is Unix time (live replays post the wall clock); below it, seconds of a drive. */
-export const EPOCH_CLOCK_S = 1e9;
 
 /** Index of the last point with ``t <= time`` (-1 before the first); ``track`` sorted by ``t``. */
 export function indexAt(track: readonly TrackPoint[], time: number): number {
@@ -97,16 +97,12 @@ export class ReplayClock {
   }
 }
 
-const pad = (n: number) => String(n).padStart(2, "0");
-
-/** A vehicle-clock time for people: local ``YYYY-MM-DD HH:MM:SS`` for Unix times, else seconds. */
+/**
+ * A vehicle-clock time as the replay's range inputs take it: local ``YYYY-MM-DD HH:MM:SS`` for Unix times
+ * (:func:`formatTime` with the date), else seconds of the drive.
+ */
 export function formatClock(t: number): string {
-  if (t < EPOCH_CLOCK_S) return t.toFixed(1);
-  const d = new Date(t * 1000);
-  return (
-    `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())} ` +
-    `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`
-  );
+  return t < EPOCH_CLOCK_S ? t.toFixed(1) : formatTime(new Date(t * 1000), undefined, true);
 }
 
 /**

@@ -1,5 +1,6 @@
 // Admin: users and roles, vehicles (a new vehicle's token is shown once), sites.
 import { useCallback, useEffect, useState, type FormEvent } from "react";
+import { formatTime } from "../lib/time";
 import { ApiError, apiDelete, apiGet, apiPatch, apiPost, type Schemas } from "../api/client";
 
 type Role = Schemas["Role"];
@@ -245,7 +246,7 @@ function Sites({ sites, onChanged }: { sites: Schemas["SiteRead"][]; onChanged: 
             <tr key={s.id} data-testid={`site-row-${s.name}`}>
               <td>{s.name}</td>
               <td>{s.description}</td>
-              <td>{new Date(s.created_at).toLocaleDateString()}</td>
+              <td>{formatTime(s.created_at)}</td>
             </tr>
           ))}
         </tbody>

@@ -165,7 +165,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
         {vehicles.length === 0 && <p className="muted">No vehicles on this site.</p>}
         {selected && (
           <VehicleDetails v={selected} actions={editable && <SetStartPanel control={setStart} />}>
-            <ReplayPanel key={selected.id} vehicle={selected} session={replay} onSession={setReplay} />
+            <ReplayPanel key={`replay-${selected.id}`} vehicle={selected} session={replay} onSession={setReplay} />
           </VehicleDetails>
         )}
       </aside>

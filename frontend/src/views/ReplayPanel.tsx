@@ -3,7 +3,8 @@
 import { useEffect, useRef, useState } from "react";
 import { apiGet } from "../api/client";
 import type { VehicleState } from "../lib/liveState";
-import { formatClock, parseClock, poseAt, rangeBefore, ReplayClock, type TrackPoint } from "../lib/replay";
+import { formatFrameTime } from "../lib/time";
+import { parseClock, poseAt, rangeBefore, ReplayClock, type TrackPoint } from "../lib/replay";
 
 export const SPEEDS = [1, 2, 5, 10, 30, 60];
 const PRESETS_MIN = [1, 5, 30];
@@ -213,8 +214,8 @@ function ReplayPlayer({
         }}
       />
       <div className="row muted" data-testid="replay-time">
-        {formatClock(clock.now)} · {pose ? `E ${pose.x.toFixed(1)} N ${pose.y.toFixed(1)}` : "–"} · {track.length}{" "}
-        positions, {formatClock(clock.start)} – {formatClock(clock.end)}
+        {formatFrameTime(clock.now)} · {pose ? `E ${pose.x.toFixed(1)} N ${pose.y.toFixed(1)}` : "–"} · {track.length}{" "}
+        positions, {formatFrameTime(clock.start)} – {formatFrameTime(clock.end)}
       </div>
     </div>
   );

@@ -6,7 +6,7 @@ import { apiGet, type Schemas } from "../api/client";
 import { bandCss, confidenceBand, formatConfidence } from "../lib/confidence";
 import { formatBearing, formatMotion, formatSpeed } from "../lib/motion";
 import { statusOf, type VehicleState } from "../lib/liveState";
-import { EPOCH_CLOCK_S, formatClock } from "../lib/replay";
+import { formatFrameTime, formatTime } from "../lib/time";
 import { LatestFrame } from "./LatestFrame";
 
 const HISTORY_S = 300; // the history: the last five minutes of frame time
@@ -127,14 +127,11 @@ export function VehicleDetails({ v, actions, children }: Props) {
             </tr>
             <tr>
               <th>Frame time</th>
-              <td>
-                {formatClock(p.t)}
-                {p.t < EPOCH_CLOCK_S ? " s" : ""}
-              </td>
+              <td>{formatFrameTime(p.t)}</td>
             </tr>
             <tr>
               <th>Received</th>
-              <td>{new Date(p.received_at).toLocaleTimeString()}</td>
+              <td>{formatTime(p.received_at)}</td>
             </tr>
           </tbody>
         </table>
@@ -142,7 +139,9 @@ export function VehicleDetails({ v, actions, children }: Props) {
         <p className="muted">No position yet.</p>
       )}
       {actions}
-      <LatestFrame key={v.id} vehicleId={v.id} seq={seq} />
+      {/* keyed apart from its siblings (the replay panel is keyed by the vehicle id): two children with one
+          key leave the old vehicle's picture behind */}
+      <LatestFrame key={`latest-frame-${v.id}`} vehicleId={v.id} name={v.name} seq={seq} />
       {children}
       <h3>History</h3>
       <table data-testid="vehicle-history">
@@ -158,7 +157,7 @@ export function VehicleDetails({ v, actions, children }: Props) {
         <tbody>
           {history.map((h) => (
             <tr key={h.seq}>
-              <td className="num">{formatClock(h.t)}</td>
+              <td className="num">{formatFrameTime(h.t)}</td>
               <td className="num">{h.x.toFixed(1)}</td>
               <td className="num">{h.y.toFixed(1)}</td>
               <td className="num">
