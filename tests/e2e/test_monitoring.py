@@ -24,6 +24,7 @@ from driftmap.formats.frame_images import decode_gray, encode_png
 from driftmap.sim.obscurants import LEVELS, apply_level
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
+from tests.e2e.map_helpers import pixel_of, plain_map_at
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
@@ -238,47 +239,6 @@ class TestLatestFrame:
         assert page.errors == []
 
 
-def _readout_at(page: Page, px: float, py: float) -> tuple[float, float]:
-    """The survey point under the mouse at page pixel ``(px, py)``, read from the map's grid readout."""
-    readout = page.get_by_test_id("grid-readout")
-    before = readout.inner_text()
-    page.mouse.move(px, py)
-    deadline = time.monotonic() + DEADLINE_S
-    while True:
-        text = readout.inner_text()
-        found = re.search(r"E (-?[\d.]+)\s+N (-?[\d.]+)", text)
-        if found and text != before:
-            return float(found.group(1)), float(found.group(2))
-        assert time.monotonic() < deadline, f"the readout did not follow the mouse: {text!r}"
-        page.wait_for_timeout(50)
-
-
-def _pixel_of(page: Page, x: float, y: float) -> tuple[float, float]:
-    """The page pixel of survey point ``(x, y)``: the map's scale and offset measured through the readout (the
-    readout adds the map's local origin back, so this also checks what a click at that pixel means)."""
-    box = page.get_by_test_id("map").bounding_box()
-    assert box is not None
-    ax, ay = box["x"] + 0.3 * box["width"], box["y"] + 0.3 * box["height"]
-    bx, by = box["x"] + 0.7 * box["width"], box["y"] + 0.7 * box["height"]
-    (ea, na), (eb, nb) = _readout_at(page, ax, ay), _readout_at(page, bx, by)
-    m_per_px_x, m_per_px_y = (eb - ea) / (bx - ax), (na - nb) / (by - ay)  # north is up
-    assert m_per_px_x > 0 and math.isclose(m_per_px_x, m_per_px_y, rel_tol=0.02), (m_per_px_x, m_per_px_y)
-    return ax + (x - ea) / m_per_px_x, ay + (na - y) / m_per_px_y
-
-
-def _plain_map_at(page: Page, px: float, py: float) -> bool:
-    """Whether a click at ``(px, py)`` lands on the map itself (not a legend, layer list or map button)."""
-    return bool(
-        page.evaluate(
-            """([x, y]) => {
-                const e = document.elementFromPoint(x, y);
-                return !!e && !!e.closest('[data-testid=map]') && !e.closest('.ol-control, .overlay-box');
-            }""",
-            [px, py],
-        )
-    )
-
-
 def _layer_lines(server: Server, layer: str) -> list[NDArray[np.float64]]:
     """Every polyline of a survey layer, unsimplified, as (N, 2) survey metres."""
     answer = server.api("GET", "/api/sites/1/survey/layers", params={"tolerance_m": 0, "layers": layer})
@@ -373,10 +333,10 @@ class TestKnownStart:
         expect(p.get_by_test_id("vehicle-details")).to_contain_text("No position yet")
 
         # aim at the drive's true position at its first frame whose pixel is plain map (no legend over it)
-        first = next(i for i, f in enumerate(frames[:10]) if _plain_map_at(p, *_pixel_of(p, f.x, f.y)))
+        first = next(i for i, f in enumerate(frames[:10]) if plain_map_at(p, *pixel_of(p, f.x, f.y)))
         aim = frames[first]
         assert _distance_to_lines((aim.x, aim.y), centreline) < CENTRELINE_TOLERANCE_M  # a tunnel point
-        px, py = _pixel_of(p, aim.x, aim.y)
+        px, py = pixel_of(p, aim.x, aim.y)
         starts: list[Any] = []  # the bodies of the start requests the page sent
 
         def on_request(request: Request) -> None:

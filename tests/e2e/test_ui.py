@@ -5,22 +5,26 @@ Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); 
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Page, Request, expect
 
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
+from tests.e2e.map_helpers import metres_per_pixel, pixel_of, plain_map_at
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
 DEADLINE_S = 60.0
 FRAME_PERIOD_S = 0.1  # the posted frames' spacing in vehicle time, seconds
 BUILD_DEADLINE_MS = 300_000  # a FAST map build of the tiny site on a busy 2-core machine
+FAR_CLICK_M = 25.0  # a stray click this far from the keyframe's estimate (the UI asks beyond 15 m)
+PICK_CLEARANCE_PX = 20  # a keyframe picked for grounding lies this far from every grounding's square
 
 
 def log_in(page: Page, server: Server, username: str, password: str) -> None:
@@ -44,6 +48,73 @@ def make_user(server: Server, name: str, role: str) -> str:
     created = server.api("POST", "/api/users", json={"username": name, "password": password, "role": role})
     assert created.status_code in (200, 201), created.text
     return password
+
+
+def groundings(server: Server) -> list[dict[str, Any]]:
+    items: list[dict[str, Any]] = server.api("GET", "/api/sites/1/groundings").json()["items"]
+    return items
+
+
+def watch_grounding_writes(page: Page) -> list[tuple[str, int]]:
+    """The grounding writes (POST /api/drives/{id}/groundings) the page sends from now on: (method, drive id)."""
+    sent: list[tuple[str, int]] = []
+
+    def on_request(request: Request) -> None:
+        found = re.search(r"/api/drives/(\d+)/groundings$", request.url)
+        if found and request.method == "POST":
+            sent.append((request.method, int(found.group(1))))
+
+    page.on("request", on_request)
+    return sent
+
+
+def pick_ungrounded_keyframe(
+    page: Page, server: Server, grounded: list[dict[str, Any]]
+) -> tuple[int, int, tuple[float, float]]:
+    """Select a keyframe of the strip's first page that has no grounding, far from every grounding's square and
+    with its estimate on plain map; returns its drive, frame and the estimate's page pixel."""
+    thumbs = page.get_by_test_id("keyframe-strip").locator("[data-frame]")
+    expect(thumbs.first).to_be_visible()  # drawn once the drives have loaded
+    expect(page.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
+    drive_id = int(page.get_by_test_id("drive-select").input_value())
+    poses = server.api("GET", "/api/sites/1/maps/1/poses").json()
+    estimate = {
+        (d, f): (x, y)
+        for d, f, x, y in zip(poses["drive_id"], poses["frame"], poses["x_m"], poses["y_m"], strict=True)
+    }
+    taken = {(g["drive_id"], g["frame"]) for g in grounded}
+    frames = [int(t.get_attribute("data-frame") or "-1") for t in thumbs.all()]
+
+    def clearance(f: int) -> float:
+        ex, ey = estimate[(drive_id, f)]
+        return min(
+            (math.hypot(float(g["x_m"]) - ex, float(g["y_m"]) - ey) for g in grounded), default=math.inf
+        )
+
+    candidates = sorted((f for f in frames if (drive_id, f) not in taken), key=clearance, reverse=True)
+    m_per_px = metres_per_pixel(page)
+    for frame in candidates:
+        assert clearance(frame) > PICK_CLEARANCE_PX * m_per_px, "every free keyframe is next to a grounding"
+        at = pixel_of(page, *estimate[(drive_id, frame)])
+        if plain_map_at(page, *at):
+            page.get_by_test_id(f"keyframe-{frame}").click()
+            expect(page.get_by_test_id("selected-frame")).to_have_attribute("data-frame", str(frame))
+            return drive_id, frame, at
+    raise AssertionError("no free keyframe on plain map")
+
+
+def far_pixel(page: Page, near: tuple[float, float], distance_m: float) -> tuple[float, float]:
+    """A plain-map pixel ``distance_m`` from ``near``, towards the map's middle."""
+    box = page.get_by_test_id("map").bounding_box()
+    assert box is not None
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    offset = distance_m / metres_per_pixel(page)
+    for angle in range(0, 360, 15):
+        a = math.radians(angle) + math.atan2(cy - near[1], cx - near[0])
+        at = (near[0] + offset * math.cos(a), near[1] + offset * math.sin(a))
+        if plain_map_at(page, *at):
+            return at
+    raise AssertionError(f"no plain map {distance_m} m from {near}")
 
 
 class TestLoginAndSurvey:
@@ -186,39 +257,41 @@ class TestMonitoring:
 
 
 class TestGrounding:
-    def test_ground_a_keyframe_by_clicking_the_map_undo_redo_delete(
+    def test_ground_a_keyframe_in_placing_mode_undo_redo_delete(
         self, server: Server, page: PageWithLog
     ) -> None:
-        def groundings() -> list[dict[str, object]]:
-            items: list[dict[str, object]] = server.api("GET", "/api/sites/1/groundings").json()["items"]
-            return items
-
-        before = groundings()
-        grounded = {(g["drive_id"], g["frame"]) for g in before}
+        before = groundings(server)
         p = page.page
+        posts = watch_grounding_writes(p)
         log_in(p, server, "admin", ADMIN_PASSWORD)
         p.get_by_test_id("nav-grounding").click()
         table_rows = p.get_by_test_id("groundings-table").locator("tbody tr")
         expect(table_rows).to_have_count(len(before))
-        thumbs = p.get_by_test_id("keyframe-strip").locator("[data-frame]")
-        expect(thumbs.first).to_be_visible()  # drawn once the drives have loaded
-        drive_id = int(p.get_by_test_id("drive-select").input_value())
-        frames = [int(t.get_attribute("data-frame") or "-1") for t in thumbs.all()]
-        frame = next(f for f in frames if (drive_id, f) not in grounded)
-        p.get_by_test_id(f"keyframe-{frame}").click()
+        drive_id, frame, (px, py) = pick_ungrounded_keyframe(p, server, before)
+        at = (px, py)
+
+        # a stray click: placing mode is off, so nothing is written and nothing else gets selected
+        p.mouse.click(*at)
+        expect(p.get_by_test_id("selected-frame")).to_have_attribute("data-frame", str(frame))
+        p.get_by_test_id("place-button").click()
+        expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "yes")
+        expect(p.get_by_test_id("place-hint")).to_contain_text(f"frame {frame}")
+        p.keyboard.press("Escape")  # Escape leaves the placing mode
+        expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "no")
+        p.mouse.click(*at)
         expect(p.get_by_test_id("selected-frame")).to_have_attribute("data-frame", str(frame))
 
-        expect(p.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
-        box = p.get_by_test_id("map").bounding_box()
-        assert box is not None
-        at = (box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.55)
+        p.get_by_test_id("place-button").click()
+        expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "yes")
         p.mouse.move(*at)
         expect(p.get_by_test_id("grid-readout")).to_contain_text("E ")
         x, y = grid_readout(p)
-        p.mouse.click(*at)
+        p.mouse.click(*at)  # on the keyframe's estimate: written without a question
 
         expect(table_rows).to_have_count(len(before) + 1)
-        new = [g for g in groundings() if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+        expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "no")
+        assert posts == [("POST", drive_id)], posts  # the stray clicks sent nothing
+        new = [g for g in groundings(server) if (g["drive_id"], g["frame"]) == (drive_id, frame)]
         assert len(new) == 1
         assert abs(float(new[0]["x_m"]) - x) < 0.05 and abs(float(new[0]["y_m"]) - y) < 0.05  # type: ignore[arg-type]
         expect(p.get_by_test_id(f"grounding-row-{new[0]['id']}")).to_contain_text("new")
@@ -233,7 +306,7 @@ class TestGrounding:
         screenshot(p, "ui_grounding")
 
         def mine() -> list[dict[str, object]]:
-            return [g for g in groundings() if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+            return [g for g in groundings(server) if (g["drive_id"], g["frame"]) == (drive_id, frame)]
 
         p.get_by_test_id("undo").click()
         expect(table_rows).to_have_count(len(before))
@@ -246,13 +319,76 @@ class TestGrounding:
         expect(table_rows).to_have_count(len(before))
         assert not mine()
 
-        # the keyboard: g grounds the selected keyframe under the pointer, x deletes its grounding
+        # the keyboard: g enters the placing mode, g again grounds under the pointer, x deletes the grounding
         p.mouse.move(*at)
+        p.keyboard.press("g")
+        expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "yes")
         p.keyboard.press("g")
         expect(table_rows).to_have_count(len(before) + 1)
         (again,) = mine()
         assert abs(float(again["x_m"]) - x) < 0.05 and abs(float(again["y_m"]) - y) < 0.05  # type: ignore[arg-type]
         p.keyboard.press("x")
+        expect(table_rows).to_have_count(len(before))
+        assert not mine()
+        assert page.errors == []
+
+    def test_a_far_point_is_confirmed_first_and_a_grounded_frame_selects_its_grounding(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        before = groundings(server)
+        p = page.page
+        writes = watch_grounding_writes(p)
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        table_rows = p.get_by_test_id("groundings-table").locator("tbody tr")
+        expect(table_rows).to_have_count(len(before))
+        drive_id, frame, near = pick_ungrounded_keyframe(p, server, before)
+        far = far_pixel(p, near, FAR_CLICK_M)
+
+        def mine() -> list[dict[str, object]]:
+            return [g for g in groundings(server) if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+
+        # a click 25 m from the keyframe's estimate asks first; Cancel writes nothing
+        p.get_by_test_id("place-button").click()
+        p.mouse.click(*far)
+        dialog = p.get_by_test_id("confirm-dialog")
+        expect(dialog).to_contain_text("m from the keyframe's current estimate (more than 15 m)")
+        p.get_by_test_id("confirm-cancel").click()
+        expect(dialog).to_have_count(0)
+        expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "no")
+        assert writes == [] and not mine()
+
+        # confirmed, it is written where it was clicked
+        p.keyboard.press("g")
+        p.mouse.move(*far)
+        fx, fy = grid_readout(p)
+        p.mouse.click(*far)
+        expect(dialog).to_be_visible()
+        p.get_by_test_id("confirm-ok").click()
+        expect(table_rows).to_have_count(len(before) + 1)
+        (placed,) = mine()
+        assert abs(float(placed["x_m"]) - fx) < 0.05 and abs(float(placed["y_m"]) - fy) < 0.05  # type: ignore[arg-type]
+        assert writes == [("POST", drive_id)], writes
+
+        # the grounded frame selects its grounding: placing again moves it (no "already grounded"), then delete
+        selected = p.get_by_test_id("selected-grounding")
+        expect(selected).to_have_attribute("data-grounding", str(placed["id"]))
+        expect(p.get_by_test_id(f"grounding-row-{placed['id']}")).to_have_class(re.compile("selected"))
+        expect(p.get_by_test_id("place-button")).to_contain_text("Move")
+        p.get_by_test_id("place-button").click()
+        p.mouse.click(*near)
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("moved the grounding of")
+        (moved,) = mine()
+        assert moved["id"] == placed["id"]
+        assert math.hypot(float(moved["x_m"]) - fx, float(moved["y_m"]) - fy) > FAR_CLICK_M / 2  # type: ignore[arg-type]
+        # a click (placing mode off) on a grounding's square selects its keyframe and grounding
+        other = next(g for g in before if plain_map_at(p, *pixel_of(p, float(g["x_m"]), float(g["y_m"]))))
+        p.mouse.click(*pixel_of(p, float(other["x_m"]), float(other["y_m"])))
+        expect(selected).to_have_attribute("data-grounding", str(other["id"]))
+        expect(p.get_by_test_id("selected-frame")).to_have_attribute("data-frame", str(other["frame"]))
+        p.mouse.click(*near)
+        expect(selected).to_have_attribute("data-grounding", str(placed["id"]))
+        p.get_by_test_id("delete-selected-grounding").click()
         expect(table_rows).to_have_count(len(before))
         assert not mine()
         assert page.errors == []

@@ -19,6 +19,8 @@ interface Props {
   /** Optimised pose of each keyframe by ``"driveId#frame"``, mine-grid metres. */
   poses: Map<string, [number, number]>;
   editable: boolean;
+  /** The selected keyframe's grounding, drawn highlighted. */
+  selectedId: number | null;
   onMove: (id: number, x: number, y: number) => void;
 }
 
@@ -31,10 +33,20 @@ const SQUARE = new Style({
     stroke: new Stroke({ color: "#fff", width: 1.5 }),
   }),
 });
+const SELECTED_SQUARE = new Style({
+  image: new RegularShape({
+    points: 4,
+    radius: 8,
+    angle: Math.PI / 4,
+    fill: new Fill({ color: "rgba(77,171,247,0.35)" }),
+    stroke: new Stroke({ color: "#4dabf7", width: 2.5 }),
+  }),
+  zIndex: 1,
+});
 const LINK = new Style({ stroke: new Stroke({ color: "#fff", width: 1 }) });
 const MOVED_EPS_M = 1e-6;
 
-export function GroundingMarkers({ ctx, groundings, poses, editable, onMove }: Props) {
+export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId, onMove }: Props) {
   const sources = useRef({ squares: new VectorSource<Feature<Point>>(), links: new VectorSource() });
   const moveRef = useLatest(onMove);
 
@@ -98,7 +110,7 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, onMove }: P
     for (const g of groundings) {
       const at = ctx.origin.toLocal(g.x, g.y);
       const square = new Feature(new Point(at));
-      square.setStyle(SQUARE);
+      square.setStyle(g.id === selectedId ? SELECTED_SQUARE : SQUARE);
       square.set("groundingId", g.id);
       const pose = poses.get(`${g.driveId}#${g.frame}`);
       if (pose) {
@@ -111,7 +123,7 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, onMove }: P
       }
       squares.addFeature(square);
     }
-  }, [ctx, groundings, poses]);
+  }, [ctx, groundings, poses, selectedId]);
 
   return null;
 }

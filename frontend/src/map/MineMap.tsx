@@ -18,6 +18,7 @@ import MultiLineString from "ol/geom/MultiLineString";
 import { apiGet, ApiError } from "../api/client";
 import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
 import { snapTargetsOf, type SnapTargets } from "../lib/snap";
+import { wallRingsOf, type WallRings } from "../lib/placement";
 import { serverZoomFor } from "../lib/surveyZoom";
 import { mark } from "../lib/perf";
 import { flattenLines } from "../lib/surveyLines";
@@ -30,6 +31,8 @@ export interface MapCtx {
   siteExtent: Extent | null;
   /** The plan's vertices and centreline segments for snapping (world coordinates; refined with the zoom). */
   snap: { current: SnapTargets | null };
+  /** The plan's closed wall outlines (layers named like "wall"; world coordinates), empty without any. */
+  walls: { current: WallRings | null };
 }
 
 const LAYER_COLOURS = ["#8ca3ba", "#f0b429", "#4dabf7", "#b197fc", "#63e6be", "#ffa8a8", "#d8f5a2"];
@@ -39,6 +42,8 @@ interface Props {
   overlay?: (ctx: MapCtx) => ReactNode;
   onMapClick?: (x: number, y: number) => void;
   tools?: ReactNode;
+  /** A placing mode is on: a crosshair over the plan. */
+  placing?: boolean;
 }
 
 interface SurveyLayer {
@@ -47,7 +52,7 @@ interface SurveyLayer {
   features: number;
 }
 
-export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
+export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) {
   const target = useRef<HTMLDivElement>(null);
   const [ctx, setCtx] = useState<MapCtx | null>(null);
   const [layers, setLayers] = useState<SurveyLayer[]>([]);
@@ -70,7 +75,9 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
     });
     const added: BaseLayer[] = [];
     const snap: { current: SnapTargets | null } = { current: null };
+    const walls: { current: WallRings | null } = { current: null };
     const isCentreline = (name: string) => /centre|center/i.test(name);
+    const isWall = (name: string) => /wall/i.test(name);
     const fetchLayers = (zoom: number) => apiGet("/api/sites/{site_id}/survey/layers", { site_id: siteId }, { zoom });
     void (async () => {
       let origin = new LocalOrigin(0, 0);
@@ -84,6 +91,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
         const [minX, minY, maxX, maxY] = survey.extents as [number, number, number, number];
         const sideM = Math.max(maxX - minX, maxY - minY);
         snap.current = snapTargetsOf(survey.layers, isCentreline);
+        walls.current = wallRingsOf(survey.layers, isWall);
         // one multi-line feature per layer (see lib/surveyLines.ts), shifted to the local origin
         const read = (collection: unknown, o: LocalOrigin): Feature<Geometry>[] => {
           const lines = flattenLines(collection, o.x0, o.y0);
@@ -129,6 +137,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
               source.addFeatures(read(collection, o));
             }
             snap.current = snapTargetsOf(detail.layers, isCentreline);
+            walls.current = wallRingsOf(detail.layers, isWall);
             map.once("rendercomplete", () => mark("survey-detail"));
           } catch {
             if (mine === generation) loadedZoom = 0; // try again on the next move
@@ -141,7 +150,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
         if (cancelled) return;
         setError(e instanceof ApiError && e.status === 404 ? "this site has no survey plan yet" : String(e));
       }
-      setCtx({ map, origin, siteExtent, snap });
+      setCtx({ map, origin, siteExtent, snap, walls });
     })();
     map.on("pointermove", (ev) => {
       const o = originRef.current;
@@ -174,8 +183,15 @@ export function MineMap({ siteId, overlay, onMapClick, tools }: Props) {
   };
 
   return (
-    <div className="mapwrap">
-      <div className="map" ref={target} data-testid="map" data-ready={ctx ? "yes" : "no"} data-renderer={renderer} />
+    <div className={placing ? "mapwrap placing" : "mapwrap"}>
+      <div
+        className="map"
+        ref={target}
+        data-testid="map"
+        data-ready={ctx ? "yes" : "no"}
+        data-renderer={renderer}
+        data-placing={placing ? "yes" : "no"}
+      />
       {layers.length > 0 && (
         <div className="overlay-box layers" data-testid="layer-panel">
           {layers.map((l) => (

@@ -1,5 +1,7 @@
 // Grounding workstation: the latest map version's trajectories over the plan, a keyframe strip per drive,
-// ground the selected keyframe by clicking its surveyed point, drag a grounding to adjust it, a residual table
+// ground the selected keyframe in an explicit placing mode (usePlacement: Place or g, then a click on its
+// surveyed point; a doubtful point is confirmed first), select a grounding by its keyframe or its square on the
+// plan, drag a grounding to adjust it, a residual table
 // (sortable, colour-coded), delete, undo/redo, CSV import/export, "Build map" with the job's progress, and two
 // map versions compared as an overlay.
 import { useCallback, useEffect, useMemo, useRef, useState } from "react";
@@ -15,6 +17,8 @@ import { CompareVersions } from "./CompareVersions";
 import { GroundingsTable, ShortcutHelp } from "./GroundingsTable";
 import { KeyframeStrip } from "./KeyframeStrip";
 import { useGroundingEdits } from "./useGroundingEdits";
+import { usePlacement, type PlacementTarget } from "./usePlacement";
+import { PlacingPanel } from "./PlacingPanel";
 
 type Drive = Schemas["DriveRead"];
 
@@ -22,6 +26,7 @@ const KEYFRAME_STRIDE = 10;
 const STRIP_PAGE = 12;
 const SNAP_TOLERANCE_PX = 12;
 const PLAY_STEP_MS = 250; // keyframe strip playback: one keyframe per step
+const PICK_TOLERANCE_PX = 8; // a click this close to a grounding's square selects it
 
 export function GroundingView({ siteId, editable }: { siteId: number; editable: boolean }) {
   const [drives, setDrives] = useState<Drive[]>([]);
@@ -100,6 +105,10 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const joined = useMemo(() => joinResiduals(groundings, residuals), [groundings, residuals]);
   const rows = useMemo(() => sortRows(joined, sort.key, sort.dir), [joined, sort]);
   const poseAt = useMemo(() => (poses ? poseIndex(poses) : new Map<string, [number, number]>()), [poses]);
+  const groundedFrames = useMemo(
+    () => new Set(groundings.filter((g) => g.drive_id === driveId).map((g) => g.frame)),
+    [groundings, driveId],
+  );
 
   const step = useCallback(
     (delta: number) => {
@@ -129,29 +138,71 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     return () => unByKey(key);
   }, [ctx]);
 
-  const ground = async (clickX: number, clickY: number) => {
-    if (!editable || driveId === null || frame === null) return;
-    let x = clickX;
-    let y = clickY;
-    if (snapOn && ctx?.snap.current) {
+  const snapped = useCallback(
+    (x: number, y: number) => {
+      if (!snapOn || !ctx?.snap.current) return { x, y };
       const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
-      ({ x, y } = snapPoint(ctx.snap.current, clickX, clickY, tolerance));
+      return snapPoint(ctx.snap.current, x, y, tolerance);
+    },
+    [snapOn, ctx],
+  );
+
+  const selectedGrounding = groundings.find((g) => g.drive_id === driveId && g.frame === frame) ?? null;
+  const target: PlacementTarget | null = useMemo(
+    () =>
+      driveId === null || frame === null
+        ? null
+        : {
+            driveId,
+            frame,
+            groundingId: selectedGrounding?.id ?? null,
+            estimate: poseAt.get(`${driveId}#${frame}`) ?? null,
+          },
+    [driveId, frame, selectedGrounding?.id, poseAt],
+  );
+  const driveName = drive?.name;
+  const placement = usePlacement({
+    enabled: editable,
+    target,
+    walls: () => ctx?.walls.current ?? null,
+    snap: snapped,
+    write: (t: PlacementTarget, x: number, y: number) =>
+      t.groundingId === null
+        ? edits.create(t.driveId, t.frame, x, y, driveName ?? String(t.driveId))
+        : edits.move(t.groundingId, x, y),
+  });
+
+  /** Select a keyframe (and the strip page that shows it). */
+  const select = (id: number, f: number) => {
+    setDriveId(id);
+    setFrame(f);
+    const frames = poses ? poses.frame.filter((_, i) => poses.drive_id[i] === id) : [];
+    const i = frames.filter((_, k) => k % KEYFRAME_STRIDE === 0).indexOf(f);
+    if (i >= 0) setPage(Math.floor(i / STRIP_PAGE));
+  };
+
+  /** A click on the plan: places in the placing mode, else selects the grounding whose square it hits. */
+  const clickMap = (x: number, y: number) => {
+    if (placement.place(x, y) || !ctx) return;
+    const tolerance = PICK_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
+    let best: Schemas["GroundingRead"] | null = null;
+    let bestD = tolerance;
+    for (const g of groundings) {
+      const d = Math.hypot(g.x_m - x, g.y_m - y);
+      if (d <= bestD) [best, bestD] = [g, d];
     }
-    await edits.create(driveId, frame, x, y, drive?.name ?? String(driveId));
+    if (best) select(best.drive_id, best.frame);
   };
 
   const moveGrounding = async (id: number, x: number, y: number) => {
-    let to = { x, y };
-    if (snapOn && ctx?.snap.current) {
-      const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
-      to = snapPoint(ctx.snap.current, x, y, tolerance);
-    }
+    const to = snapped(x, y);
     await edits.move(id, to.x, to.y);
   };
 
   useEffect(() => {
     const onKey = (e: KeyboardEvent) => {
       if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+      if (placement.pending) return; // the confirmation has the keyboard
       if (e.key === "?") setHelp((h) => !h);
       else if (e.key === "Escape") setHelp(false);
       else if (e.key === " ") {
@@ -159,10 +210,11 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         setPlaying((p) => !p);
       } else if (e.key === "ArrowRight" || e.key === "n") step(1);
       else if (e.key === "ArrowLeft" || e.key === "p") step(-1);
-      else if (editable && e.key === "g" && pointer.current) void ground(...pointer.current);
-      else if (editable && (e.key === "x" || e.key === "Delete")) {
-        const g = groundings.find((r) => r.drive_id === driveId && r.frame === frame);
-        if (g) void edits.remove(g.id);
+      else if (editable && e.key === "g") {
+        if (!placement.placing) placement.begin();
+        else if (pointer.current) placement.place(...pointer.current);
+      } else if (editable && (e.key === "x" || e.key === "Delete")) {
+        if (selectedGrounding) void edits.remove(selectedGrounding.id);
       } else if (editable && (e.key === "u" || (e.ctrlKey && e.key === "z"))) void edits.undo();
       else if (editable && (e.key === "r" || (e.ctrlKey && e.key === "y"))) void edits.redo();
     };
@@ -200,7 +252,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
       <MineMap
         key={siteId}
         siteId={siteId}
-        onMapClick={(x, y) => void ground(x, y)}
+        onMapClick={clickMap}
+        placing={placement.placing}
         tools={
           <>
             <label>
@@ -241,6 +294,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
               groundings={joined}
               poses={poseAt}
               editable={editable}
+              selectedId={selectedGrounding?.id ?? null}
               onMove={(id, x, y) => void moveGrounding(id, x, y)}
             />
           </>
@@ -266,7 +320,16 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           playing={playing}
           onPlay={() => setPlaying((p) => !p)}
           editable={editable}
+          grounded={groundedFrames}
         />
+        {editable && frame !== null && (
+          <PlacingPanel
+            placement={placement}
+            frame={frame}
+            grounding={selectedGrounding}
+            onDelete={(id) => void edits.remove(id)}
+          />
+        )}
         {message && <p data-testid="grounding-message">{message}</p>}
         <div className="row">
           <h3 style={{ margin: 0 }}>Groundings ({groundings.length})</h3>
@@ -323,6 +386,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           sort={sort}
           onSort={setSort}
           editable={editable}
+          selectedId={selectedGrounding?.id ?? null}
           onFly={flyTo}
           onDelete={(id) => void edits.remove(id)}
         />

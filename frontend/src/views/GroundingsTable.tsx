@@ -11,11 +11,13 @@ interface Props {
   sort: Sort;
   onSort: Dispatch<SetStateAction<Sort>>;
   editable: boolean;
+  /** The selected keyframe's grounding (its row is highlighted). */
+  selectedId: number | null;
   onFly: (x: number, y: number) => void;
   onDelete: (id: number) => void;
 }
 
-export function GroundingsTable({ rows, sort, onSort, editable, onFly, onDelete }: Props) {
+export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFly, onDelete }: Props) {
   const header = (key: SortKey, label: string, num = true) => (
     <th
       className={`sortable ${num ? "num" : ""}`}
@@ -42,6 +44,7 @@ export function GroundingsTable({ rows, sort, onSort, editable, onFly, onDelete 
         {rows.map((r) => (
           <tr
             key={r.id}
+            className={r.id === selectedId ? "selected" : ""}
             data-testid={`grounding-row-${r.id}`}
             data-frame={r.frame}
             data-drive={r.drive}
@@ -80,12 +83,15 @@ const SHORTCUTS: [string, string][] = [
   ["← / p", "previous keyframe"],
   ["→ / n", "next keyframe"],
   ["space", "play / pause the drive"],
-  ["click on the plan / g", "ground the selected keyframe there (g: under the pointer)"],
+  ["g / Place", "placing mode for the selected keyframe (crosshair); then click its surveyed point"],
+  ["g (placing)", "ground the selected keyframe under the pointer"],
+  ["Esc", "leave the placing mode"],
+  ["click a white square", "select that grounding's keyframe (to move or delete it)"],
   ["x / Delete", "delete the selected keyframe's grounding"],
   ["drag a white square", "move that grounding's surveyed point"],
   ["u / Ctrl+Z", "undo"],
   ["r / Ctrl+Y", "redo"],
-  ["? / Esc", "show / hide this help"],
+  ["?", "show / hide this help"],
 ];
 
 export function ShortcutHelp({ editable, onClose }: { editable: boolean; onClose: () => void }) {

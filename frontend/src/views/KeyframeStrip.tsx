@@ -19,10 +19,12 @@ interface Props {
   playing: boolean;
   onPlay: () => void;
   editable: boolean;
+  /** The frames of the drive that are grounded (marked in the strip). */
+  grounded: ReadonlySet<number>;
 }
 
 export function KeyframeStrip(props: Props) {
-  const { drives, driveId, frames, frame, page, pageCount, playing, editable } = props;
+  const { drives, driveId, frames, frame, page, pageCount, playing, editable, grounded } = props;
   const drive = drives.find((d) => d.id === driveId) ?? null;
   return (
     <>
@@ -58,13 +60,17 @@ export function KeyframeStrip(props: Props) {
           frames.map((f) => (
             <button
               key={f}
-              className={`thumb ${f === frame ? "selected" : ""}`}
+              className={`thumb ${f === frame ? "selected" : ""} ${grounded.has(f) ? "grounded" : ""}`}
+              title={grounded.has(f) ? `frame ${f} (grounded)` : `frame ${f}`}
               data-testid={`keyframe-${f}`}
               data-frame={f}
               onClick={() => props.onFrame(f)}
             >
               <AuthImage src={`/api/drives/${driveId}/frames/${f}/thumbnail?width=96`} alt={`frame ${f}`} />
-              <span>#{f}</span>
+              <span>
+                #{f}
+                {grounded.has(f) ? " ■" : ""}
+              </span>
             </button>
           ))}
       </div>
@@ -73,7 +79,8 @@ export function KeyframeStrip(props: Props) {
           <AuthImage className="bigframe" src={`/api/drives/${driveId}/frames/${frame}`} alt={`frame ${frame} large`} />
           <div className="muted">
             {drive?.name} frame {frame}
-            {editable ? " · click its surveyed point on the plan to ground it, drag a square to adjust one" : ""}
+            {grounded.has(frame) ? " (grounded)" : ""}
+            {editable ? " · Place (g), then click its surveyed point on the plan; drag a square to adjust one" : ""}
           </div>
         </div>
       )}
