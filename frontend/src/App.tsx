@@ -92,7 +92,7 @@ export function App() {
       </header>
       <main className="content">
         {current === "admin" ? (
-          <AdminView sites={sites} onSitesChanged={loadSites} />
+          <AdminView sites={sites} onSitesChanged={loadSites} meId={me.id} />
         ) : siteId === null ? (
           <p className="muted" style={{ margin: 24 }}>
             No site yet.{isAdmin(me) ? " Create one under Admin." : ""}

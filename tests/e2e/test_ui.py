@@ -529,3 +529,104 @@ class TestAdmin:
         login = server.api("POST", "/api/auth/login", json={"username": "shift-boss", "password": password})
         assert login.status_code == 200
         assert page.errors == []
+
+    def test_deletes_ask_first_and_a_new_row_moves_no_button_under_the_pointer(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        make_user(server, "temp-user", "viewer")
+        made = server.api("POST", "/api/vehicles", json={"name": "doomed-1", "site_id": 1})
+        assert made.status_code == 201, made.text
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-admin").click()
+        expect(p.get_by_test_id("user-row-temp-user")).to_be_visible()
+
+        def user_names() -> list[str]:
+            return [u["username"] for u in server.api("GET", "/api/users").json()]
+
+        # Add: the new row appears, the button stays where the pointer is
+        add = p.get_by_test_id("add-user")
+        p.get_by_test_id("new-user-name").fill("new-hand")
+        p.get_by_test_id("new-user-password").fill("new-hand-password")
+        before = add.bounding_box()
+        assert before is not None
+        add.click()
+        expect(p.get_by_test_id("user-row-new-hand")).to_be_visible()
+        assert add.bounding_box() == before
+        under = p.evaluate(
+            "([x, y]) => document.elementFromPoint(x, y)?.closest('button')?.dataset.testid ?? ''",
+            [before["x"] + before["width"] / 2, before["y"] + before["height"] / 2],
+        )
+        assert under == "add-user", under
+
+        # Delete asks; Cancel (or Escape) keeps the user, the confirmation deletes
+        p.get_by_test_id("user-delete-temp-user").click()
+        dialog = p.get_by_test_id("confirm-dialog")
+        expect(dialog).to_contain_text("Delete user temp-user?")
+        expect(p.get_by_test_id("confirm-cancel")).to_be_focused()  # Enter does not delete
+        p.get_by_test_id("confirm-cancel").click()
+        expect(dialog).to_have_count(0)
+        p.get_by_test_id("user-delete-temp-user").click()
+        p.keyboard.press("Escape")
+        expect(dialog).to_have_count(0)
+        assert "temp-user" in user_names()
+        p.get_by_test_id("user-delete-temp-user").click()
+        p.get_by_test_id("confirm-ok").click()
+        expect(p.get_by_test_id("user-row-temp-user")).to_have_count(0)
+        assert "temp-user" not in user_names()
+
+        # a password reset: the user logs in with the new one
+        p.get_by_test_id("user-reset-new-hand").click()
+        p.get_by_test_id("reset-password").fill("fresh-password-1")
+        with p.expect_response(lambda r: r.request.method == "PATCH" and "/api/users/" in r.url) as patched:
+            p.get_by_test_id("reset-ok").click()
+        assert patched.value.status == 200
+        login = server.api(
+            "POST", "/api/auth/login", json={"username": "new-hand", "password": "fresh-password-1"}
+        )
+        assert login.status_code == 200, login.text
+
+        # vehicles too
+        p.get_by_test_id("vehicle-delete-doomed-1").click()
+        expect(dialog).to_contain_text("Delete vehicle doomed-1?")
+        p.get_by_test_id("confirm-ok").click()
+        expect(p.get_by_test_id("admin-vehicle-doomed-1")).to_have_count(0)
+        assert "doomed-1" not in [v["name"] for v in server.api("GET", "/api/vehicles").json()]
+        assert page.errors == []
+
+    def test_the_last_admin_cannot_be_deleted_demoted_or_disabled(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-admin").click()
+        delete, role = p.get_by_test_id("user-delete-admin"), p.get_by_test_id("user-role-admin")
+        expect(delete).to_be_disabled()
+        expect(delete).to_have_attribute("title", "you cannot delete your own account")
+        expect(role).to_be_disabled()
+        expect(role).to_have_attribute("title", re.compile("admin is the last active admin"))
+        expect(p.get_by_test_id("user-toggle-admin")).to_be_disabled()
+
+        # with a second admin the first may be demoted, and the second deleted
+        p.get_by_test_id("new-user-name").fill("deputy")
+        p.get_by_test_id("new-user-password").fill("deputy-password")
+        p.get_by_test_id("new-user-role").select_option("admin")
+        p.get_by_test_id("add-user").click()
+        expect(p.get_by_test_id("user-role-deputy")).to_have_value("admin")
+        expect(role).to_be_enabled()
+        expect(p.get_by_test_id("user-delete-deputy")).to_be_enabled()
+        expect(delete).to_be_disabled()  # never yourself
+
+        # the deputy demoted: the first is the last admin again
+        p.get_by_test_id("user-role-deputy").select_option("surveyor")
+        expect(role).to_be_disabled()
+        deputy = next(u for u in server.api("GET", "/api/users").json() if u["username"] == "deputy")
+        assert deputy["role"] == "surveyor"
+
+        # the server refuses the same, and says why
+        me = server.api("GET", "/api/auth/me").json()
+        demote = server.api("PATCH", f"/api/users/{me['id']}", json={"role": "viewer"})
+        assert demote.status_code == 409 and "last active admin" in demote.json()["detail"], demote.text
+        removed = server.api("DELETE", f"/api/users/{me['id']}")
+        assert removed.status_code == 409 and "your own account" in removed.json()["detail"], removed.text
+        assert page.errors == []

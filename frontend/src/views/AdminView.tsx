@@ -1,128 +1,28 @@
-// Admin: users and roles, vehicles (a new vehicle's token is shown once), sites.
+// Admin: users (AdminUsers), vehicles (a new vehicle's token is shown once; delete after a confirmation), sites.
+// The add forms sit above their tables, so a new row never moves a button under the pointer.
 import { useCallback, useEffect, useState, type FormEvent } from "react";
+import { AdminUsers } from "./AdminUsers";
+import { ConfirmDialog } from "./Dialog";
+import { useErrors } from "./useErrors";
 import { formatTime } from "../lib/time";
-import { ApiError, apiDelete, apiGet, apiPatch, apiPost, type Schemas } from "../api/client";
-
-type Role = Schemas["Role"];
-
-function useErrors(): [string | null, (f: () => Promise<void>) => Promise<void>] {
-  const [error, setError] = useState<string | null>(null);
-  const run = useCallback(async (f: () => Promise<void>) => {
-    setError(null);
-    try {
-      await f();
-    } catch (e) {
-      setError(e instanceof ApiError ? e.message : String(e));
-    }
-  }, []);
-  return [error, run];
-}
+import { apiDelete, apiGet, apiPost, type Schemas } from "../api/client";
 
 export function AdminView({
   sites,
   onSitesChanged,
+  meId,
 }: {
   sites: Schemas["SiteRead"][];
   onSitesChanged: () => Promise<void>;
+  /** The admin looking (who may not delete or disable themself). */
+  meId: number | null;
 }) {
   return (
     <div className="adminpage">
-      <Users />
+      <AdminUsers meId={meId} />
       <Vehicles sites={sites} />
       <Sites sites={sites} onChanged={onSitesChanged} />
     </div>
-  );
-}
-
-function Users() {
-  const [users, setUsers] = useState<Schemas["UserRead"][]>([]);
-  const [name, setName] = useState("");
-  const [password, setPassword] = useState("");
-  const [role, setRole] = useState<Role>("viewer");
-  const [error, run] = useErrors();
-  const load = useCallback(async () => setUsers(await apiGet("/api/users")), []);
-  useEffect(() => void run(load), [run, load]);
-  const create = (e: FormEvent) => {
-    e.preventDefault();
-    void run(async () => {
-      await apiPost("/api/users", {}, { username: name, password, role });
-      setName("");
-      setPassword("");
-      await load();
-    });
-  };
-  return (
-    <section className="card" data-testid="admin-users">
-      <h2>Users</h2>
-      <table>
-        <thead>
-          <tr>
-            <th>Name</th>
-            <th>Role</th>
-            <th>Status</th>
-            <th />
-          </tr>
-        </thead>
-        <tbody>
-          {users.map((u) => (
-            <tr key={u.id} data-testid={`user-row-${u.username}`}>
-              <td>{u.username}</td>
-              <td>{u.role}</td>
-              <td>{u.disabled_at ? "disabled" : "active"}</td>
-              <td>
-                <button
-                  data-testid={`user-toggle-${u.username}`}
-                  title="Disabling logs the user out everywhere"
-                  onClick={() =>
-                    void run(async () => {
-                      await apiPatch("/api/users/{user_id}", { user_id: u.id }, { disabled: !u.disabled_at });
-                      await load();
-                    })
-                  }
-                >
-                  {u.disabled_at ? "Enable" : "Disable"}
-                </button>{" "}
-                <button
-                  className="danger"
-                  onClick={() =>
-                    void run(async () => {
-                      await apiDelete("/api/users/{user_id}", { user_id: u.id });
-                      await load();
-                    })
-                  }
-                >
-                  Delete
-                </button>
-              </td>
-            </tr>
-          ))}
-        </tbody>
-      </table>
-      <form className="row" onSubmit={create}>
-        <input
-          placeholder="user name"
-          value={name}
-          onChange={(e) => setName(e.target.value)}
-          data-testid="new-user-name"
-        />
-        <input
-          placeholder="password (8+)"
-          type="password"
-          value={password}
-          onChange={(e) => setPassword(e.target.value)}
-          data-testid="new-user-password"
-        />
-        <select value={role} onChange={(e) => setRole(e.target.value as Role)} data-testid="new-user-role">
-          <option value="viewer">viewer</option>
-          <option value="surveyor">surveyor</option>
-          <option value="admin">admin</option>
-        </select>
-        <button className="primary" type="submit" disabled={!name || !password}>
-          Add user
-        </button>
-      </form>
-      {error && <p className="error">{error}</p>}
-    </section>
   );
 }
 
@@ -131,6 +31,7 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
   const [name, setName] = useState("");
   const [siteId, setSiteId] = useState<number | null>(null);
   const [token, setToken] = useState<{ name: string; token: string } | null>(null);
+  const [deleting, setDeleting] = useState<Schemas["VehicleRead"] | null>(null);
   const [error, run] = useErrors();
   const load = useCallback(async () => setVehicles(await apiGet("/api/vehicles")), []);
   useEffect(() => void run(load), [run, load]);
@@ -154,37 +55,6 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
   return (
     <section className="card" data-testid="admin-vehicles">
       <h2>Vehicles</h2>
-      <table>
-        <thead>
-          <tr>
-            <th>Name</th>
-            <th>Site</th>
-            <th />
-          </tr>
-        </thead>
-        <tbody>
-          {vehicles.map((v) => (
-            <tr key={v.id} data-testid={`admin-vehicle-${v.name}`}>
-              <td>{v.name}</td>
-              <td>{siteName(v.site_id)}</td>
-              <td className="row" style={{ margin: 0 }}>
-                <button onClick={() => rotate(v.id, v.name)}>New token</button>
-                <button
-                  className="danger"
-                  onClick={() =>
-                    void run(async () => {
-                      await apiDelete("/api/vehicles/{vehicle_id}", { vehicle_id: v.id });
-                      await load();
-                    })
-                  }
-                >
-                  Delete
-                </button>
-              </td>
-            </tr>
-          ))}
-        </tbody>
-      </table>
       <form className="row" onSubmit={create}>
         <input
           placeholder="vehicle name"
@@ -203,6 +73,29 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
           Add vehicle
         </button>
       </form>
+      <table>
+        <thead>
+          <tr>
+            <th>Name</th>
+            <th>Site</th>
+            <th />
+          </tr>
+        </thead>
+        <tbody>
+          {vehicles.map((v) => (
+            <tr key={v.id} data-testid={`admin-vehicle-${v.name}`}>
+              <td>{v.name}</td>
+              <td>{siteName(v.site_id)}</td>
+              <td className="row" style={{ margin: 0 }}>
+                <button onClick={() => rotate(v.id, v.name)}>New token</button>
+                <button className="danger" data-testid={`vehicle-delete-${v.name}`} onClick={() => setDeleting(v)}>
+                  Delete
+                </button>
+              </td>
+            </tr>
+          ))}
+        </tbody>
+      </table>
       {token && (
         <div data-testid="vehicle-token">
           <p>
@@ -213,6 +106,27 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
         </div>
       )}
       {error && <p className="error">{error}</p>}
+      {deleting && (
+        <ConfirmDialog
+          title={`Delete vehicle ${deleting.name}?`}
+          confirmLabel="Delete"
+          danger
+          onCancel={() => setDeleting(null)}
+          onConfirm={() => {
+            const gone = deleting;
+            setDeleting(null);
+            void run(async () => {
+              await apiDelete("/api/vehicles/{vehicle_id}", { vehicle_id: gone.id });
+              await load();
+            });
+          }}
+        >
+          <p>
+            {deleting.name} ({siteName(deleting.site_id)}) and its positions are removed, and its token stops working.
+            This cannot be undone.
+          </p>
+        </ConfirmDialog>
+      )}
     </section>
   );
 }
