@@ -17,14 +17,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-from numpy.typing import NDArray
 from playwright.sync_api import Page, Request, expect
 
 from driftmap.formats.frame_images import decode_gray, encode_png
 from driftmap.sim.obscurants import LEVELS, apply_level
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
-from tests.e2e.map_helpers import pixel_of, plain_map_at
+from tests.e2e.map_helpers import distance_to_lines, inside_walls, layer_lines, pixel_of, plain_map_at
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
@@ -239,52 +238,6 @@ class TestLatestFrame:
         assert page.errors == []
 
 
-def _layer_lines(server: Server, layer: str) -> list[NDArray[np.float64]]:
-    """Every polyline of a survey layer, unsimplified, as (N, 2) survey metres."""
-    answer = server.api("GET", "/api/sites/1/survey/layers", params={"tolerance_m": 0, "layers": layer})
-    assert answer.status_code == 200, answer.text
-    lines: list[NDArray[np.float64]] = []
-
-    def walk(coordinates: Any) -> None:
-        if coordinates and isinstance(coordinates[0], (int, float)):
-            raise AssertionError("a bare point in a line layer")
-        if coordinates and isinstance(coordinates[0][0], (int, float)):
-            lines.append(np.asarray(coordinates, dtype=np.float64)[:, :2])
-        else:
-            for c in coordinates:
-                walk(c)
-
-    for feature in answer.json()["layers"][layer]["features"]:
-        walk(feature["geometry"]["coordinates"])
-    assert lines, f"no {layer} lines"
-    return lines
-
-
-def _distance_to_lines(point: tuple[float, float], lines: list[NDArray[np.float64]]) -> float:
-    """Distance, metres, from a point to the nearest segment of any polyline."""
-    p = np.asarray(point, dtype=np.float64)
-    best = math.inf
-    for line in lines:
-        a, b = line[:-1], line[1:]
-        ab = b - a
-        u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
-        best = min(best, float(np.min(np.hypot(*(a + u[:, None] * ab - p).T))))
-    return best
-
-
-def _inside_walls(point: tuple[float, float], rings: list[NDArray[np.float64]]) -> bool:
-    """Whether a point lies in the tunnels: inside an odd number of wall rings (the outline, not a pillar)."""
-    x, y = point
-    crossings = 0
-    for ring in rings:
-        a, b = ring, np.roll(ring, -1, axis=0)
-        straddles = (a[:, 1] > y) != (b[:, 1] > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            at_x = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-        crossings += int(np.count_nonzero(straddles & (x < at_x)))
-    return crossings % 2 == 1
-
-
 def _confidence_text(confidence: float) -> str:
     """The UI's percentage: rounded down, so the text and the band always agree."""
     return f"{min(100, max(0, math.floor(confidence * 100 + 1e-9)))} %"
@@ -321,7 +274,7 @@ class TestKnownStart:
         vehicle = Vehicle(server, "start-1")
         camera = json.loads((drive / "drive.json").read_text())["camera"]  # its frames carry odometry
         assert server.api("PUT", f"/api/vehicles/{vehicle.id}/camera", json=camera).status_code == 200
-        centreline, walls = _layer_lines(server, "CENTRELINE"), _layer_lines(server, "WALLS")
+        centreline, walls = layer_lines(server, "CENTRELINE"), layer_lines(server, "WALLS")
         p = page.page
         log_in(p, server)
         p.get_by_test_id("nav-monitor").click()
@@ -335,7 +288,7 @@ class TestKnownStart:
         # aim at the drive's true position at its first frame whose pixel is plain map (no legend over it)
         first = next(i for i, f in enumerate(frames[:10]) if plain_map_at(p, *pixel_of(p, f.x, f.y)))
         aim = frames[first]
-        assert _distance_to_lines((aim.x, aim.y), centreline) < CENTRELINE_TOLERANCE_M  # a tunnel point
+        assert distance_to_lines((aim.x, aim.y), centreline) < CENTRELINE_TOLERANCE_M  # a tunnel point
         px, py = pixel_of(p, aim.x, aim.y)
         starts: list[Any] = []  # the bodies of the start requests the page sent
 
@@ -382,9 +335,9 @@ class TestKnownStart:
         points = [(h["x"], h["y"]) for h in history]
         # the trail's points and the middles of its segments: a trail cutting a corner through rock fails
         drawn = points + [((a[0] + b[0]) / 2, (a[1] + b[1]) / 2) for a, b in itertools.pairwise(points)]
-        off = [(q, d) for q in drawn if (d := _distance_to_lines(q, centreline)) > CENTRELINE_TOLERANCE_M]
+        off = [(q, d) for q in drawn if (d := distance_to_lines(q, centreline)) > CENTRELINE_TOLERANCE_M]
         assert off == [], f"trail off the centreline: {off}"
-        outside = [q for q in drawn if not _inside_walls(q, walls)]
+        outside = [q for q in drawn if not inside_walls(q, walls)]
         assert outside == [], f"trail outside the tunnel walls: {outside}"
         moved = math.hypot(history[-1]["x"] - history[0]["x"], history[-1]["y"] - history[0]["y"])
         assert moved > 1.0, moved  # a trail, not one point

@@ -16,7 +16,15 @@ from playwright.sync_api import Page, Request, expect
 
 from tests.api.access_helpers import localisation_drive, recorded_frames
 from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
-from tests.e2e.map_helpers import metres_per_pixel, pixel_of, plain_map_at
+from tests.e2e.map_helpers import (
+    distance_to_lines,
+    inside_walls,
+    layer_lines,
+    map_scale,
+    metres_per_pixel,
+    pixel_of,
+    plain_map_at,
+)
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
@@ -24,6 +32,9 @@ DEADLINE_S = 60.0
 FRAME_PERIOD_S = 0.1  # the posted frames' spacing in vehicle time, seconds
 BUILD_DEADLINE_MS = 300_000  # a FAST map build of the tiny site on a busy 2-core machine
 FAR_CLICK_M = 25.0  # a stray click this far from the keyframe's estimate (the UI asks beyond 15 m)
+WALL_MARGIN_M = (
+    1.0  # the far click lies this far outside the walls (the UI checks the plan as loaded, simplified)
+)
 PICK_CLEARANCE_PX = 20  # a keyframe picked for grounding lies this far from every grounding's square
 
 
@@ -103,18 +114,22 @@ def pick_ungrounded_keyframe(
     raise AssertionError("no free keyframe on plain map")
 
 
-def far_pixel(page: Page, near: tuple[float, float], distance_m: float) -> tuple[float, float]:
-    """A plain-map pixel ``distance_m`` from ``near``, towards the map's middle."""
-    box = page.get_by_test_id("map").bounding_box()
-    assert box is not None
-    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-    offset = distance_m / metres_per_pixel(page)
-    for angle in range(0, 360, 15):
-        a = math.radians(angle) + math.atan2(cy - near[1], cx - near[0])
-        at = (near[0] + offset * math.cos(a), near[1] + offset * math.sin(a))
-        if plain_map_at(page, *at):
-            return at
-    raise AssertionError(f"no plain map {distance_m} m from {near}")
+def far_pixel(
+    page: Page, server: Server, near: tuple[float, float], distance_m: float
+) -> tuple[float, float]:
+    """A plain-map pixel at least ``distance_m`` from ``near`` and clearly outside the plan's walls (in rock)."""
+    walls = layer_lines(server, "WALLS")
+    ax, ay, ea, na, m_per_px = map_scale(page)
+    for scale in (1.0, 1.5, 2.0):
+        offset = scale * distance_m / m_per_px
+        for angle in range(0, 360, 10):
+            a = math.radians(angle)
+            at = (near[0] + offset * math.cos(a), near[1] + offset * math.sin(a))
+            world = (ea + (at[0] - ax) * m_per_px, na - (at[1] - ay) * m_per_px)
+            in_rock = not inside_walls(world, walls) and distance_to_lines(world, walls) > WALL_MARGIN_M
+            if in_rock and plain_map_at(page, *at):
+                return at
+    raise AssertionError(f"no plain map in rock {distance_m} m from {near}")
 
 
 class TestLoginAndSurvey:
@@ -343,7 +358,7 @@ class TestGrounding:
         table_rows = p.get_by_test_id("groundings-table").locator("tbody tr")
         expect(table_rows).to_have_count(len(before))
         drive_id, frame, near = pick_ungrounded_keyframe(p, server, before)
-        far = far_pixel(p, near, FAR_CLICK_M)
+        far = far_pixel(p, server, near, FAR_CLICK_M)
 
         def mine() -> list[dict[str, object]]:
             return [g for g in groundings(server) if (g["drive_id"], g["frame"]) == (drive_id, frame)]
@@ -353,6 +368,7 @@ class TestGrounding:
         p.mouse.click(*far)
         dialog = p.get_by_test_id("confirm-dialog")
         expect(dialog).to_contain_text("m from the keyframe's current estimate (more than 15 m)")
+        expect(dialog).to_contain_text("outside the plan's walls")
         p.get_by_test_id("confirm-cancel").click()
         expect(dialog).to_have_count(0)
         expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "no")
