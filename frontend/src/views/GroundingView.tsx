@@ -6,7 +6,7 @@
 // map versions compared as an overlay.
 import { useCallback, useEffect, useMemo, useRef, useState } from "react";
 import { unByKey } from "ol/Observable";
-import { ApiError, apiDownload, apiGet, apiPutForm, type Schemas } from "../api/client";
+import { apiGet, type Schemas } from "../api/client";
 import { MineMap, type MapCtx } from "../map/MineMap";
 import { TrajectoryLayer, poseIndex, type Closure, type Poses } from "../map/TrajectoryLayer";
 import { GroundingMarkers } from "../map/GroundingMarkers";
@@ -14,6 +14,7 @@ import { joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/resi
 import { snapPoint } from "../lib/snap";
 import { BuildMap } from "./BuildMap";
 import { CompareVersions } from "./CompareVersions";
+import { GroundingsCsv } from "./GroundingsCsv";
 import { GroundingsTable, ShortcutHelp } from "./GroundingsTable";
 import { KeyframeStrip } from "./KeyframeStrip";
 import { useGroundingEdits } from "./useGroundingEdits";
@@ -222,25 +223,6 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     return () => window.removeEventListener("keydown", onKey);
   });
 
-  const exportCsv = async () => {
-    if (!drive) return;
-    await apiDownload(`/api/drives/${drive.id}/groundings.csv`, `${drive.name}-groundings.csv`);
-  };
-
-  const importCsv = async (file: File) => {
-    if (!drive) return;
-    const form = new FormData();
-    form.append("file", file);
-    try {
-      const result = await apiPutForm("/api/drives/{drive_id}/groundings.csv", { drive_id: drive.id }, form);
-      setMessage(`imported ${result.imported} groundings into ${drive.name} (replacing its old ones)`);
-      edits.reset();
-    } catch (e) {
-      setMessage(e instanceof ApiError ? e.message : String(e));
-    }
-    await loadGroundings();
-  };
-
   const flyTo = (x: number, y: number) => {
     if (!ctx) return;
     const view = ctx.map.getView();
@@ -334,32 +316,15 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         <div className="row">
           <h3 style={{ margin: 0 }}>Groundings ({groundings.length})</h3>
           <span className="spacer" />
-          <button
-            onClick={() => void exportCsv()}
-            disabled={!drive}
-            data-testid="export-csv"
-            title="Export this drive's groundings"
-          >
-            CSV ↓
-          </button>
-          {editable && (
-            <label
-              className="filebutton"
-              title={`Import groundings.csv into ${drive?.name ?? "the drive"} (replaces its groundings)`}
-            >
-              CSV ↑
-              <input
-                type="file"
-                accept=".csv,text/csv"
-                data-testid="import-csv"
-                onChange={(e) => {
-                  const file = e.target.files?.[0];
-                  e.target.value = "";
-                  if (file) void importCsv(file);
-                }}
-              />
-            </label>
-          )}
+          <GroundingsCsv
+            drive={drive}
+            editable={editable}
+            say={setMessage}
+            onImported={async (replaced) => {
+              if (replaced) edits.reset();
+              await loadGroundings();
+            }}
+          />
           {editable && (
             <button
               data-testid="undo"
