@@ -137,13 +137,13 @@ class TestReplay:
     ) -> None:
         frames = recorded_frames(localisation_drive(tiny_site_dir), 3)
         vehicle = Vehicle(server, "replay-2")
-        for i, f in enumerate(frames):  # a drive clock in seconds: the inputs show plain seconds
+        for i, f in enumerate(frames):  # a drive clock in seconds: the inputs show elapsed drive time
             vehicle.post(500.0 + FRAME_PERIOD_S * i, f.data)
         p = page.page
         log_in(p, server)
         p.get_by_test_id("nav-monitor").click()
         p.get_by_test_id("vehicle-row-replay-2").click()
-        expect(p.get_by_test_id("replay-to")).to_have_value("500.2")
+        expect(p.get_by_test_id("replay-to")).to_have_value("+0:08:20.2")
         p.get_by_test_id("replay-from").fill("yesterday")
         p.get_by_test_id("replay-load").click()
         expect(p.get_by_test_id("replay-error")).to_contain_text("Write times as")

@@ -99,8 +99,11 @@ describe("formatClock and parseClock", () => {
     expect(parseClock("16:05:30", t)).toBe(t);
   });
 
-  it("keeps drive clocks in seconds and refuses the rest", () => {
-    expect(formatClock(12.34)).toBe("12.3");
+  it("writes drive clocks as elapsed drive time, reads that or seconds, and refuses the rest", () => {
+    expect(formatClock(12.34)).toBe("+0:00:12.3");
+    expect(parseClock("+0:00:12.3", 0)).toBeCloseTo(12.3);
+    expect(parseClock("+1:56:56.4", 0)).toBeCloseTo(7016.4);
+    expect(parseClock("+0:61:00", 0)).toBeNull();
     expect(parseClock(" 12.5 ", 0)).toBe(12.5);
     expect(parseClock("16:05", 100)).toBeNull(); // a time of day means nothing on a drive clock
     expect(parseClock("soon", 0)).toBeNull();
@@ -112,8 +115,8 @@ describe("formatClock and parseClock", () => {
     expect(from).toBe("2026-12-01 16:00:30");
     expect(to).toBe("2026-12-01 16:05:31");
     expect(parseClock(to, t)! >= t).toBe(true);
-    expect(rangeBefore(500.25, 5)).toEqual(["200.2", "500.3"]);
-    expect(rangeBefore(500.2, 1)).toEqual(["440.2", "500.2"]);
-    expect(rangeBefore(12, 5)[0]).toBe("0.0");
+    expect(rangeBefore(500.25, 5)).toEqual(["+0:03:20.2", "+0:08:20.3"]);
+    expect(rangeBefore(500.2, 1)).toEqual(["+0:07:20.2", "+0:08:20.2"]);
+    expect(rangeBefore(12, 5)[0]).toBe("+0:00:00.0");
   });
 });

@@ -1,6 +1,6 @@
 // Replay of a vehicle's position history: a clock over [start, end] of frame time that plays at a speed,
 // the pose at any time between two stored positions, and the vehicle-clock formatting of the range inputs.
-import { EPOCH_CLOCK_S, formatTime } from "./time";
+import { EPOCH_CLOCK_S, formatDriveTime, formatTime } from "./time";
 
 export { EPOCH_CLOCK_S };
 
@@ -99,10 +99,10 @@ export class ReplayClock {
 
 /**
  * A vehicle-clock time as the replay's range inputs take it: local ``YYYY-MM-DD HH:MM:SS`` for Unix times
- * (:func:`formatTime` with the date), else seconds of the drive.
+ * (:func:`formatTime` with the date), else elapsed drive time ``+H:MM:SS.s`` (:func:`formatDriveTime`).
  */
 export function formatClock(t: number): string {
-  return t < EPOCH_CLOCK_S ? t.toFixed(1) : formatTime(new Date(t * 1000), undefined, true);
+  return t < EPOCH_CLOCK_S ? formatDriveTime(t) : formatTime(new Date(t * 1000), undefined, true);
 }
 
 /**
@@ -123,6 +123,8 @@ export function rangeBefore(latest: number, minutes: number): [string, string] {
 export function parseClock(text: string, reference: number): number | null {
   const s = text.trim();
   if (/^-?\d+(\.\d+)?$/.test(s)) return Number(s);
+  const drive = /^\+(\d+):([0-5]\d):([0-5]\d(?:\.\d+)?)$/.exec(s);
+  if (drive) return +drive[1]! * 3600 + +drive[2]! * 60 + Number(drive[3]);
   const full = /^(\d{4})-(\d{2})-(\d{2})[ T](\d{1,2}):(\d{2})(?::(\d{2}))?$/.exec(s);
   if (full) {
     const [, y, mo, d, h, mi, se] = full;

@@ -44,7 +44,7 @@ export function ReplayPanel({ vehicle, session, onSession }: Props) {
     const start = parseClock(from, latest);
     const end = parseClock(to, latest);
     if (start === null || end === null) {
-      setError("Write times as YYYY-MM-DD HH:MM:SS, HH:MM:SS or seconds.");
+      setError("Write times as YYYY-MM-DD HH:MM:SS, HH:MM:SS, +H:MM:SS (drive time) or seconds.");
       return;
     }
     if (end < start) {
