@@ -87,6 +87,11 @@ class TestHeadingCheck:
         checked = check_heading(track, CENTRES[1], CENTRES[2], -1.0, TRACK_DEFAULT)
         assert checked.wT[2] == pytest.approx(math.pi)
 
+    def test_a_step_of_a_b_i_elsewhere_says_nothing(self) -> None:
+        track = heading(TrackState.at((5.0, 12.0), 1.0), math.pi)  # a parallel tunnel 12 m north
+        unchecked = check_heading(track, CENTRES[1], CENTRES[2], 1.0, TRACK_DEFAULT)
+        assert unchecked.wT[2] == pytest.approx(math.pi) and not unchecked.heading_checked
+
     def test_stored_without_the_flag_counts_as_checked(self) -> None:
         track = heading(TrackState.at((5.0, 0.0), 1.0), 0.0)
         assert TrackState.from_arrays(track.to_arrays()[:8]).heading_checked

@@ -80,7 +80,8 @@ class TrackParams:
     snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
     snap_max_turn_rad: float = 0.6  # ... and only to edges within this of the track's heading (either way)
     max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
-    check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path) checks a new heading's way
+    check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path, and both near the track)
+    # checks a new heading's way
     turning_rad_per_m: float = 0.03  # odometry turning sharper than this is a turn: no heading pull
     fix_spacing_m: float = 2.5  # with odometry: one independent fix per this much travel, metres
     coast_fade: float = 0.7  # per unusable odometry step, the share of the running speed the track keeps
@@ -292,11 +293,16 @@ def check_heading(
 
     An edge gives a heading up to its two ways; waiting for the fixes' innovations to say it is the wrong
     one takes a dozen frames of running the wrong way, one node step settles it. Only the first step after
-    the heading was set counts (later, b(i) lagging a node behind would look like a step backwards).
+    the heading was set counts (later, b(i) lagging a node behind would look like a step backwards), and only
+    one between nodes centred within ``check_step_m`` of the track (a step of a b(i) elsewhere, still
+    settling after a global start, says nothing about the way the track drives).
     """
     if state.heading_checked or not state.has_heading or travel_sign == 0.0:
         return state
-    step = np.asarray(to_m, dtype=np.float64) - np.asarray(from_m, dtype=np.float64)
+    ends = np.stack([np.asarray(from_m, dtype=np.float64), np.asarray(to_m, dtype=np.float64)])
+    if np.max(np.hypot(*(ends - state.wT[:2]).T)) > params.check_step_m:
+        return state  # b(i) is elsewhere than the track: its step says nothing about the track's way
+    step = ends[1] - ends[0]
     if not np.any(step):
         return state
     ahead = travel_sign * np.array([math.cos(state.wT[2]), math.sin(state.wT[2])])
