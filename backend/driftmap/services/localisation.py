@@ -10,7 +10,8 @@ Reference thumbnails come from the version's localisation database blob when the
 SHA-256 under ``stats["localiser_db_sha256"]``, see :mod:`driftmap.services.maps`); otherwise they are made
 again from the stored frames of the version's node frames, with the pre-processing the version was built with.
 Where each reference frame was taken (its optimised pose in the version) makes the localiser's place fixes
-finer than the node centres.
+finer than the node centres, and the mapping drives' optimised poses are the paths its continuous track
+follows.
 """
 
 from __future__ import annotations

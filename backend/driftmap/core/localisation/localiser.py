@@ -345,7 +345,7 @@ class Localiser:
                 )
         else:
             moving = not still
-        if lm.path_xy_m is not None and track.has_position:
+        if lm.path_xy_m is not None and lm.path_segments.size and track.has_position:
             vertices, edges = lm.path_xy_m, lm.path_near(track.wT[:2], tp.snap_max_m)
         else:
             around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
