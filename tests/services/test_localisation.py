@@ -44,6 +44,19 @@ class TestLoadLocaliserMap:
         assert np.allclose(lmap.centres_m, topomap.centres_m)
         assert version.stats["reference_frames"] == topomap.chosen.size
 
+    def test_mapped_paths_run_through_the_reference_positions(self, tiny_store: Storage) -> None:
+        with tiny_store.db.session() as session:
+            lmap = loc_service.load_localiser_map(
+                session, tiny_store.blobs, site_service.get_site(session, SITE)
+            )
+        assert lmap.path_xy_m is not None and lmap.ref_xy_m is not None
+        ends = lmap.path_xy_m[lmap.path_segments]
+        lengths = np.hypot(*(ends[:, 1] - ends[:, 0]).T)
+        assert lmap.path_segments.shape[0] > 0.9 * lmap.path_xy_m.shape[0]  # a few drives: a few chains
+        assert lengths.min() >= 1.0 and lengths.max() <= 10.0
+        for ref in lmap.ref_xy_m:  # every reference frame lies on a mapped path (within a vertex's step)
+            assert np.min(np.hypot(*(lmap.path_xy_m - ref).T)) <= 1.0
+
     def test_without_blob_thumbnails_are_made_from_the_node_frames(self, tiny_store: Storage) -> None:
         with tiny_store.db.session() as session:
             site = site_service.get_site(session, SITE)
