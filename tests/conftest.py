@@ -20,8 +20,10 @@ from pathlib import Path
 from typing import NoReturn, cast
 
 import pytest
+from argon2 import PasswordHasher
 
 from driftmap.config import Settings, get_settings
+from driftmap.services import security
 from driftmap.store.storage import Storage
 from tests.postgres_server import PostgresServer, active_server, postgres_bin_dir, set_active_server
 
@@ -202,3 +204,17 @@ def mini_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from tests.jobs.mini_site import mini_site_dir
 
     return mini_site_dir(tmp_path_factory)
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _light_password_hashes() -> Iterator[None]:
+    """Password hashes of the suite's own users at a light argon2id cost (one pass over 64 KiB).
+
+    Most API tests create and log in a user of every role; at the product's cost (argon2-cffi's defaults: three
+    passes over 64 MiB) that is about a second a test. The hashes stay argon2id PHC strings made and checked by
+    the product's code; a hash made at the full cost (a ``driftmap user add`` process) is still verified at its
+    own cost, which the string records.
+    """
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(security, "_hasher", PasswordHasher(time_cost=1, memory_cost=64, parallelism=1))
+        yield
