@@ -13,6 +13,9 @@ import pytest
 from sqlalchemy import update
 
 from driftmap.config import Settings
+from driftmap.errors import BadInputError
+from driftmap.services import users as user_service
+from driftmap.services.users import MAX_PASSWORD_LENGTH
 from driftmap.store.models import Drive
 from tests.api.data_helpers import ApiUsers, api_users, create_site_with_survey
 from tests.image_bombs import zero_png
@@ -124,6 +127,21 @@ class TestText:
         assert len(long_description.text) < 2000  # the echoed input is cut
         line_break = users.client.post("/api/sites", json={"name": "a\r\nb"}, headers=users.auth("admin"))
         assert _loc(line_break) == ["body", "name"]
+
+    def test_passwords_have_a_length_limit(self, users: ApiUsers) -> None:
+        huge = "p" * (MAX_PASSWORD_LENGTH + 1)
+        login = users.client.post("/api/auth/login", json={"username": "admin", "password": huge})
+        assert _loc(login) == ["body", "password"]
+        create = users.client.post(
+            "/api/users",
+            json={"username": "long", "password": huge, "role": "viewer"},
+            headers=users.auth("admin"),
+        )
+        assert _loc(create) == ["body", "password"]
+        assert "long" not in [u["username"] for u in users.get("/api/users", role="admin")]
+        with users.storage.db.session() as session, pytest.raises(BadInputError, match="1024") as refused:
+            user_service.create_user(session, "long", huge, "viewer")  # the CLI's way in
+        assert refused.value.field == "password"
 
     def test_groundings_csv_of_any_drive_name_downloads(self, users: ApiUsers, empty_drive: int) -> None:
         for name in ("坑道", "east\r\nSet-Cookie: x=1", 'a"b\\c'):

@@ -13,6 +13,7 @@ from annotated_types import Ge, Le
 from pydantic import AllowInfNan, StringConstraints
 
 from driftmap.formats.bounds import INT64_MAX, INT64_MIN, MAX_ABS_T_S, MAX_CAMERA_SIDE_PX
+from driftmap.services.users import MAX_PASSWORD_LENGTH
 
 NAME_MAX_CHARS = 200
 """Longest name of a site, drive or vehicle, characters."""
@@ -37,3 +38,6 @@ Name = Annotated[
 """A non-empty name of at most ``NAME_MAX_CHARS`` characters, without control characters (line breaks)."""
 Description = Annotated[str, StringConstraints(max_length=DESCRIPTION_MAX_CHARS)]
 """A free-text description of at most ``DESCRIPTION_MAX_CHARS`` characters."""
+Password = Annotated[str, StringConstraints(max_length=MAX_PASSWORD_LENGTH)]
+"""A password as typed: at most ``MAX_PASSWORD_LENGTH`` characters (a new one is checked further by the
+users service)."""

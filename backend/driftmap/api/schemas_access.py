@@ -8,12 +8,12 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from driftmap.api.deps import Role
-from driftmap.api.input_types import Finite, Id, Name
+from driftmap.api.input_types import Finite, Id, Name, Password
 
 
 class LoginRequest(BaseModel):
     username: str
-    password: str
+    password: Password
 
 
 class TokenRead(BaseModel):
@@ -33,7 +33,7 @@ class Me(BaseModel):
 
 class UserCreate(BaseModel):
     username: str = Field(min_length=1, max_length=100)
-    password: str
+    password: Password
     role: Role
 
 
@@ -41,7 +41,7 @@ class UserUpdate(BaseModel):
     """Any change revokes the user's login tokens."""
 
     role: Role | None = None
-    password: str | None = None
+    password: Password | None = None
     """A new password (an admin's reset)."""
     disabled: bool | None = None
     """True disables the user (no login, tokens revoked), False enables again."""
@@ -61,8 +61,8 @@ class UserRead(BaseModel):
 class PasswordChange(BaseModel):
     """A user's own password change."""
 
-    current_password: str
-    new_password: str
+    current_password: Password
+    new_password: Password
 
 
 class VehicleCreate(BaseModel):

@@ -16,6 +16,9 @@ from driftmap.store.models import utc_now
 
 ROLES = ("admin", "surveyor", "viewer")
 MIN_PASSWORD_LENGTH = 8
+MAX_PASSWORD_LENGTH = (
+    1024  # hashing a password costs memory and time whatever its length; a bound keeps it so
+)
 
 
 def _check_role(role: str) -> str:
@@ -25,8 +28,10 @@ def _check_role(role: str) -> str:
 
 
 def _check_password(password: str) -> str:
-    if len(password) < MIN_PASSWORD_LENGTH:
-        raise BadInputError(f"a password needs at least {MIN_PASSWORD_LENGTH} characters", field="password")
+    if not MIN_PASSWORD_LENGTH <= len(password) <= MAX_PASSWORD_LENGTH:
+        raise BadInputError(
+            f"a password needs {MIN_PASSWORD_LENGTH} to {MAX_PASSWORD_LENGTH} characters", field="password"
+        )
     return password
 
 
