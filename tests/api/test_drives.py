@@ -49,8 +49,10 @@ class TestZipUpload:
         folder = drive_folders(mini_site, "map")[0]
         response = upload_zip(users, site_id, "map.zip", zip_folder(folder))
         assert response.status_code == 202, response.text
+        assert response.headers["location"] == f"/api/jobs/{response.json()['id']}"  # where to follow it
         job = users.job(response.json()["id"])
         assert job["status"] == "succeeded", job["error"]
+        assert users.get(response.headers["location"])["id"] == job["id"]
         drive_id = job["result"]["drive_id"]
         drive = users.get(f"/api/drives/{drive_id}")
         assert (drive["name"], drive["kind"], drive["frame_count"]) == (folder.name, "mapping", 100)
@@ -164,6 +166,7 @@ class TestVideoUpload:
             headers=users.auth("surveyor"),
         )
         assert response.status_code == 202, response.text
+        assert response.headers["location"] == f"/api/jobs/{response.json()['id']}"
         job = users.job(response.json()["id"])
         assert job["status"] == "succeeded", job["error"]
         drive = users.get(f"/api/drives/{job['result']['drive_id']}")

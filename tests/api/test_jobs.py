@@ -63,6 +63,7 @@ def _build(users: ApiUsers, site_id: int) -> int:
     )
     assert response.status_code == 202, response.text
     assert response.json()["status"] == "queued"
+    assert response.headers["location"] == f"/api/jobs/{response.json()['id']}"
     return int(response.json()["id"])
 
 

@@ -125,6 +125,7 @@ class TestLocalise:
             f"/api/drives/{drive['id']}/localise", json={"map_version": 1}, headers=users.auth("surveyor")
         )
         assert response.status_code == 202, response.text
+        assert response.headers["location"] == f"/api/jobs/{response.json()['id']}"
         job = users.job(response.json()["id"])
         assert job["status"] == "succeeded", job["error"]
         assert (job["result"]["frames"], job["result"]["map_version"]) == (100, 1)

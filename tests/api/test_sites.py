@@ -182,6 +182,7 @@ class TestSimulate:
         body = {"name": "synthetic", "seed": 4, "size": "tiny", "max_frames_per_drive": 6}
         response = users.client.post("/api/sites/simulate", json=body, headers=users.auth("admin"))
         assert response.status_code == 202, response.text
+        assert response.headers["location"] == f"/api/jobs/{response.json()['id']}"
         job = users.job(response.json()["id"])
         assert job["status"] == "succeeded", job["error"]
         site_id = job["result"]["site_id"]

@@ -14,7 +14,7 @@ from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, SettingsDep, StorageDep, SurveyorDep
 from driftmap.api.input_types import Count, Id, Name, Seconds
-from driftmap.api.jobs import QueueDep
+from driftmap.api.jobs import QueueDep, accepted
 from driftmap.api.schemas_data import (
     DriveCreate,
     DriveKind,
@@ -110,6 +110,8 @@ def _ensure_new_name(session: SessionDep, site_id: Id, name: str) -> None:
     dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
 )
 def upload_drive_zip(
+    request: Request,
+    response: Response,
     site_id: Id,
     file: UploadFile,
     session: SessionDep,
@@ -136,7 +138,7 @@ def upload_drive_zip(
     job = job_service.submit(
         session, queue.enqueue, "drive.import", args, site_id=site.id, created_by=user.name
     )
-    return JobRead.model_validate(job)
+    return accepted(request, response, job)
 
 
 @router.post(
@@ -145,6 +147,8 @@ def upload_drive_zip(
     dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
 )
 def upload_drive_video(
+    request: Request,
+    response: Response,
     site_id: Id,
     video: UploadFile,
     calibration: UploadFile,
@@ -185,7 +189,7 @@ def upload_drive_video(
     job = job_service.submit(
         session, queue.enqueue, "drive.import", args, site_id=site.id, created_by=user.name
     )
-    return JobRead.model_validate(job)
+    return accepted(request, response, job)
 
 
 @router.get("/drives/{drive_id}", dependencies=[Depends(VIEWER)])
@@ -349,7 +353,13 @@ def frame_thumbnail(
 
 @router.post("/drives/{drive_id}/localise", status_code=status.HTTP_202_ACCEPTED)
 def localise_drive(
-    drive_id: Id, body: LocaliseCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
+    request: Request,
+    response: Response,
+    drive_id: Id,
+    body: LocaliseCreate,
+    session: SessionDep,
+    queue: QueueDep,
+    user: SurveyorDep,
 ) -> JobRead:
     """Localise every frame of a stored drive against a map version (a ``drive.localise`` job)."""
     drive = drive_by_id(session, drive_id)
@@ -357,4 +367,4 @@ def localise_drive(
     job = job_service.submit(
         session, queue.enqueue, "drive.localise", args, site_id=drive.site_id, created_by=user.name
     )
-    return JobRead.model_validate(job)
+    return accepted(request, response, job)

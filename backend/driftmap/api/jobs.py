@@ -17,6 +17,7 @@ from driftmap.api.schemas_data import JobRead, Page
 from driftmap.errors import NotFoundError
 from driftmap.jobs.queue import JobQueue
 from driftmap.services import jobs as job_service
+from driftmap.store.job_models import Job
 from driftmap.store.storage import Storage
 
 router = APIRouter(tags=["jobs"])
@@ -58,6 +59,13 @@ def list_jobs(
     return Page[JobRead](
         items=[JobRead.model_validate(j) for j in rows], total=total, offset=offset, limit=limit
     )
+
+
+def accepted(request: Request, response: Response, job: Job) -> JobRead:
+    """The answer to a request that submitted ``job`` (202 Accepted): its record, with ``Location`` naming
+    where to follow it (``GET /api/jobs/{job_id}``)."""
+    response.headers["Location"] = request.url_for("get_job", job_id=job.id).path
+    return JobRead.model_validate(job)
 
 
 @router.get("/jobs/{job_id}", dependencies=[Depends(VIEWER)])

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, status
+from fastapi import APIRouter, Depends, Query, Request, Response, status
 
 from driftmap.api.deps import ADMIN, VIEWER, SessionDep, StorageDep, SurveyorDep
 from driftmap.api.input_types import Count, Id
-from driftmap.api.jobs import QueueDep
+from driftmap.api.jobs import QueueDep, accepted
 from driftmap.api.schemas_data import JobRead, Page
 from driftmap.api.schemas_maps import (
     ClosureRead,
@@ -36,7 +36,13 @@ def _version(session: SessionDep, site_id: Id, version: Id) -> MapVersion:
 
 @router.post("/sites/{site_id}/maps", status_code=status.HTTP_202_ACCEPTED)
 def build_map(
-    site_id: Id, body: MapBuildCreate, session: SessionDep, queue: QueueDep, user: SurveyorDep
+    request: Request,
+    response: Response,
+    site_id: Id,
+    body: MapBuildCreate,
+    session: SessionDep,
+    queue: QueueDep,
+    user: SurveyorDep,
 ) -> JobRead:
     """Start building the next map version from the site's mapping drives and groundings (a job)."""
     site = site_by_id(session, site_id)
@@ -44,7 +50,7 @@ def build_map(
     job = job_service.submit(
         session, queue.enqueue, "map.build", body.model_dump(), site_id=site.id, created_by=user.name
     )
-    return JobRead.model_validate(job)
+    return accepted(request, response, job)
 
 
 @router.get("/sites/{site_id}/maps", dependencies=[Depends(VIEWER)])

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, UploadFile, status
+from fastapi import APIRouter, Depends, Query, Request, Response, UploadFile, status
 from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, VIEWER, AdminDep, SessionDep, SettingsDep, StorageDep
 from driftmap.api.input_types import Count, Id
-from driftmap.api.jobs import QueueDep
+from driftmap.api.jobs import QueueDep, accepted
 from driftmap.api.schemas_data import (
     JobRead,
     Page,
@@ -56,12 +56,19 @@ def create_site(body: SiteCreate, session: SessionDep) -> SiteRead:
 
 
 @router.post("/sites/simulate", status_code=status.HTTP_202_ACCEPTED)
-def simulate_site(body: SiteSimulate, session: SessionDep, queue: QueueDep, user: AdminDep) -> JobRead:
+def simulate_site(
+    request: Request,
+    response: Response,
+    body: SiteSimulate,
+    session: SessionDep,
+    queue: QueueDep,
+    user: AdminDep,
+) -> JobRead:
     """Render a synthetic mine and import it as a new site (a ``site.simulate`` job)."""
     if session.scalar(select(Site.id).where(Site.name == body.name.strip())) is not None:
         raise ConflictError(f"a site named {body.name.strip()!r} already exists")
     job = job_service.submit(session, queue.enqueue, "site.simulate", body.model_dump(), created_by=user.name)
-    return JobRead.model_validate(job)
+    return accepted(request, response, job)
 
 
 @router.get("/sites/{site_id}", dependencies=[Depends(VIEWER)])
