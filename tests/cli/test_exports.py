@@ -18,6 +18,7 @@ from driftmap.config import get_settings
 from driftmap.formats.csv_exports import parse_poses_csv, read_poses_csv
 from driftmap.formats.g2o import read_g2o
 from driftmap.formats.position_exports import parse_positions_csv
+from tests.cli.in_process import point_cli_at
 from tests.export_site import LOADER, SITE, TRACKS, TRUCK, export_store
 
 runner = CliRunner()
@@ -28,12 +29,7 @@ def env(
     tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> Iterator[None]:
     settings = export_store(tmp_path_factory, tiny_site_dir)
-    monkeypatch.setenv("DRIFTMAP_DATA_DIR", str(settings.data_dir))
-    if settings.database_url is None:
-        monkeypatch.delenv("DRIFTMAP_DATABASE_URL", raising=False)
-    else:
-        monkeypatch.setenv("DRIFTMAP_DATABASE_URL", settings.database_url)
-    get_settings.cache_clear()
+    point_cli_at(monkeypatch, settings)
     yield
     get_settings.cache_clear()
 

@@ -13,6 +13,7 @@ from driftmap.cli import app
 from driftmap.config import get_settings
 from driftmap.formats.csv_exports import read_localisation_csv
 from driftmap.formats.drive_folder import read_drive_folder
+from tests.cli.in_process import point_cli_at
 from tests.drive_factory import write_test_drive
 from tests.localisation_site import SITE, loc_drive_dir, tiny_map_settings
 
@@ -25,12 +26,7 @@ def tiny_env(
     tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> Iterator[Path]:
     settings = tiny_map_settings(tmp_path_factory, tiny_site_dir)
-    monkeypatch.setenv("DRIFTMAP_DATA_DIR", str(settings.data_dir))
-    if settings.database_url is None:
-        monkeypatch.delenv("DRIFTMAP_DATABASE_URL", raising=False)
-    else:
-        monkeypatch.setenv("DRIFTMAP_DATABASE_URL", settings.database_url)
-    get_settings.cache_clear()
+    point_cli_at(monkeypatch, settings)
     yield settings.data_dir
     get_settings.cache_clear()
 
