@@ -10,7 +10,8 @@ import pytest
 from scipy.sparse import csr_array
 
 from driftmap.core.localisation.map import LocaliserMap, mapped_paths
-from driftmap.core.localisation.track import TRACK_DEFAULT, TrackState, snap
+from driftmap.core.localisation.track import TRACK_DEFAULT, TrackState
+from driftmap.core.localisation.tunnels import snap
 from driftmap.errors import BadInputError
 
 

@@ -9,7 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from driftmap.core.localisation.track import TRACK_DEFAULT, TrackState, check_heading, correct, predict, snap
+from driftmap.core.localisation.track import TRACK_DEFAULT, TrackState, check_heading, correct, predict
+from driftmap.core.localisation.tunnels import snap
 from driftmap.core.odometry.step import OdometryStep
 
 CENTRES = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]])  # an east-west tunnel, nodes 5 m apart
@@ -65,11 +66,11 @@ class TestEdgesAcrossTheHeading:
         assert on.wT[1] == pytest.approx(0.0)
 
     def test_no_heading_pull_while_turning(self) -> None:
-        track = heading(TrackState.at((5.0, 0.0), 1.0), 0.4)
+        track = heading(TrackState.at((5.0, 0.0), 1.0), 0.2)
         turning = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True, turning=True)
         straight = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True)
-        assert turning.wT[2] == pytest.approx(0.4)
-        assert straight.wT[2] < 0.4
+        assert turning.wT[2] == pytest.approx(0.2)
+        assert straight.wT[2] < 0.2
 
 
 class TestHeadingCheck:
@@ -190,3 +191,78 @@ class TestCoasting:
         track = heading(TrackState.at((2.0, 0.0), 0.5, trusted=True), 0.0)  # no odometry yet: speed NaN
         after = predict(track, None, 0.1, TRACK_DEFAULT)
         assert after.wT[0] == 2.0 and math.isnan(after.speed_mps)
+
+
+class TestOdometryScale:
+    def test_a_track_whose_odometry_reads_short_learns_its_scale(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        truth_m = 0.0
+        lags = []
+        for k in range(1500):  # 450 m east; the odometry says 0.285 m of every 0.3 m driven (5 % short)
+            truth_m += 0.3
+            track = predict(track, step(0.285), 0.1, p)
+            fix = np.array([5.0 * round(truth_m / 5.0), 0.0])  # b(i)'s centre: the node it is in, unbiased
+            track, _ = correct(track, fix, True, True, p, travel_m=0.285)
+            if k >= 1000:
+                lags.append(truth_m - track.wT[0])
+        assert track.scale == pytest.approx(0.3 / 0.285, abs=0.01)
+        assert abs(float(np.mean(lags))) < 0.3  # without the scale it stays about 2 m behind
+
+    def test_doubtful_fixes_teach_no_scale(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        for k in range(300):
+            track = predict(track, step(0.3), 0.1, p)
+            track, _ = correct(track, np.array([0.3 * k + 3.0, 0.0]), False, True, p, 0.3, steers=False)
+        assert track.scale == 1.0
+
+    def test_the_scale_survives_a_re_anchoring_and_the_stored_state(self) -> None:
+        p = TRACK_DEFAULT
+        track = replace(
+            heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0), scale=1.04, scale_var=1e-4
+        )
+        moved, _ = correct(track, np.array([200.0, 0.0]), True, True, p, travel_m=0.3)
+        assert moved.wT[0] == pytest.approx(200.0) and moved.scale == 1.04
+        again = TrackState.from_arrays(moved.to_arrays())
+        assert (again.scale, again.scale_var) == (1.04, 1e-4)
+
+
+class TestHoldingAgainstDoubtfulFixes:
+    def test_a_standing_vehicle_holds_its_track_however_long_it_stands(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        for _ in range(300):  # 30 s standing while b(i) sits on a look-alike 180 m away
+            track = predict(track, step(0.0), 0.1, p)
+            track, disagree = correct(track, np.array([180.0, 0.0]), False, True, p, travel_m=0.0)
+            assert disagree
+        assert track.wT[0] == pytest.approx(0.0)
+
+    def test_a_driving_vehicle_gives_in_after_max_hold_m(self) -> None:
+        p = TRACK_DEFAULT
+        track = heading(TrackState.at((0.0, 0.0), 0.5, trusted=True), 0.0)
+        driven = 0.0
+        while driven < 2 * p.max_hold_m:
+            track = predict(track, step(0.3), 0.1, p)
+            driven += 0.3
+            track, disagree = correct(track, np.array([180.0 + driven, 0.0]), False, True, p, travel_m=0.3)
+            if not disagree:
+                break
+        assert p.max_hold_m <= driven <= p.max_hold_m + 0.6
+        assert track.wT[0] == pytest.approx(180.0 + driven)
+
+
+class TestHeadingPull:
+    def test_a_branch_beside_the_track_does_not_turn_it(self) -> None:
+        centres = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [10.0, 3.0]])
+        edges = np.array([[0, 1], [1, 2], [1, 3]], dtype=np.int64)  # a branch leaves at 31 degrees
+        track = heading(TrackState.at((7.0, 1.1), 0.5), 0.0)  # driving east, beside the branch
+        for _ in range(50):
+            track = snap(track, centres, edges, True, TRACK_DEFAULT, steered=True)
+        assert track.wT[2] == pytest.approx(0.0)
+
+    def test_a_small_drift_is_pulled_back_to_the_tunnel(self) -> None:
+        track = heading(TrackState.at((7.0, 0.5), 0.5), 0.1)
+        for _ in range(50):
+            track = snap(track, CENTRES, EDGES, True, TRACK_DEFAULT, steered=True)
+        assert abs(track.wT[2]) < 0.01

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import preprocess
 from driftmap.core.imaging.params import SAD_DEFAULT, ImageParams, SadParams
-from driftmap.core.localisation import evidence, hmm, transitions
+from driftmap.core.localisation import evidence, hmm, transitions, tunnels
 from driftmap.core.localisation import track as localiser_track
 from driftmap.core.localisation.map import LocaliserMap
 from driftmap.core.localisation.motion import OdometryFeed
@@ -354,7 +354,7 @@ class Localiser:
         turning = motion is not None and abs(motion.dtheta_rad) > tp.turning_rad_per_m * max(
             abs(motion.dx_m), 0.05
         )
-        snapped = localiser_track.snap(track, vertices, edges, moving, tp, motion is not None, turning)
+        snapped = tunnels.snap(track, vertices, edges, moving, tp, motion is not None, turning)
         return snapped, moving, disagree
 
     def _estimate(

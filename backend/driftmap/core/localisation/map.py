@@ -38,7 +38,7 @@ class LocaliserMap:
         max_adjacency_m: longest path stored in ``adjacency_m``, metres.
         image_params: the pre-processing that made ``thumbs``; query frames get the same.
         edges: (E, 2) int64 node pairs driven between directly (the tunnels as segments between centres);
-            the continuous track follows them (:func:`driftmap.core.localisation.track.snap`); (0, 2): none.
+            the continuous track follows them (:func:`driftmap.core.localisation.tunnels.snap`); (0, 2): none.
         ref_xy_m: (S, 2) float64 where each reference thumbnail was taken: its frame's optimised pose, survey
             frame, metres; the place fix of a frame is the position of the reference it matched best, finer
             than the node centre. None: unknown (the fix is the node centre).

@@ -19,8 +19,9 @@ centres this module keeps a metric track, a planar pose ``wT = (x_m, y_m, yaw_ra
   than ``gate_m`` plus three standard deviations from the track re-anchors it there (a relocation, a
   restart; the heading becomes unknown again), unless the track is dead-reckoned by odometry and trusted (a
   confident fix or a known start confirmed it) and the frame is doubtful: then the track holds its course
-  (at most ``max_hold_frames`` in a row) and the frame, whose place and track disagree, gets no confidence.
-* **follow the tunnels** (:func:`snap`): the position is projected onto the nearest mapped edge around it
+  (for at most ``max_hold_m`` driven in a row: a vehicle standing still sees the same doubtful view again, no
+  new evidence of being elsewhere) and the frame, whose place and track disagree, gets no confidence.
+* **follow the tunnels** (:func:`driftmap.core.localisation.tunnels.snap`): the position is projected onto the nearest mapped edge around it
   (a segment of the mapped paths, :func:`driftmap.core.localisation.map.mapped_paths`, or without them of
   the edges between directly driven node centres) when it lies beside one within ``snap_max_m`` (with
   odometry, only onto edges within ``snap_max_turn_rad`` of the measured heading: a vehicle turning into a
@@ -53,10 +54,9 @@ import numpy as np
 
 from driftmap.core.odometry.drive import compose
 from driftmap.core.odometry.step import OdometryStep
-from driftmap.core.topomap.model import wrap_rad
-from driftmap.core.types import F64, I64
+from driftmap.core.types import F64
 
-__all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "check_heading", "correct", "predict", "snap"]
+__all__ = ["TRACK_DEFAULT", "TrackParams", "TrackState", "check_heading", "correct", "predict", "wrap_angle"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,7 @@ class TrackParams:
     flip_m: float = 25.0  # the heading is corrected when that evidence is longer than this, metres
     turn_min_rad: float = 0.35  # ... by the angle it shows, when at least this (smaller: the pull's job)
     heading_pull: float = 0.05  # per moving frame, the share of the gap to the edge direction closed
+    pull_max_rad: float = 0.25  # ... when the gap is at most this (more: the edge is another tunnel's)
     speed_memory: float = 0.5  # weight of the newest step in the running speed
     moving_mps: float = 0.15  # a vehicle whose odometry step is faster than this is moving, m/s
     fix_min_confidence: float = (
@@ -79,7 +80,7 @@ class TrackParams:
     snap_radius_m: float = 15.0  # without mapped paths: to edges of the nodes within this path length of it
     snap_max_m: float = 3.0  # ... when one is at most this far (further: off the mapped edges, left as is)
     snap_max_turn_rad: float = 0.6  # ... and only to edges within this of the track's heading (either way)
-    max_hold_frames: int = 20  # a trusted track holds its course against doubtful far fixes this many frames
+    max_hold_m: float = 7.5  # a trusted track holds its course against doubtful far fixes this far driven
     check_step_m: float = 7.5  # b(i) stepping to a node at most this far (path, and both near the track)
     # checks a new heading's way
     turning_rad_per_m: float = 0.03  # odometry turning sharper than this is a turn: no heading pull
@@ -91,6 +92,9 @@ class TrackParams:
     fix_reach_m: float = 7.5  # the place fix: the best reference of the nodes this near b(i) (path), metres
     stray_m: float = 6.0  # a sure fix further than this from the track: the track has strayed, metres
     stray_frames: int = 5  # ... so many sure fixes in a row re-anchor it there
+    scale_sd: float = 0.05  # prior sd of the odometry's scale factor (a camera's k_x, k_y off by this share)
+    scale_walk_per_m: float = 1e-3  # ... its random walk, sd per square root of a metre driven
+    scale_max_dev: float = 0.2  # ... the estimate stays within 1 -+ this
 
     def __post_init__(self) -> None:
         for name in ("fix_sigma_m", "free_speed_mps", "gate_m", "flip_m", "fix_spacing_m"):
@@ -117,11 +121,14 @@ class TrackState:
             direction of travel, metres (negative: the fixes keep pulling the track back).
         trusted: a confident fix (or a known start) has confirmed the track since it was anchored; only a
             trusted dead-reckoned track holds its course against a doubtful far fix.
-        held: doubtful far fixes held against in a row.
+        held_m: metres driven while holding against doubtful far fixes, in a row.
         heading_checked: the heading, one of an edge's two ways when it was set, has been checked against
             the way b(i) stepped to a neighbouring node (:func:`check_heading`).
         flip_left_m: the same sum across the direction of travel (to its left), metres.
         strayed: sure fixes in a row further than ``stray_m`` from the track.
+        scale: the odometry's estimated scale factor (true travel / measured travel).
+        scale_var: its variance; NaN: the prior ``scale_sd ** 2``.
+        scale_cov_m: covariance of the position along the heading and the scale, metres.
     """
 
     wT: F64
@@ -129,10 +136,13 @@ class TrackState:
     speed_mps: float
     flip_m: float
     trusted: bool = False
-    held: int = 0
+    held_m: float = 0.0
     heading_checked: bool = False
     flip_left_m: float = 0.0
     strayed: int = 0
+    scale: float = 1.0
+    scale_var: float = math.nan
+    scale_cov_m: float = 0.0
 
     @classmethod
     def empty(cls) -> TrackState:
@@ -145,6 +155,11 @@ class TrackState:
         xy = np.asarray(xy_m, dtype=np.float64)
         return cls(np.r_[xy, np.nan], float(sigma_m) ** 2, math.nan, 0.0, trusted)
 
+    def with_scale_of(self, other: TrackState) -> TrackState:
+        """This track with ``other``'s odometry scale estimate (a property of the camera, kept when the
+        track re-anchors; its correlation with the old position is dropped)."""
+        return replace(self, scale=other.scale, scale_var=other.scale_var, scale_cov_m=0.0)
+
     @property
     def has_position(self) -> bool:
         return bool(np.isfinite(self.wT[0]))
@@ -154,35 +169,41 @@ class TrackState:
         return bool(np.isfinite(self.wT[2]))
 
     def to_arrays(self) -> F64:
-        """(11,) float64 packed for the localiser's stored state."""
+        """(14,) float64 packed for the localiser's stored state."""
         packed = np.r_[
             self.wT,
             self.var_m2,
             self.speed_mps,
             self.flip_m,
             float(self.trusted),
-            self.held,
+            self.held_m,
             float(self.heading_checked),
             self.flip_left_m,
             self.strayed,
+            self.scale,
+            self.scale_var,
+            self.scale_cov_m,
         ]
         return np.asarray(packed, dtype=np.float64)
 
     @classmethod
     def from_arrays(cls, packed: F64) -> TrackState:
-        """Inverse of :meth:`to_arrays`; 8 to 10 values (stored before the heading check, the sideways
-        evidence or the stray count) are read with those as checked and 0; other sizes: no track."""
+        """Inverse of :meth:`to_arrays`; 8 to 11 values (stored before the heading check, the sideways
+        evidence, the stray count or the scale) are read with those as checked, 0 and the prior; other
+        sizes: no track."""
         a = np.asarray(packed, dtype=np.float64).ravel()
-        if a.size not in (8, 9, 10, 11):
+        if a.size not in (8, 9, 10, 11, 14):
             return cls.empty()
         checked = bool(a[8]) if a.size >= 9 else True
         left = float(a[9]) if a.size >= 10 else 0.0
-        strayed = int(a[10]) if a.size == 11 else 0
-        base = (float(a[3]), float(a[4]), float(a[5]), bool(a[6]), int(a[7]))
-        return cls(a[:3].copy(), *base, checked, left, strayed)
+        strayed = int(a[10]) if a.size >= 11 else 0
+        scale = (float(a[11]), float(a[12]), float(a[13])) if a.size == 14 else (1.0, math.nan, 0.0)
+        base = (float(a[3]), float(a[4]), float(a[5]), bool(a[6]), float(a[7]))
+        return cls(a[:3].copy(), *base, checked, left, strayed, *scale)
 
 
-def _wrap(angle_rad: float) -> float:
+def wrap_angle(angle_rad: float) -> float:
+    """``angle_rad`` wrapped to (-pi, pi]."""
     return math.atan2(math.sin(angle_rad), math.cos(angle_rad))
 
 
@@ -208,11 +229,22 @@ def predict(state: TrackState, step: OdometryStep | None, gap_s: float, params: 
         wT[:2] += coast_m * np.array([math.cos(wT[2]), math.sin(wT[2])])
         return replace(state, wT=wT, var_m2=var, speed_mps=state.speed_mps * params.coast_fade)
     sd = step.sigma_xy_m + params.step_sigma_frac * abs(step.dx_m)
-    speed = step.dx_m / gap if gap > 0 else 0.0
+    k = state.scale
+    dx = k * step.dx_m
+    speed = dx / gap if gap > 0 else 0.0
     a = params.speed_memory
     speed = speed if not math.isfinite(state.speed_mps) else (1 - a) * state.speed_mps + a * speed
-    wT = np.asarray(compose(state.wT, step.prev_T_curr) if state.has_heading else state.wT.copy())
-    return replace(state, wT=wT, var_m2=state.var_m2 + sd * sd, speed_mps=speed)
+    if not state.has_heading:
+        return replace(state, var_m2=state.var_m2 + sd * sd, speed_mps=speed)
+    x_m, y_m, yaw_rad = step.prev_T_curr
+    wT = compose(state.wT, (k * x_m, k * y_m, yaw_rad))
+    # the position along the heading moves by scale x dx: its error grows with the scale's, with which it
+    # is correlated (the fixes' innovations along the heading then tell the scale)
+    k_var = state.scale_var if math.isfinite(state.scale_var) else params.scale_sd**2
+    var = state.var_m2 + sd * sd + 2.0 * step.dx_m * state.scale_cov_m + step.dx_m**2 * k_var
+    cov = state.scale_cov_m + step.dx_m * k_var
+    k_var += params.scale_walk_per_m**2 * abs(step.dx_m)
+    return replace(state, wT=wT, var_m2=var, speed_mps=speed, scale_var=k_var, scale_cov_m=cov)
 
 
 def correct(
@@ -228,7 +260,7 @@ def correct(
 
     Within the gate the fix pulls the track with the Kalman gain (a ``confident`` fix makes the track
     trusted). Beyond it the track re-anchors at the fix unless the track is trusted and ``dead_reckoned`` by
-    odometry and the frame is doubtful: such a track keeps its course, for at most ``max_hold_frames`` in a
+    odometry and the frame is doubtful: such a track keeps its course, for at most ``max_hold_m`` driven in a
     row (then the place recognition, consistently elsewhere, wins). The first fix anchors a track that has
     none.
 
@@ -256,31 +288,53 @@ def correct(
         return TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident), False
     off = float(np.hypot(*(fix - state.wT[:2])))
     if off > params.gate_m + 3.0 * math.sqrt(state.var_m2 + r2):
-        if dead_reckoned and state.trusted and not confident and state.held < params.max_hold_frames:
-            return replace(state, held=state.held + 1), True
+        if dead_reckoned and state.trusted and not confident and state.held_m < params.max_hold_m:
+            return replace(state, held_m=state.held_m + (travel_m or 0.0)), True
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
-        return replace(anchored, speed_mps=state.speed_mps), False
-    state = replace(state, trusted=state.trusted or confident, held=0)
+        return replace(anchored.with_scale_of(state), speed_mps=state.speed_mps), False
+    state = replace(state, trusted=state.trusted or confident, held_m=0.0)
     strayed = state.strayed + 1 if dead_reckoned and steers and off > params.stray_m else 0
     if strayed >= params.stray_frames:  # sure fixes keep saying the track is elsewhere: it is
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, True)
-        return replace(anchored, speed_mps=state.speed_mps), False
-    gain = state.var_m2 / (state.var_m2 + max(r2_pull, r2))
+        return replace(anchored.with_scale_of(state), speed_mps=state.speed_mps), False
+    total = state.var_m2 + max(r2_pull, r2)
+    gain = state.var_m2 / total
     wT = state.wT.copy()
     innovation = fix - wT[:2]
     wT[:2] += gain * innovation
     var, flip, left = (1.0 - gain) * state.var_m2, state.flip_m, state.flip_left_m
     moving = math.isfinite(state.speed_mps) and abs(state.speed_mps) > params.moving_mps
+    scale, k_var, cov = _correct_scale(state, innovation, total, dead_reckons and steers and moving, params)
     if steers and state.has_heading and moving:
         ahead = math.copysign(1.0, state.speed_mps) * np.array([math.cos(wT[2]), math.sin(wT[2])])
         flip = params.flip_memory * flip + float(innovation @ ahead)
         left = params.flip_memory * left + float(innovation @ np.array([-ahead[1], ahead[0]]))
         if flip < 0.0 and math.hypot(flip, left) > params.flip_m:  # the fixes keep pulling it back
-            turn = _wrap(2.0 * math.atan2(left, flip) - math.pi)  # the heading error they show
+            turn = wrap_angle(2.0 * math.atan2(left, flip) - math.pi)  # the heading error they show
             if abs(turn) >= params.turn_min_rad:
-                wT[2], flip, left = _wrap(wT[2] + turn), 0.0, 0.0
+                wT[2], flip, left, cov = wrap_angle(wT[2] + turn), 0.0, 0.0, 0.0
                 var = max(var, (2.0 * params.fix_sigma_m) ** 2)  # it ran the wrong way: let the fixes pull
-    return replace(state, wT=wT, var_m2=var, flip_m=flip, flip_left_m=left, strayed=strayed), strayed > 0
+    corrected = replace(state, wT=wT, var_m2=var, flip_m=flip, flip_left_m=left, strayed=strayed, scale=scale)
+    return replace(corrected, scale_var=k_var, scale_cov_m=cov), strayed > 0
+
+
+def _correct_scale(
+    state: TrackState, innovation_m: F64, total_var_m2: float, learns: bool, params: TrackParams
+) -> tuple[float, float, float]:
+    """The odometry scale, its variance and its covariance with the position along the heading after a fix
+    whose (2,) ``innovation_m`` (fix - track) had the variance ``total_var_m2``: the Kalman update of the
+    scale through its correlation with the position (a track that keeps lagging its fixes drives further
+    than its odometry says). Only a fix that ``learns`` (sure, with odometry, the vehicle moving) moves the
+    scale; doubtful fixes metres off, while the views are ambiguous, would teach it a wrong one."""
+    k_var = state.scale_var if math.isfinite(state.scale_var) else params.scale_sd**2
+    cov = state.scale_cov_m
+    gain = state.var_m2 / total_var_m2
+    if not (learns and state.has_heading and math.isfinite(cov)):
+        return state.scale, k_var, cov * (1.0 - gain)
+    along = float(innovation_m @ np.array([math.cos(state.wT[2]), math.sin(state.wT[2])]))
+    lo, hi = 1.0 - params.scale_max_dev, 1.0 + params.scale_max_dev
+    scale = min(max(state.scale + cov / total_var_m2 * along, lo), hi)
+    return scale, max(k_var - cov * cov / total_var_m2, 1e-8), cov * (1.0 - gain)
 
 
 def check_heading(
@@ -309,78 +363,6 @@ def check_heading(
     if float(ahead @ step) >= 0.0:
         return replace(state, heading_checked=True)
     wT = state.wT.copy()
-    wT[2] = _wrap(wT[2] + math.pi)
+    wT[2] = wrap_angle(wT[2] + math.pi)
     var = max(state.var_m2, (2.0 * params.fix_sigma_m) ** 2)
-    return replace(state, wT=wT, var_m2=var, flip_m=0.0, heading_checked=True)
-
-
-def _axial_rad(a_rad: F64 | float, b_rad: F64 | float) -> F64:
-    """|a - b| between two undirected directions, radians in [0, pi/2]."""
-    d = np.abs(wrap_rad(np.asarray(a_rad, dtype=np.float64) - b_rad))
-    return np.asarray(np.minimum(d, np.pi - d), dtype=np.float64)
-
-
-def _nearest_on_edges(
-    xy: F64, centres_m: F64, edges: I64, heading_rad: float = math.nan, max_turn_rad: float = math.pi
-) -> tuple[F64, float, float] | None:
-    """The nearest point to ``xy`` on one of the segments ``edges`` (K, 2) of ``centres_m``
-    (its foot of the perpendicular, or the vertex two of the segments share when ``xy`` lies in the wedge
-    outside a bend between them), its distance and the segment's direction (radians); None when ``xy``
-    lies beside no segment (past the end of every one: a dead end, or a gap in the mapped edges, where
-    pulling it back to the end would stop it). With a finite ``heading_rad`` only segments whose direction
-    is within ``max_turn_rad`` of it (either way along the segment) count: a vehicle driving across a
-    tunnel's line (into a drawpoint or a stub the map has no edge for) is not on that tunnel."""
-    if edges.size == 0:
-        return None
-    a, b = centres_m[edges[:, 0]], centres_m[edges[:, 1]]
-    ab = b - a
-    length2 = np.einsum("ij,ij->i", ab, ab)
-    t = np.einsum("ij,ij->i", xy - a, ab) / np.where(length2 > 0, length2, 1.0)
-    usable = length2 > 0
-    if math.isfinite(heading_rad):
-        usable &= _axial_rad(np.arctan2(ab[:, 1], ab[:, 0]), heading_rad) <= max_turn_rad
-    ends, count = np.unique(edges[usable].ravel(), return_counts=True)
-    shared = ends[count >= 2]  # a vertex joining two segments: no dead end
-    inner = ((t < 0.0) & np.isin(edges[:, 0], shared)) | ((t > 1.0) & np.isin(edges[:, 1], shared))
-    beside = usable & (((t >= 0.0) & (t <= 1.0)) | inner)
-    if not beside.any():
-        return None
-    points = a + np.clip(t, 0.0, 1.0)[:, None] * ab
-    dist = np.where(beside, np.hypot(*(points - xy).T), np.inf)
-    k = int(np.argmin(dist))
-    return points[k], float(dist[k]), math.atan2(float(ab[k, 1]), float(ab[k, 0]))
-
-
-def snap(
-    state: TrackState,
-    centres_m: F64,
-    edges: I64,
-    moving: bool,
-    params: TrackParams,
-    steered: bool = False,
-    turning: bool = False,
-) -> TrackState:
-    """Put the track on the nearest of the mapped ``edges`` (K, 2) int64 (node pairs, segments between
-    their ``centres_m`` (M, 2)) and pull its heading towards that edge while ``moving``. A ``steered`` track
-    (its heading turned by odometry this frame) goes only onto edges along its heading
-    (``snap_max_turn_rad``): one driving off a mapped tunnel into a stub without edges leaves it. While
-    odometry says the vehicle is ``turning`` the heading is not pulled (the pull corrects drift on the
-    straight; in a turn it would take part of the turn away)."""
-    if not state.has_position:
-        return state
-    wT = state.wT.copy()
-    heading = float(wT[2]) if steered else math.nan
-    found = _nearest_on_edges(wT[:2], centres_m, edges, heading, params.snap_max_turn_rad)
-    edge_dir = math.nan
-    if found is not None and found[1] <= params.snap_max_m:
-        wT[:2], _dist, edge_dir = found
-    if not np.isfinite(wT[2]) and moving and math.isfinite(edge_dir):
-        wT[2] = (
-            edge_dir  # one of the tunnel's two ways: check_heading or the fixes turn it if it is the other
-        )
-    elif np.isfinite(wT[2]) and moving and not turning and math.isfinite(edge_dir):
-        err = _wrap(edge_dir - wT[2])
-        if abs(err) > math.pi / 2:
-            err = _wrap(err + math.pi)  # the edge's other way is nearer
-        wT[2] = _wrap(wT[2] + params.heading_pull * err)
-    return replace(state, wT=wT)
+    return replace(state, wT=wT, var_m2=var, flip_m=0.0, heading_checked=True, scale_cov_m=0.0)
