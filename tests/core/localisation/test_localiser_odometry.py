@@ -125,6 +125,36 @@ class TestContinuousTrack:
         assert loc.state().belief[11] > 1e-3  # one hop taken
 
 
+class TestLostViewsOfATrustedTrack:
+    """The views tell nothing for longer than ``lost_frames`` (a covered lens) while the vehicle drives on:
+    the belief restarts around the dead-reckoned track, not over the whole map."""
+
+    def blind_stretch(self, corridor: tuple[F32, LocaliserMap], *, odometry: bool) -> tuple[Localiser, float]:
+        tex, lmap = corridor
+        rng = np.random.default_rng(8)
+        loc = Localiser(lmap, start_node=node_at(20.0))
+        grey = np.full(tex.shape[1:], 128.0, dtype=np.float32)  # noise alone: no node matches it better
+        x = 20.0
+        for k in range(30 + hmm.DEFAULT.lost_frames):  # the last frame is the lost_frames-th lost one
+            x += 0.3
+            seen = view(tex[node_at(x)] if k < 30 else grey, rng)
+            loc.step(seen, k * FPS_DT_S, motion=straight(0.3) if odometry else None)
+        return loc, x
+
+    def test_with_odometry_the_belief_restarts_around_the_track(
+        self, corridor: tuple[F32, LocaliserMap]
+    ) -> None:
+        loc, x = self.blind_stretch(corridor, odometry=True)
+        belief = loc.state().belief
+        support = loc.map.centres_m[belief > 0.0, 0]
+        assert support.min() >= x - 15.0 and support.max() <= x + 15.0
+        assert abs(loc.state().track.wT[0] - x) < 1.5
+
+    def test_without_odometry_it_restarts_globally(self, corridor: tuple[F32, LocaliserMap]) -> None:
+        loc, _x = self.blind_stretch(corridor, odometry=False)
+        assert hmm.is_global(loc.state().belief)
+
+
 class TestPlaceFixFromTheReferences:
     """Each node's reference frames were taken a metre apart: the one a frame matches best tells where in
     the node the vehicle is, finer than the node centre."""

@@ -15,10 +15,6 @@ Lost detection and relocation (beyond the paper) judge b(i) against the other co
 :mod:`driftmap.core.localisation.evidence`. With ``single_image=True`` there is no filter: every node is
 compared and b(i) = argmin d.
 
-Transitions (eq. 9-10) also let the belief take every direct step between two nodes in one frame, however
-long (:func:`driftmap.core.localisation.transitions.long_steps`): node spacing is uneven at junctions and merges, and a step
-longer than the reach A_t would otherwise be a wall the belief can never cross.
-
 SESAME ([SESAME], eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
 from the raw frame and only salient query pixels count in every node comparison, normalised by their number
 in the overlap. A query with almost no salient pixel (a black or washed-out frame) falls back to the plain
@@ -266,7 +262,7 @@ class Localiser:
             confidence = hmm.calibrated(score * distinct, p.calibration)
         node = best
         if p.lost_frames > 0 and lost_count >= p.lost_frames:
-            belief, lost_count, moving = hmm.initial_belief(lm.n_nodes), 0, 0  # re-initialise globally
+            belief, lost_count, moving = self._restart_belief(track, motion is not None), 0, 0
             node = -1
         self._state = LocaliserState(
             belief, t_s, lost_count, s.steps + 1, moving, query.copy(), node, distinct, track, turns=turns
@@ -284,6 +280,16 @@ class Localiser:
             moving_now,
             confidence,
         )
+
+    def _restart_belief(self, track: TrackState, dead_reckoned: bool) -> F64:
+        """The belief after ``lost_frames`` lost frames in a row: over the nodes within the fix gate + 3 sd
+        of a trusted track odometry dead-reckons (the views lost the place, not the vehicle), else global."""
+        lm, tp = self.map, self.track_params
+        if not (dead_reckoned and track.trusted and track.has_position):
+            return hmm.initial_belief(lm.n_nodes)
+        around = lm.nearest_node(float(track.wT[0]), float(track.wT[1]))
+        radius_m = tp.gate_m + 3.0 * math.sqrt(track.var_m2)
+        return hmm.initial_belief(lm.n_nodes, around, lm.centres_m, radius_m)
 
     def _check_turns(
         self, prior: F64, history: TurnHistory, motion: OdometryStep | None

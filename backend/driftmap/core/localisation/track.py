@@ -258,8 +258,8 @@ def correct(
 ) -> tuple[TrackState, bool]:
     """Fuse the place fix (2,) ``fix_m`` (survey metres, b(i)'s centre of a frame not lost) into the track.
 
-    Within the gate the fix pulls the track with the Kalman gain (a ``confident`` fix makes the track
-    trusted). Beyond it the track re-anchors at the fix unless the track is trusted and ``dead_reckoned`` by
+    Within the gate the fix pulls the track with the Kalman gain (a ``confident`` fix, or one that
+    ``steers``, makes the track trusted). Beyond it the track re-anchors at the fix unless the track is trusted and ``dead_reckoned`` by
     odometry and the frame is doubtful: such a track keeps its course, for at most ``max_hold_m`` driven in a
     row (then the place recognition, consistently elsewhere, wins). The first fix anchors a track that has
     none.
@@ -292,7 +292,7 @@ def correct(
             return replace(state, held_m=state.held_m + (travel_m or 0.0)), True
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, confident)
         return replace(anchored.with_scale_of(state), speed_mps=state.speed_mps), False
-    state = replace(state, trusted=state.trusted or confident, held_m=0.0)
+    state = replace(state, trusted=state.trusted or confident or steers, held_m=0.0)
     strayed = state.strayed + 1 if dead_reckoned and steers and off > params.stray_m else 0
     if strayed >= params.stray_frames:  # sure fixes keep saying the track is elsewhere: it is
         anchored = TrackState.at((float(fix[0]), float(fix[1])), params.fix_sigma_m, True)
