@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from driftmap.cli import camera, data, exports, localise, maps, replay, server, vpr, worker
+from driftmap.cli import backup, camera, data, exports, localise, maps, replay, server, vpr, worker
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -28,6 +28,8 @@ app.command()(server.serve)
 app.command()(worker.worker)
 app.command()(replay.replay)
 app.command()(data.simulate)
+app.command()(backup.backup)
+app.command()(backup.restore)
 app.command()(maps.odometry)
 app.command()(localise.localise)
 
