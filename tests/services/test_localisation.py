@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from driftmap.core.imaging.params import IMAGES_DEFAULT
+from driftmap.core.imaging.views import thumbnails
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
@@ -16,6 +18,8 @@ from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.models import MapVersion
 from driftmap.store.storage import Storage
+from tests.core.imaging.boards import FISHEYE
+from tests.core.localisation.test_localiser_lens import CAMERA, corridor, lens_frames
 from tests.localisation_site import SITE, loc_drive_dir, tiny_map_settings
 
 ON_NODE_M = 15.0  # a frame is localised right when its node centre is within this of the truth, metres
@@ -28,6 +32,15 @@ def tiny_store(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) ->
     storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
     yield storage
     storage.close()
+
+
+class TestMakeLocaliser:
+    def test_the_camera_lens_applies_without_odometry(self) -> None:
+        frames = lens_frames()
+        lmap = corridor(thumbnails(frames, IMAGES_DEFAULT, FISHEYE))
+        loc = loc_service.make_localiser(lmap, sesame=None, temporal=False, camera=CAMERA, odometry=False)
+        assert loc.odometry is None and loc.lens == FISHEYE
+        assert loc.step(frames[3], 0.0).node == 3
 
 
 class TestLoadLocaliserMap:
