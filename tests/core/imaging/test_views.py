@@ -74,6 +74,15 @@ class TestThumbnails:
         np.testing.assert_array_equal(thumbnails(first, params, None), preprocess(first, params))
         assert undistorted_view(first, None) is first
 
+    def test_an_undistorted_pinhole_needs_no_view(self, texture: np.ndarray) -> None:
+        plain = Lens("pinhole", PINHOLE.K, (0.0, 0.0, 0.0, 0.0))
+        frame = render_wall(PINHOLE, texture)
+        assert ViewMaps(plain, SIZE).identity and not ViewMaps(PINHOLE, SIZE).identity
+        assert undistorted_view(frame, plain) is frame
+        np.testing.assert_array_equal(
+            thumbnails(frame, IMAGES_DEFAULT, plain), preprocess(frame, IMAGES_DEFAULT)
+        )
+
     def test_stacks_colour_and_single_frames_agree(self, texture: np.ndarray) -> None:
         frames = np.stack([render_wall(FISHEYE, texture, distance_m=d) for d in (1.0, 1.3)])
         stack = thumbnails(frames, IMAGES_DEFAULT, FISHEYE)

@@ -18,8 +18,8 @@ therefore first resampled to the camera's **thumbnail view**, an ideal pinhole i
 The view depends on the lens and the frame size only, so a map's frames and a live vehicle's query frames of
 one camera land in the same view and compare. The remap tables (:class:`ViewMaps`, the whole frame) are
 built once per lens and frame size (:func:`view_maps`, cached); each frame then costs one ``cv2.remap``. A
-camera without a lens is its own view: frames pass untouched and thumbnails are bit-identical to
-``preprocess`` of the recorded frame. Pixels are ``(u, v)``: u right, v down, origin at the top-left
+camera without a lens, or whose lens is an undistorted pinhole under 100 degrees, is its own view: frames
+pass untouched and thumbnails are bit-identical to ``preprocess`` of the recorded frame. Pixels are ``(u, v)``: u right, v down, origin at the top-left
 pixel's centre.
 """
 
@@ -75,6 +75,8 @@ class ViewMaps:
     Attributes:
         size: ``(width, height)`` of the frames, pixels.
         matrix: ``(3, 3)`` camera matrix of the view (:func:`view_matrix`), pixels.
+        identity: the lens needs no resampling (a pinhole without distortion whose view is its ``K``):
+            :meth:`apply` returns the frame itself and no tables are built.
     """
 
     def __init__(self, lens: Lens, size: tuple[int, int]) -> None:
@@ -87,6 +89,13 @@ class ViewMaps:
         width, height = int(size[0]), int(size[1])
         self.size = (width, height)
         self.matrix = view_matrix(lens, self.size)
+        self.identity = (
+            lens.model == "pinhole"
+            and not any(lens.distortion)
+            and np.array_equal(self.matrix, lens.matrix())
+        )
+        if self.identity:
+            return
         uu, vv = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
         pix = np.stack([uu.ravel(), vv.ravel(), np.ones(uu.size)])
         rays = np.linalg.solve(self.matrix, pix).T  # (H * W, 3), z = 1
@@ -97,11 +106,14 @@ class ViewMaps:
     def apply(self, gray: NDArray[_G]) -> NDArray[_G]:
         """The view of one frame: ``(H, W)`` grey in (uint8, uint16 or float32), ``(H, W)`` same dtype out.
 
-        Bilinear; a view pixel whose ray lands outside the raw frame takes the nearest edge pixel.
+        Bilinear; a view pixel whose ray lands outside the raw frame takes the nearest edge pixel. The frame
+        itself when :attr:`identity`.
         """
         width, height = self.size
         if gray.shape != (height, width):
             raise BadInputError(f"must be a ({height}, {width}) grey frame, got {gray.shape}", field="frame")
+        if self.identity:
+            return gray
         out = cv2.remap(gray, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return np.asarray(out, dtype=gray.dtype)
 
