@@ -19,8 +19,8 @@ The view depends on the lens and the frame size only, so a map's frames and a li
 one camera land in the same view and compare. The remap tables (:class:`ViewMaps`, the whole frame) are
 built once per lens and frame size (:func:`view_maps`, cached); each frame then costs one ``cv2.remap``. A
 camera without a lens, or whose lens is an undistorted pinhole under 100 degrees, is its own view: frames
-pass untouched and thumbnails are bit-identical to ``preprocess`` of the recorded frame. Pixels are ``(u, v)``: u right, v down, origin at the top-left
-pixel's centre.
+pass untouched and thumbnails are bit-identical to ``preprocess`` of the recorded frame. Pixels are
+``(u, v)``: u right, v down, origin at the top-left pixel's centre.
 """
 
 from __future__ import annotations
