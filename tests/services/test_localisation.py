@@ -7,15 +7,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sqlalchemy import select
 
+from driftmap.core.imaging.lens import Lens
+from driftmap.core.imaging.params import IMAGES_DEFAULT
+from driftmap.core.imaging.views import thumbnails
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
+from driftmap.formats.drive_json import lens_to_json
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
-from driftmap.store.models import MapVersion
+from driftmap.store.models import Drive, Frame, MapNodeFrame, MapVersion
 from driftmap.store.storage import Storage
+from tests.core.imaging.boards import FISHEYE
+from tests.core.localisation.test_localiser_lens import CAMERA, corridor, lens_frames
 from tests.localisation_site import SITE, loc_drive_dir, tiny_map_settings
 
 ON_NODE_M = 15.0  # a frame is localised right when its node centre is within this of the truth, metres
@@ -28,6 +35,15 @@ def tiny_store(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) ->
     storage = Storage.open(tiny_map_settings(tmp_path_factory, tiny_site_dir))
     yield storage
     storage.close()
+
+
+class TestMakeLocaliser:
+    def test_the_camera_lens_applies_without_odometry(self) -> None:
+        frames = lens_frames()
+        lmap = corridor(thumbnails(frames, IMAGES_DEFAULT, FISHEYE))
+        loc = loc_service.make_localiser(lmap, sesame=None, temporal=False, camera=CAMERA, odometry=False)
+        assert loc.odometry is None and loc.lens == FISHEYE
+        assert loc.step(frames[3], 0.0).node == 3
 
 
 class TestLoadLocaliserMap:
@@ -73,6 +89,33 @@ class TestLoadLocaliserMap:
             rebuilt = loc_service.load_version_localiser_map(session, tiny_store.blobs, bare)
         assert np.array_equal(rebuilt.node_ptr, stored.node_ptr)
         assert np.abs(rebuilt.thumbs - stored.thumbs).max() < 0.01  # the blob holds float16
+
+    def test_references_made_from_frames_take_their_drive_camera_view(self, tiny_store: Storage) -> None:
+        with tiny_store.db.session() as session:
+            site = site_service.get_site(session, SITE)
+            version = map_service.get_map_version(session, site)
+            bare = MapVersion(id=version.id, version=version.version, params=version.params, stats={})
+            bare.topomap_sha256 = version.topomap_sha256
+            drives = session.scalars(select(Drive).where(Drive.site_id == site.id)).all()
+            width, height = drives[0].camera["width"], drives[0].camera["height"]
+            f = width / 3.0  # a 170-degree fisheye across the width
+            lens = Lens("fisheye", ((f, 0.0, width / 2), (0.0, f, height / 2), (0.0, 0.0, 1.0)), (0.0,) * 4)
+            for drive in drives:  # not committed: rolled back below
+                drive.camera = {**drive.camera, "lens": lens_to_json(lens)}
+            session.flush()
+            first_sha = session.scalars(
+                select(Frame.blob_sha256)
+                .join(MapNodeFrame, MapNodeFrame.frame_id == Frame.id)
+                .where(MapNodeFrame.map_version_id == version.id)
+                .order_by(MapNodeFrame.node, MapNodeFrame.rank)
+            ).first()
+            assert first_sha is not None
+            frame = decode_gray(tiny_store.blobs.get(first_sha), "first reference")
+            rebuilt = loc_service.load_version_localiser_map(session, tiny_store.blobs, bare)
+            params = loc_service.image_params_of(version)
+            session.rollback()
+        np.testing.assert_array_equal(rebuilt.thumbs[0], thumbnails(frame, params, lens))
+        assert not np.array_equal(rebuilt.thumbs[0], thumbnails(frame, params, None))
 
     def test_no_map_version(self, storage: Storage, tiny_site_dir: Path) -> None:
         with storage.db.session() as session:

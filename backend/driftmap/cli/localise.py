@@ -76,7 +76,8 @@ def localise(
             temporal=temporal,
             start_xy_m=start_xy_m,
             start_radius_m=start_radius_m,
-            camera=folder.meta.camera if odometry else None,
+            camera=folder.meta.camera,
+            odometry=odometry,
         )
         frames = (
             decode_gray(data, str(file))

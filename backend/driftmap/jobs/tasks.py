@@ -157,7 +157,8 @@ def drive_localise(ctx: JobContext) -> None:
         lmap,
         sesame=sesame,
         temporal=bool(args.get("temporal", True)),
-        camera=camera if args.get("odometry", True) else None,
+        camera=camera,
+        odometry=bool(args.get("odometry", True)),
     )
     images = (decode_gray(storage.blobs.get(f.blob_sha256), f"frame {f.index}") for f in frames)
     estimates = loc_service.localise_frames(localiser, images, [f.t_s for f in frames], ctx.report)

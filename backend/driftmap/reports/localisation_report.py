@@ -160,6 +160,7 @@ def run_localisation_report(
                     single_image=not temporal,
                     sesame=sesame if masked else None,
                     start_node=start if temporal else None,
+                    lens=drive.camera.lens if drive.camera is not None else None,
                 ),
                 odometry,
             )

@@ -8,7 +8,8 @@ and :func:`localise_frames` runs a sequence of frames through it.
 
 Reference thumbnails come from the version's localisation database blob when the build stored one (its
 SHA-256 under ``stats["localiser_db_sha256"]``, see :mod:`driftmap.services.maps`); otherwise they are made
-again from the stored frames of the version's node frames, with the pre-processing the version was built with.
+again from the stored frames of the version's node frames, with the pre-processing the version was built with,
+each through its drive camera's thumbnail view (:mod:`driftmap.core.imaging.views`) as the build made them.
 Where each reference frame was taken (its optimised pose in the version) makes the localiser's place fixes
 finer than the node centres, and the mapping drives' optimised poses are the paths its continuous track
 follows.
@@ -27,8 +28,9 @@ from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from driftmap.core.imaging.images import preprocess
+from driftmap.core.imaging.lens import Lens
 from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.imaging.views import thumbnails
 from driftmap.core.localisation import hmm
 from driftmap.core.localisation.localiser import Estimate, Localiser
 from driftmap.core.localisation.map import LocaliserMap, mapped_paths
@@ -102,16 +104,26 @@ def _thumbs_from_frames(
     session: Session, blobs: BlobStore, version: MapVersion, n_nodes: int, image_params: ImageParams
 ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
     rows = session.execute(
-        select(MapNodeFrame.node, Frame.blob_sha256)
+        select(MapNodeFrame.node, Frame.blob_sha256, Frame.drive_id)
         .join(Frame, MapNodeFrame.frame_id == Frame.id)
         .where(MapNodeFrame.map_version_id == version.id)
         .order_by(MapNodeFrame.node, MapNodeFrame.rank)
     ).all()
+    lenses = _drive_lenses(session, {int(drive_id) for _n, _s, drive_id in rows})
     h, w = (image_params.size_px or (0, 0))[::-1]
-    thumbs = [preprocess(decode_gray(blobs.get(sha), f"blob {sha}"), image_params) for _node, sha in rows]
-    counts = np.bincount(np.array([n for n, _ in rows], dtype=np.int64), minlength=n_nodes)
+    thumbs = [
+        thumbnails(decode_gray(blobs.get(sha), f"blob {sha}"), image_params, lenses[drive_id])
+        for _node, sha, drive_id in rows
+    ]
+    counts = np.bincount(np.array([r[0] for r in rows], dtype=np.int64), minlength=n_nodes)
     stack = np.stack(thumbs) if thumbs else np.zeros((0, h, w), dtype=np.float32)
     return stack.astype(np.float32), np.r_[0, np.cumsum(counts)].astype(np.int64)
+
+
+def _drive_lenses(session: Session, drive_ids: set[int]) -> dict[int, Lens | None]:
+    """The lens of each drive's camera (None for a camera without one), by drive id."""
+    drives = session.execute(select(Drive.id, Drive.name, Drive.camera).where(Drive.id.in_(drive_ids))).all()
+    return {int(i): parse_camera_block(camera, "", f"drive {name!r}").lens for i, name, camera in drives}
 
 
 def _reference_positions(session: Session, version: MapVersion, n_refs: int) -> NDArray[np.float64] | None:
@@ -212,13 +224,16 @@ def make_localiser(
     start_xy_m: tuple[float, float] | None = None,
     start_radius_m: float = 0.0,
     camera: CameraModel | None = None,
+    odometry: bool = True,
 ) -> Localiser:
     """A :class:`Localiser` on ``lmap``: SESAME masks unless ``sesame`` is None, HMM filter unless not temporal.
 
     ``start_xy_m`` is the vehicle's known start (survey frame, metres): the belief starts at the nearest node
     and the nodes within ``start_radius_m`` of it ([SSLAM]'s X_0), the continuous track at the point; None
-    starts it global (uniform). ``camera`` is the vehicle's calibrated camera: its ground-plane odometry
-    moves the belief and the track (None: appearance alone).
+    starts it global (uniform). ``camera`` is the vehicle's calibrated camera: its lens undistorts the query
+    frames to the view the map's frames of that camera were taken in (:mod:`driftmap.core.imaging.views`),
+    and with ``odometry`` its ground-plane odometry moves the belief and the track (None, or ``odometry``
+    off: appearance alone).
     """
     start = None
     if start_xy_m is not None:
@@ -238,7 +253,8 @@ def make_localiser(
         start_node=start,
         start_radius_m=start_radius_m,
         start_xy_m=start_xy_m,
-        camera=camera,
+        camera=camera if odometry else None,
+        lens=camera.lens if camera is not None else None,
     )
 
 

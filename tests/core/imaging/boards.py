@@ -116,3 +116,34 @@ def floor_pose(
     tvec = camera_from_floor @ (np.array([*centre_m, 0.0]) - turn @ mid) + t
     rvec, _ = cv2.Rodrigues(rot)
     return rvec.ravel(), tvec
+
+
+def wall_texture(size: int = 1024, seed: int = 4) -> NDArray[np.float32]:
+    """(size, size) float32 smooth random grey texture, 0-255 (blobs a few dozen texels across)."""
+    rng = np.random.default_rng(seed)
+    coarse = rng.uniform(0.0, 255.0, size=(size // 16, size // 16)).astype(np.float32)
+    fine = cv2.resize(coarse, (size, size), interpolation=cv2.INTER_CUBIC)
+    return np.asarray(cv2.GaussianBlur(fine, (0, 0), 4.0), dtype=np.float32)
+
+
+def render_wall(
+    lens: Lens,
+    texture: NDArray[np.float32],
+    half_m: float = 3.0,
+    distance_m: float = 1.0,
+    size: tuple[int, int] = SIZE,
+    ss: int = 2,
+) -> NDArray[np.uint8]:
+    """(H, W) uint8 image of a textured wall facing the camera ``distance_m`` ahead, ``texture`` spanning
+    ``-half_m .. half_m`` in x (right) and y (down); rays that miss it, or have no pinhole ray, see grey 128."""
+    rays, ok = _rays(lens, size, ss)
+    side = texture.shape[0]
+    tex_u = ((rays[..., 0] * distance_m + half_m) / (2 * half_m) * side - 0.5).astype(np.float32)
+    tex_v = ((rays[..., 1] * distance_m + half_m) / (2 * half_m) * side - 0.5).astype(np.float32)
+    seen = cv2.remap(
+        texture, tex_u, tex_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=128.0
+    )
+    value = np.where(ok, seen, 128.0)
+    width, height = size
+    img = value.reshape(height, ss, width, ss).mean(axis=(1, 3))
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 from driftmap.core.imaging.images import preprocess
+from driftmap.core.imaging.lens import Lens
+from driftmap.core.imaging.views import thumbnails, undistorted_view
 from driftmap.core.mapping.drive import PreparedSegment
 from driftmap.core.mapping.pipeline import (
     MAPPING_PAPER,
@@ -25,6 +27,10 @@ from tests.core.odometry.test_drive import arc_step, floor_texture, pinhole_came
 
 START = (0.0, -2.0, 0.0)
 N_FRAMES = 300  # three segments of at most 128 frames
+LENS_FRAMES = 20  # frames of the segment seen through a lens
+FISHEYE = Lens(
+    "fisheye", ((250.0, 0.0, 160.0), (0.0, 250.0, 120.0), (0.0, 0.0, 1.0)), (0.05, -0.02, 0.0, 0.0)
+)
 
 
 @pytest.mark.parametrize(
@@ -114,3 +120,19 @@ def test_segments_that_leave_a_gap_are_refused(circle: np.ndarray) -> None:
         join_segments(drive, [first, last], params)
     with pytest.raises(ValueError, match=r"frames 256\.\.299 asked for, 0 given"):
         prepare_segment(replace(drive, frame_range=lambda b, s: iter(())), params, (0, N_FRAMES), (256, 300))
+
+
+def test_a_lens_camera_gives_thumbnails_and_statistics_of_its_view(circle: np.ndarray) -> None:
+    cam = replace(pinhole_camera(), lens=FISHEYE)
+    frames = circle[:LENS_FRAMES]
+    drive = MappingDrive("lens", cam, np.arange(LENS_FRAMES) * 0.1, lambda: iter(frames), start_wT=START)
+    params = replace(MAPPING_PAPER, database=DatabaseParams(quality_sources=4))
+    piece = prepare_segment(drive, params, (0, LENS_FRAMES), (0, LENS_FRAMES))
+    np.testing.assert_array_equal(piece.thumbs, thumbnails(frames, params.images, FISHEYE))
+    assert not np.array_equal(piece.thumbs, preprocess(frames, params.images))
+    one_pass = FrameStatsPass(0, LENS_FRAMES, params.database, params.images)
+    for frame in frames:
+        one_pass.add(undistorted_view(frame, FISHEYE))
+    one_pass.close()
+    assert piece.stats is not None
+    np.testing.assert_array_equal(np.concatenate(piece.stats.masks), np.concatenate(one_pass.masks))

@@ -26,7 +26,16 @@ from numpy.typing import NDArray
 
 from driftmap.errors import BadInputError
 
-__all__ = ["LENS_MODELS", "Lens", "LensMaps", "LensModel", "distort_points", "lens_maps", "undistort_points"]
+__all__ = [
+    "LENS_MODELS",
+    "Lens",
+    "LensMaps",
+    "LensModel",
+    "distort_points",
+    "lens_maps",
+    "project_rays",
+    "undistort_points",
+]
 
 LensModel = Literal["pinhole", "fisheye"]
 LENS_MODELS: tuple[str, ...] = ("pinhole", "fisheye")
@@ -119,15 +128,30 @@ def distort_points(lens: Lens, points_px: NDArray) -> NDArray[np.float64]:
         ``(N, 2)`` float64 raw image pixels.
     """
     pts = _check_points(points_px, "points_px")
-    k = lens.matrix()
-    norm = np.linalg.solve(k, np.vstack([pts.T, np.ones(len(pts))])).T  # (N, 3) rays with z = 1
-    if len(pts) == 0:
+    return project_rays(lens, np.linalg.solve(lens.matrix(), np.vstack([pts.T, np.ones(len(pts))])).T)
+
+
+def project_rays(lens: Lens, rays: NDArray) -> NDArray[np.float64]:
+    """Camera-frame rays to raw pixels: where in the recorded frame each ray lands.
+
+    Args:
+        lens: the camera's lens.
+        rays: ``(N, 3)`` rays ``(x, y, z)`` in the camera frame (x right, y down, z along the axis), z > 0;
+            any length (typically z = 1).
+
+    Returns:
+        ``(N, 2)`` float64 raw image pixels ``(u, v)``.
+    """
+    r = np.asarray(rays, dtype=np.float64)
+    if r.ndim != 2 or r.shape[1] != 3:
+        raise BadInputError(f"must be an (N, 3) array of rays, got shape {r.shape}", field="rays")
+    if len(r) == 0:
         return np.zeros((0, 2))
-    zero = np.zeros(3)
+    k, zero = lens.matrix(), np.zeros(3)
     if lens.model == "fisheye":
-        out, _ = cv2.fisheye.projectPoints(norm.reshape(-1, 1, 3), zero, zero, k, lens.coeffs())
+        out, _ = cv2.fisheye.projectPoints(r.reshape(-1, 1, 3), zero, zero, k, lens.coeffs())
     else:
-        out, _ = cv2.projectPoints(norm.reshape(-1, 1, 3), zero, zero, k, lens.coeffs())
+        out, _ = cv2.projectPoints(r.reshape(-1, 1, 3), zero, zero, k, lens.coeffs())
     return np.asarray(out, dtype=np.float64).reshape(-1, 2)
 
 

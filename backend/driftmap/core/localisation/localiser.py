@@ -30,8 +30,9 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.imaging.images import preprocess
+from driftmap.core.imaging.lens import Lens
 from driftmap.core.imaging.params import SAD_DEFAULT, ImageParams, SadParams
+from driftmap.core.imaging.views import thumbnails
 from driftmap.core.localisation import evidence, hmm, transitions, tunnels
 from driftmap.core.localisation import track as localiser_track
 from driftmap.core.localisation.map import LocaliserMap
@@ -71,6 +72,8 @@ class Localiser:
             centre.
         turn_params: the check of turns driven against the map's turns (:mod:`driftmap.core.localisation.turns`;
             needs odometry); None: no turn check.
+        lens: query frames are taken in this lens's thumbnail view (:mod:`driftmap.core.imaging.views`), as the
+            map's frames of that camera were; None: ``camera``'s lens (as recorded when there is none).
     """
 
     def __init__(
@@ -88,8 +91,10 @@ class Localiser:
         track_params: TrackParams = TRACK_DEFAULT,
         start_xy_m: tuple[float, float] | None = None,
         turn_params: TurnParams | None = TURNS_DEFAULT,
+        lens: Lens | None = None,
     ) -> None:
         self.map = lmap
+        self.lens = lens if lens is not None or camera is None else camera.lens
         self.turn_params = turn_params
         self.track_params = track_params
         self.odometry = None if camera is None or single_image else OdometryFeed(camera)
@@ -152,7 +157,7 @@ class Localiser:
         shape = self.map.thumbs.shape[1:]
         if frame.dtype.kind == "f" and frame.shape == shape:
             return np.asarray(frame, dtype=np.float32)
-        thumb = preprocess(np.asarray(frame), self.image_params)
+        thumb = thumbnails(np.asarray(frame), self.image_params, self.lens)
         if thumb.shape != shape:
             raise BadInputError(f"frame pre-processes to {thumb.shape}, the map holds {shape}", field="frame")
         return thumb

@@ -22,7 +22,9 @@ from numpy.typing import NDArray
 
 from driftmap.core.graph.constraints import OdometryChain
 from driftmap.core.imaging.images import preprocess
+from driftmap.core.imaging.lens import Lens
 from driftmap.core.imaging.params import ImageParams
+from driftmap.core.imaging.views import undistorted_view
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.odometry.drive import MatchedSteps, OdometryStep, match_frames, reckon
 from driftmap.core.odometry.params import OdometryParams
@@ -34,7 +36,11 @@ _STATS_LISTS = ("sal", "masks", "feats", "sample", "sample_sal")  # FrameStatsPa
 
 class _Tee:
     """Yields frames to odometry while keeping the place-recognition thumbnails and feeding the database's
-    frame statistics (when given) of all but the first ``skip`` frames, so each frame is decoded once."""
+    frame statistics (when given) of all but the first ``skip`` frames, so each frame is decoded once.
+
+    Thumbnails and statistics see the camera's thumbnail view (:func:`~driftmap.core.imaging.views.undistorted_view`;
+    the recorded frame when ``lens`` is None); odometry gets the recorded frame and undistorts its own window.
+    """
 
     def __init__(
         self,
@@ -43,17 +49,19 @@ class _Tee:
         stats: FrameStatsPass | None,
         report: tuple[ProgressFn, int] | None,
         skip: int = 0,
+        lens: Lens | None = None,
     ) -> None:
         self._frames, self._params, self.stats, self._report = frames, params, stats, report
-        self._skip = skip
+        self._skip, self._lens = skip, lens
         self.thumbs: list[NDArray[np.float32]] = []
 
     def __iter__(self) -> Iterator[NDArray[np.uint8]]:
         for k, frame in enumerate(self._frames):
             if k >= self._skip:
-                self.thumbs.append(preprocess(frame, self._params))
+                view = undistorted_view(frame, self._lens)
+                self.thumbs.append(preprocess(view, self._params))
                 if self.stats is not None:
-                    self.stats.add(frame)
+                    self.stats.add(view)
                 if self._report is not None:
                     self._report[0]("odometry", len(self.thumbs) / max(self._report[1], 1))
             yield frame
@@ -218,7 +226,8 @@ def prepare_segment(
             segment inside a drive starts two frames early, the step between them warming up the motion
             prior (and the next giving the step into ``first``).
         span: ``(first, stop)``, the drive's indices of the segment's frames.
-        camera: its calibrated camera.
+        camera: its calibrated camera; with a lens, thumbnails and statistics are taken of its thumbnail view
+            (:mod:`driftmap.core.imaging.views`).
         odometry: visual-odometry parameters.
         images: place-recognition pre-processing of the thumbnails.
         stats: a fresh :class:`FrameStatsPass` of this segment (its flat offset, the build's total); closed here.
@@ -230,7 +239,8 @@ def prepare_segment(
     first, stop = span
     begin = segment_begin(first)
     start = time.perf_counter()
-    tee = _Tee(frames, images, stats, (report, stop - first) if report is not None else None, first - begin)
+    progress = (report, stop - first) if report is not None else None
+    tee = _Tee(frames, images, stats, progress, first - begin, camera.lens)
     matched = match_frames(tee, camera, odometry, warm_up=max(0, first - begin - 1), first_index=begin)
     if len(tee.thumbs) != stop - first:
         raise ValueError(f"drive {name!r}: frames {first}..{stop - 1} asked for, {len(tee.thumbs)} given")
