@@ -15,10 +15,8 @@ Lost detection and relocation (beyond the paper) judge b(i) against the other co
 :mod:`driftmap.core.localisation.evidence`. With ``single_image=True`` there is no filter: every node is
 compared and b(i) = argmin d.
 
-SESAME ([SESAME], eq. 6): with ``sesame`` parameters the query's Shannon-entropy salient mask is computed
-from the raw frame and only salient query pixels count in every node comparison, normalised by their number
-in the overlap. A query with almost no salient pixel (a black or washed-out frame) falls back to the plain
-holistic SAD, so it still gets scores.
+SESAME ([SESAME], eq. 6): with ``sesame`` parameters only the query's salient pixels (Shannon entropy of the
+raw frame) count in every node comparison; a query with almost none (a black frame) is compared whole.
 """
 
 from __future__ import annotations
@@ -32,7 +30,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.imaging.lens import Lens
 from driftmap.core.imaging.params import SAD_DEFAULT, ImageParams, SadParams
-from driftmap.core.imaging.views import thumbnails
+from driftmap.core.imaging.views import thumbnails, undistorted_view
 from driftmap.core.localisation import evidence, hmm, transitions, tunnels
 from driftmap.core.localisation import track as localiser_track
 from driftmap.core.localisation.map import LocaliserMap
@@ -68,8 +66,7 @@ class Localiser:
             driven and dead-reckons the continuous position (:mod:`driftmap.core.localisation.motion`); None
             localises by appearance alone (every estimate says ``odometry=False``).
         track_params: the continuous position track's noise model (:mod:`driftmap.core.localisation.track`).
-        start_xy_m: the known start's survey point, metres (the track starts there); None: ``start_node``'s
-            centre.
+        start_xy_m: the known start's survey point, metres (the track starts there); None: its node's centre.
         turn_params: the check of turns driven against the map's turns (:mod:`driftmap.core.localisation.turns`;
             needs odometry); None: no turn check.
         lens: query frames are taken in this lens's thumbnail view (:mod:`driftmap.core.imaging.views`), as the
@@ -163,14 +160,12 @@ class Localiser:
         return thumb
 
     def query_mask(self, frame: NDArray[np.generic]) -> NDArray[np.bool_] | None:
-        """(h, w) bool SESAME salient mask of a raw frame at the thumbnail size; None without SESAME.
-
-        None too for a frame that is already a thumbnail (no raw pixels to take entropy of) and for a frame
-        with fewer than 2 % salient pixels (it is compared whole instead).
-        """
+        """(h, w) bool SESAME salient mask of a raw frame (in the lens's thumbnail view) at the thumbnail size;
+        None without SESAME, for a frame that is already a thumbnail (no raw pixels to take entropy of) and
+        for a frame with fewer than 2 % salient pixels (it is compared whole instead)."""
         if self.sesame is None or frame.dtype != np.uint8:
             return None
-        mask = sesame_masks(np.asarray(frame), self.sesame, self.image_params)
+        mask = sesame_masks(undistorted_view(np.asarray(frame), self.lens), self.sesame, self.image_params)
         if mask.shape != self.map.thumbs.shape[1:] or mask.mean() < _MIN_SALIENT_FRACTION:
             return None
         return np.asarray(mask, dtype=bool)
