@@ -205,6 +205,7 @@ class TestLastSeen:
             expect(cell).not_to_have_attribute("data-age-s", str(age), timeout=5_000)
 
             # every column inside the side panel: nothing cut off, no sideways scrolling
+            screenshot(p, f"ui_last_seen_{width}")
             side = p.locator("aside.side")
             panel = side.bounding_box()
             assert panel is not None
@@ -213,6 +214,5 @@ class TestLastSeen:
                 assert box is not None
                 assert box["x"] + box["width"] <= panel["x"] + panel["width"] + 0.5, (th.inner_text(), box)
             assert side.evaluate("el => el.scrollWidth <= el.clientWidth"), "the side panel scrolls sideways"
-            screenshot(p, f"ui_last_seen_{width}")
         finally:
             context.close()

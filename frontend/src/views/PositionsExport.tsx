@@ -90,10 +90,6 @@ export function PositionsExport({ siteId, vehicles, selected, replay, historyS, 
             </option>
           ))}
         </select>
-        <span className="spacer" />
-        <button data-testid="positions-export-download" onClick={start} disabled={download.busy}>
-          {download.busy ? "Exporting…" : "Download"}
-        </button>
       </div>
       <div className="row" title="Frame times on the vehicle's clock; an empty end is open">
         <label>
@@ -121,6 +117,10 @@ export function PositionsExport({ siteId, vehicles, selected, replay, historyS, 
             ⟲
           </button>
         )}
+        <span className="spacer" />
+        <button data-testid="positions-export-download" onClick={start} disabled={download.busy}>
+          {download.busy ? "Exporting…" : "Download"}
+        </button>
       </div>
       <DownloadStatus download={download} testId="positions-export" />
     </section>
