@@ -182,6 +182,34 @@ class TestPositionsExport:
         expect(error).to_have_attribute("role", "alert")
         assert all(re.search(r" 4\d\d ", e) for e in page.errors), page.errors
 
+    def test_the_range_follows_a_loaded_replay(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path, fleet: dict[str, Vehicle]
+    ) -> None:
+        vehicle = Vehicle(
+            server, "drive-clock-1"
+        )  # a recorded drive's clock: tenths of a second in the inputs
+        for i, frame in enumerate(recorded_frames(localisation_drive(tiny_site_dir), FRAMES)):
+            assert vehicle.post(500.0 + FRAME_PERIOD_S * i, frame.data)["status"] == "processed"
+        p = page.page
+        log_in(p, server)
+        p.get_by_test_id("nav-monitor").click()
+        p.get_by_test_id("vehicle-row-drive-clock-1").click()
+        box = p.get_by_test_id("positions-export")
+        expect(box.get_by_test_id("positions-export-to")).to_have_value("+0:08:20.7")
+        p.get_by_test_id("replay-from").fill("+0:08:20.2")
+        p.get_by_test_id("replay-to").fill("+0:08:20.5")
+        p.get_by_test_id("replay-load").click()
+        expect(p.get_by_test_id("replay-panel")).to_have_attribute("data-count", "4")
+        expect(box.get_by_test_id("positions-export-from")).to_have_value("+0:08:20.2")
+        expect(box.get_by_test_id("positions-export-to")).to_have_value("+0:08:20.5")
+        _, data = download_through(p, box.get_by_test_id("positions-export-download"))
+        rows = list(csv.DictReader(io.StringIO(data.decode())))
+        assert [round(float(r["t"]), 1) for r in rows] == [500.2, 500.3, 500.4, 500.5]
+        # back to live: the history's window again
+        p.get_by_test_id("replay-close").click()
+        expect(box.get_by_test_id("positions-export-from")).to_have_value("+0:03:20.7")
+        assert page.errors == []
+
 
 class TestLastSeen:
     @pytest.mark.parametrize("width", WIDE_VIEWPORTS)
