@@ -1,7 +1,8 @@
 """Downloads in the browser, through the buttons where the data is shown: a map version's export on the grounding
-page and vehicle position history on the monitoring page (the files checked against the API's and parsed), a
-refused export explained with the server's reason; and the vehicle list's last-seen column, with every column
-inside the side panel at 1366 and 1440 px wide. Against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+page and vehicle position history on the monitoring page (the files checked against the API's and parsed), its
+range following what the view shows (the history's window, a loaded replay), a refused export explained with the
+server's reason; and the vehicle list's last-seen column, with every column inside the side panel at 1366 and
+1440 px wide. Against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
