@@ -1,5 +1,6 @@
 // A thin typed fetch wrapper over the generated OpenAPI types (src/api/schema.d.ts, `npm run gen:api`).
 import type { components, paths } from "./schema";
+import { dispositionFilename } from "../lib/exports";
 
 export type Schemas = components["schemas"];
 
@@ -17,6 +18,9 @@ type BodyOf<O> = O extends { requestBody: { content: { "application/json": infer
 type Method = "get" | "post" | "patch" | "put" | "delete";
 type PathsWith<M extends Method> = { [P in keyof paths]: paths[P][M] extends undefined ? never : P }[keyof paths];
 type Op<P extends keyof paths, M extends Method> = NonNullable<paths[P][M]>;
+
+/** A downloaded file's object URL is released this long after the click (the browser has taken it by then). */
+const REVOKE_AFTER_MS = 60_000;
 
 export type Query = Record<string, string | number | boolean | null | undefined>;
 
@@ -81,6 +85,18 @@ export function buildUrl(path: string, params: Record<string, string | number> =
   return text ? `${filled}?${text}` : filled;
 }
 
+/** The ApiError of a refused answer, with the server's reason; a 401 logs the user out (the handler). */
+async function refusal(response: Response): Promise<ApiError> {
+  if (response.status === 401 && onUnauthorized) onUnauthorized();
+  let detail = response.statusText || `HTTP ${response.status}`;
+  try {
+    detail = detailText((await response.json()) as { detail?: unknown }) ?? detail;
+  } catch {
+    /* not JSON */
+  }
+  return new ApiError(response.status, detail);
+}
+
 async function send(method: string, url: string, body?: unknown): Promise<unknown> {
   const headers: Record<string, string> = {};
   if (token) headers.Authorization = `Bearer ${token}`;
@@ -91,16 +107,7 @@ async function send(method: string, url: string, body?: unknown): Promise<unknow
     payload = JSON.stringify(body);
   }
   const response = await fetch(url, { method: method.toUpperCase(), headers, body: payload });
-  if (response.status === 401 && onUnauthorized) onUnauthorized();
-  if (!response.ok) {
-    let detail = response.statusText;
-    try {
-      detail = detailText((await response.json()) as { detail?: unknown }) ?? detail;
-    } catch {
-      /* not JSON */
-    }
-    throw new ApiError(response.status, detail);
-  }
+  if (!response.ok) throw await refusal(response);
   if (response.status === 204) return undefined;
   const type = response.headers.get("content-type") ?? "";
   return type.includes("json") ? response.json() : response.text();
@@ -151,14 +158,21 @@ export function apiPutForm<P extends PathsWith<"put">>(
   return send("put", buildUrl(path, params), form) as Promise<Ok<Op<P, "put">>>;
 }
 
-/** Download a route's answer (with the bearer token) as a file named ``filename``. */
-export async function apiDownload(url: string, filename: string): Promise<void> {
+/**
+ * Download a route's answer (with the bearer token) as a file: saved under the server's name for it
+ * (``Content-Disposition``), else ``filename``; returns the name. A refusal throws an ApiError with the reason.
+ */
+export async function apiDownload(url: string, filename: string): Promise<string> {
   const response = await fetch(url, { headers: token ? { Authorization: `Bearer ${token}` } : {} });
-  if (!response.ok) throw new ApiError(response.status, response.statusText);
+  if (!response.ok) throw await refusal(response);
+  const name = dispositionFilename(response.headers.get("content-disposition")) ?? filename;
   const href = URL.createObjectURL(await response.blob());
   const link = document.createElement("a");
   link.href = href;
-  link.download = filename;
+  link.download = name;
+  document.body.append(link);
   link.click();
-  setTimeout(() => URL.revokeObjectURL(href), 0);
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(href), REVOKE_AFTER_MS);
+  return name;
 }

@@ -5,6 +5,7 @@ import {
   parseClock,
   poseAt,
   rangeBefore,
+  rangeText,
   ReplayClock,
   trailUntil,
   type TrackPoint,
@@ -118,5 +119,12 @@ describe("formatClock and parseClock", () => {
     expect(rangeBefore(500.25, 5)).toEqual(["+0:03:20.2", "+0:08:20.3"]);
     expect(rangeBefore(500.2, 1)).toEqual(["+0:07:20.2", "+0:08:20.2"]);
     expect(rangeBefore(12, 5)[0]).toBe("+0:00:00.0");
+  });
+
+  it("widens any range to the shown resolution so it holds both ends", () => {
+    const t = new Date(2026, 11, 1, 16, 5, 30).getTime() / 1000;
+    expect(rangeText(t + 0.4, t + 10.2)).toEqual(["2026-12-01 16:05:30", "2026-12-01 16:05:41"]);
+    expect(rangeText(500.25, 503.91)).toEqual(["+0:08:20.2", "+0:08:24.0"]);
+    expect(rangeText(500.2, 500.2)).toEqual(["+0:08:20.2", "+0:08:20.2"]);
   });
 });

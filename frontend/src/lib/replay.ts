@@ -110,9 +110,17 @@ export function formatClock(t: number): string {
  * Unix times, tenths on a drive clock) so the range holds ``latest`` itself.
  */
 export function rangeBefore(latest: number, minutes: number): [string, string] {
-  const step = latest >= EPOCH_CLOCK_S ? 1 : 0.1;
-  const from = Math.max(0, Math.floor((latest - minutes * 60) / step) * step);
-  const to = Math.ceil(latest / step - 1e-9) * step;
+  return rangeText(latest - minutes * 60, latest);
+}
+
+/**
+ * The inputs' text for ``start`` to ``end`` (vehicle clock, seconds): widened to the shown resolution (whole
+ * seconds for Unix times, tenths on a drive clock) so the range holds both ends; never before 0.
+ */
+export function rangeText(start: number, end: number): [string, string] {
+  const step = end >= EPOCH_CLOCK_S ? 1 : 0.1;
+  const from = Math.max(0, Math.floor(start / step + 1e-9) * step);
+  const to = Math.ceil(end / step - 1e-9) * step;
   return [formatClock(from), formatClock(to)];
 }
 

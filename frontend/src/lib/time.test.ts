@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { formatDate, formatDriveTime, formatFrameTime, formatTime } from "./time";
+import { ageOf, formatAge, formatDate, formatDriveTime, formatFrameTime, formatTime, serverDate } from "./time";
 
 // local times, so the tests hold in any time zone
 const NOW = new Date(2026, 11, 4, 17, 30, 0);
@@ -39,5 +39,33 @@ describe("drive and frame times", () => {
   it("writes a Unix frame time as a clock time and a drive clock as elapsed time", () => {
     expect(formatFrameTime(new Date(2026, 11, 4, 17, 7, 24).getTime() / 1000, NOW)).toBe("17:07:24");
     expect(formatFrameTime(500.2, NOW)).toBe("+0:08:20.2");
+  });
+});
+
+describe("ages", () => {
+  it("writes an age in its largest two units, rounded down", () => {
+    expect(formatAge(0)).toBe("0 s");
+    expect(formatAge(12.9)).toBe("12 s");
+    expect(formatAge(59.99)).toBe("59 s");
+    expect(formatAge(60)).toBe("1 min");
+    expect(formatAge(3599)).toBe("59 min");
+    expect(formatAge(3600 + 5 * 60 + 7)).toBe("1 h 5 min");
+    expect(formatAge(3 * 86400 + 2 * 3600 + 59)).toBe("3 d 2 h");
+  });
+
+  it("writes an unknown age as a dash and a negative one (clocks apart) as none", () => {
+    expect(formatAge(null)).toBe("—");
+    expect(formatAge(Number.NaN)).toBe("—");
+    expect(formatAge(-3)).toBe("0 s");
+  });
+
+  it("measures from an API time, reading a time without a zone as UTC", () => {
+    const now = Date.UTC(2026, 11, 4, 17, 30, 0);
+    expect(ageOf("2026-12-04T17:29:48Z", now)).toBe(12);
+    expect(ageOf("2026-12-04T17:29:48.500000+00:00", now)).toBe(11.5);
+    expect(ageOf("2026-12-04T18:29:48+01:00", now)).toBe(12);
+    expect(ageOf("2026-12-04T17:29:48", now)).toBe(12);
+    expect(ageOf("never", now)).toBeNull();
+    expect(serverDate("2026-12-04").getTime()).toBe(new Date("2026-12-04").getTime());
   });
 });

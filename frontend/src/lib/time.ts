@@ -1,7 +1,8 @@
 // The one way the UI writes a time: 24-hour local clock time, "HH:MM:SS", with the date in front
 // ("YYYY-MM-DD HH:MM:SS") when it is not today, so a time is never ambiguous. A vehicle's frame time is either
 // Unix time (live vehicles post the wall clock) or seconds since its drive started (recorded drives); the latter
-// is written as elapsed drive time, "+H:MM:SS.s".
+// is written as elapsed drive time, "+H:MM:SS.s". How long ago something happened (a vehicle's "last seen") is
+// an age in its largest units ("12 s", "4 min", "2 h 5 min", "3 d 2 h"), its clock time beside it in this format.
 
 /** A vehicle clock beyond this is Unix time; below it, seconds since the drive started. */
 export const EPOCH_CLOCK_S = 1e9;
@@ -18,11 +19,20 @@ function sameDay(a: Date, b: Date): boolean {
 }
 
 /**
+ * A time from the API (ISO 8601) as a Date. The server's clock is UTC: a time without a zone (as some databases
+ * give it back) is read as UTC, not as local time.
+ */
+export function serverDate(text: string): Date {
+  const zoned = /(Z|[+-]\d\d:?\d\d)$/i.test(text.trim()) || !/T\d/.test(text);
+  return new Date(zoned ? text : `${text}Z`);
+}
+
+/**
  * ``HH:MM:SS`` (24-hour, local) of ``at`` (a Date or an ISO 8601 string from the API), with its date in front
  * unless it falls on the day of ``now``; ``withDate`` forces the date. "—" for an unreadable time.
  */
 export function formatTime(at: Date | string, now: Date = new Date(), withDate = false): string {
-  const d = typeof at === "string" ? new Date(at) : at;
+  const d = typeof at === "string" ? serverDate(at) : at;
   if (Number.isNaN(d.getTime())) return "—";
   const clock = `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`;
   return withDate || !sameDay(d, now) ? `${formatDate(d)} ${clock}` : clock;
@@ -38,4 +48,24 @@ export function formatDriveTime(seconds: number): string {
 /** A vehicle's frame time ``t`` (seconds): :func:`formatTime` for Unix times, else :func:`formatDriveTime`. */
 export function formatFrameTime(t: number, now: Date = new Date()): string {
   return t >= EPOCH_CLOCK_S ? formatTime(new Date(t * 1000), now) : formatDriveTime(t);
+}
+
+/**
+ * An age of ``seconds`` in its largest two units: "12 s", "4 min", "2 h 5 min", "3 d 2 h" (rounded down; a
+ * negative age, from clocks apart, is "0 s"). "—" when unknown.
+ */
+export function formatAge(seconds: number | null): string {
+  if (seconds === null || !Number.isFinite(seconds)) return "—";
+  const s = Math.max(0, Math.floor(seconds));
+  if (s < 60) return `${s} s`;
+  if (s < 3600) return `${Math.floor(s / 60)} min`;
+  const h = Math.floor(s / 3600);
+  if (h < 24) return `${h} h ${Math.floor(s / 60) % 60} min`;
+  return `${Math.floor(h / 24)} d ${h % 24} h`;
+}
+
+/** Seconds from an API time (ISO 8601, :func:`serverDate`) to ``now``; null for an unreadable time. */
+export function ageOf(at: string, now: number = Date.now()): number | null {
+  const ms = serverDate(at).getTime();
+  return Number.isNaN(ms) ? null : (now - ms) / 1000;
 }

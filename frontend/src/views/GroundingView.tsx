@@ -2,8 +2,8 @@
 // ground the selected keyframe in an explicit placing mode (usePlacement: Place or g, then a click on its
 // surveyed point; a doubtful point is confirmed first), select a grounding by its keyframe or its square on the
 // plan, drag a grounding to adjust it, a residual table
-// (sortable, colour-coded), delete, undo/redo, CSV import/export, "Build map" with the job's progress, and two
-// map versions compared as an overlay.
+// (sortable, colour-coded), delete, undo/redo, CSV import/export, "Build map" with the job's progress, a map
+// version's export (MapExport), and two map versions compared as an overlay.
 import { useCallback, useEffect, useMemo, useRef, useState } from "react";
 import { unByKey } from "ol/Observable";
 import { apiGet, type Schemas } from "../api/client";
@@ -15,6 +15,7 @@ import { snapPoint } from "../lib/snap";
 import { BuildMap } from "./BuildMap";
 import { CompareVersions } from "./CompareVersions";
 import { GroundingsCsv } from "./GroundingsCsv";
+import { MapExport } from "./MapExport";
 import { GroundingsTable, ShortcutHelp } from "./GroundingsTable";
 import { KeyframeStrip } from "./KeyframeStrip";
 import { useGroundingEdits } from "./useGroundingEdits";
@@ -284,6 +285,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
       />
       <aside className="side" data-testid="grounding-panel">
         <BuildMap siteId={siteId} version={version} editable={editable} onBuilt={loadVersion} onError={setMessage} />
+        <MapExport siteId={siteId} versions={versions} drives={drives.map((d) => d.name)} />
         <CompareVersions siteId={siteId} versions={versions} ctx={ctx} />
         <KeyframeStrip
           drives={drives}

@@ -14,7 +14,11 @@ interface Props {
 export function GroundingsCsv({ drive, editable, say, onImported }: Props) {
   const exportCsv = async () => {
     if (!drive) return;
-    await apiDownload(`/api/drives/${drive.id}/groundings.csv`, `${drive.name}-groundings.csv`);
+    try {
+      await apiDownload(`/api/drives/${drive.id}/groundings.csv`, `${drive.name}-groundings.csv`);
+    } catch (e) {
+      say(e instanceof ApiError ? e.message : String(e));
+    }
   };
 
   const importCsv = async (file: File) => {

@@ -1,19 +1,21 @@
 // Live monitoring: REST snapshot, then the /api/live WebSocket (auto-reconnect with resume); vehicles on the
 // plan and in a list in confidence bands (with a legend); alerts for lost vehicles and obscured cameras; click
-// one for its details (VehicleDetails), place its known start (SetStart, surveyors and admins) and replay any
-// time range of it (ReplayPanel, ReplayLayer).
+// one for its details (VehicleDetails), place its known start (SetStart, surveyors and admins), replay any
+// time range of it (ReplayPanel, ReplayLayer) and export position history (PositionsExport).
 import { useEffect, useMemo, useState } from "react";
 import { apiGet, getToken } from "../api/client";
 import { MineMap } from "../map/MineMap";
 import { VehicleLayer } from "../map/VehicleLayer";
 import { StartLayer } from "../map/StartLayer";
-import { alertsOf, LiveState, statusOf, withHeading, type VehicleState } from "../lib/liveState";
+import { alertsOf, LiveState, withHeading } from "../lib/liveState";
 import { ReplayLayer } from "../map/ReplayLayer";
 import { ReplayPanel, type ReplaySession } from "./ReplayPanel";
 import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
-import { BAND_LABELS, bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
-import { AppearanceOnlyBadge, Confidence, VehicleDetails } from "./VehicleDetails";
+import { BAND_LABELS } from "../lib/confidence";
+import { HISTORY_S, VehicleDetails } from "./VehicleDetails";
 import { SetStartPanel, useSetStart } from "./SetStart";
+import { BandDot, VehicleList } from "./VehicleList";
+import { PositionsExport } from "./PositionsExport";
 
 function liveUrl(since: number | null): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
@@ -25,13 +27,6 @@ function liveUrl(since: number | null): string {
 function authMessage(): string | null {
   const token = getToken();
   return token ? JSON.stringify({ type: "auth", token }) : null;
-}
-
-/** A band's swatch: a filled dot, a ring for lost (as on the map). */
-function BandDot({ band }: { band: ConfidenceBand }) {
-  const lost = band === "lost";
-  const style = lost ? { borderColor: bandCss(band) } : { background: bandCss(band) };
-  return <span className={lost ? "dot ring" : "dot"} style={style} />;
 }
 
 /** The bands' colours and meaning, on the map. */
@@ -146,23 +141,15 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
             Camera obscured: {alerts.obscured.map((o) => `${o.name} (${o.reason})`).join(", ")}
           </div>
         )}
-        <table className="vehicle-list" data-testid="vehicle-list">
-          <thead>
-            <tr>
-              <th>Name</th>
-              <th>Status</th>
-              <th className="num">Conf.</th>
-              <th className="num">E</th>
-              <th className="num">N</th>
-            </tr>
-          </thead>
-          <tbody>
-            {vehicles.map((v) => (
-              <VehicleRow key={v.id} v={v} selected={v.id === selectedId} onClick={() => setSelectedId(v.id)} />
-            ))}
-          </tbody>
-        </table>
-        {vehicles.length === 0 && <p className="muted">No vehicles on this site.</p>}
+        <VehicleList vehicles={vehicles} selectedId={selectedId} onSelect={setSelectedId} />
+        <PositionsExport
+          siteId={siteId}
+          vehicles={vehicles}
+          selected={selected}
+          replay={replay}
+          historyS={HISTORY_S}
+          trailS={state.trailWindowS}
+        />
         {selected && (
           <VehicleDetails v={selected} actions={editable && <SetStartPanel control={setStart} />}>
             <ReplayPanel key={`replay-${selected.id}`} vehicle={selected} session={replay} onSession={setReplay} />
@@ -170,39 +157,5 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
         )}
       </aside>
     </>
-  );
-}
-
-function VehicleRow({ v, selected, onClick }: { v: VehicleState; selected: boolean; onClick: () => void }) {
-  const status = statusOf(v);
-  const p = v.position;
-  const band = p ? confidenceBand(p.confidence, p.lost, v.stale) : "stale";
-  return (
-    <tr
-      className={selected ? "selected" : ""}
-      onClick={onClick}
-      data-testid={`vehicle-row-${v.name}`}
-      data-status={status}
-      data-band={band}
-      data-seq={p?.seq ?? ""}
-      data-trail={v.trail.length}
-    >
-      <td>
-        <BandDot band={band} />
-        {v.name}
-        {p && <AppearanceOnlyBadge odometry={p.odometry} />}
-      </td>
-      <td>
-        <span
-          className={`status ${status.replace(" ", "-")}`}
-          style={status === "camera obscured" ? { color: "var(--fair)" } : undefined}
-        >
-          {status}
-        </span>
-      </td>
-      <td className="num">{p ? <Confidence value={p.confidence} lost={p.lost} stale={v.stale} /> : "—"}</td>
-      <td className="num">{p ? p.x.toFixed(1) : "—"}</td>
-      <td className="num">{p ? p.y.toFixed(1) : "—"}</td>
-    </tr>
   );
 }

@@ -9,7 +9,7 @@ import { statusOf, type VehicleState } from "../lib/liveState";
 import { formatFrameTime, formatTime } from "../lib/time";
 import { LatestFrame } from "./LatestFrame";
 
-const HISTORY_S = 300; // the history: the last five minutes of frame time
+export const HISTORY_S = 300; // the history: the last five minutes of frame time
 
 /** "appearance only" when the estimate was made without the vehicle's camera odometry. */
 export function AppearanceOnlyBadge({ odometry }: { odometry: boolean | undefined }) {
