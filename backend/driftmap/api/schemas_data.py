@@ -39,12 +39,28 @@ class SiteUpdate(BaseModel):
     description: Description | None = None
 
 
+class SiteCrsBody(BaseModel):
+    """How the site plane sits on the mine grid and on the Earth (docs/formats.md, Site coordinates)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    epsg: Annotated[int, Ge(1024), Le(999_999)] | None = None
+    """EPSG code of the projected CRS (metres) the mine grid is in; None: the grid is not placed on the Earth."""
+    false_easting_m: Finite = 0.0
+    false_northing_m: Finite = 0.0
+    rotation_deg: Finite = 0.0
+    """Counter-clockwise angle from the plane's +x to the grid's east, degrees."""
+    scale: Annotated[float, Ge(0.5), Le(2.0)] = 1.0
+
+
 class SiteRead(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
     id: int
     name: str
     description: str
+    crs: SiteCrsBody | None = None
+    """The site's coordinates; None: plane metres only."""
     created_at: datetime
 
 

@@ -7,13 +7,14 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query, Request, Response, UploadFile, status
 from sqlalchemy import select
 
-from driftmap.api.deps import ADMIN, VIEWER, AdminDep, SessionDep, SettingsDep, StorageDep
+from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, AdminDep, SessionDep, SettingsDep, StorageDep
 from driftmap.api.input_types import Count, Id
 from driftmap.api.jobs import QueueDep, accepted
 from driftmap.api.schemas_data import (
     JobRead,
     Page,
     SiteCreate,
+    SiteCrsBody,
     SiteRead,
     SiteSimulate,
     SiteUpdate,
@@ -22,6 +23,7 @@ from driftmap.api.schemas_data import (
 )
 from driftmap.api.upload_limits import check_content_length, read_limited
 from driftmap.errors import BadInputError, ConflictError
+from driftmap.formats.site_crs import SiteCrs
 from driftmap.services import deletion, survey_layers
 from driftmap.services import jobs as job_service
 from driftmap.services import sites as site_service
@@ -89,6 +91,15 @@ def update_site(site_id: Id, body: SiteUpdate, session: SessionDep) -> SiteRead:
     if body.description is not None:
         site.description = body.description
     session.flush()
+    return SiteRead.model_validate(site)
+
+
+@router.put("/sites/{site_id}/crs", dependencies=[Depends(SURVEYOR)])
+def set_site_crs(site_id: Id, body: SiteCrsBody, session: SessionDep) -> SiteRead:
+    """Place the site plane on the mine grid and, with an EPSG code, on the Earth (GeoJSON and KML exports are
+    then WGS84); a body of defaults clears it. An unknown or unprojected EPSG code is 422 naming crs.epsg."""
+    site = site_by_id(session, site_id)
+    site_service.set_site_crs(session, site, SiteCrs(**body.model_dump()))
     return SiteRead.model_validate(site)
 
 

@@ -11,6 +11,7 @@ from rich.table import Table
 from driftmap.cli.common import console, open_storage, stage_progress, user_errors
 from driftmap.config import get_settings
 from driftmap.errors import BadInputError
+from driftmap.formats.site_crs import SiteCrs
 from driftmap.services import drives as drive_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
@@ -175,3 +176,38 @@ def site_list() -> None:
                 f"{site.created_at:%Y-%m-%d}",
             )
     console.print(table)
+
+
+@site_app.command("crs")
+def site_crs(
+    site: Annotated[str, typer.Argument(help="Site name or id.")],
+    epsg: Annotated[
+        int | None, typer.Option(help="EPSG code of the projected CRS (metres) the mine grid is in.")
+    ] = None,
+    false_origin: Annotated[
+        str | None, typer.Option(help="E,N: the grid coordinates of the plane's origin, metres.")
+    ] = None,
+    rotation_deg: Annotated[
+        float, typer.Option(help="Counter-clockwise angle from the plane's +x to the grid's east.")
+    ] = 0.0,
+    scale: Annotated[float, typer.Option(help="Grid metres per plane metre.")] = 1.0,
+    clear: Annotated[bool, typer.Option("--clear", help="Back to plane metres only.")] = False,
+) -> None:
+    """Place a site's plane on the mine grid (and with --epsg on the Earth: GeoJSON and KML exports in WGS84)."""
+    with user_errors():
+        crs = None
+        if not clear:
+            east, north = 0.0, 0.0
+            if false_origin is not None:
+                try:
+                    east, north = (float(v) for v in false_origin.split(","))
+                except ValueError as exc:
+                    raise BadInputError(
+                        f"--false-origin must be E,N in metres, got {false_origin!r}", field="false_origin"
+                    ) from exc
+            crs = SiteCrs(epsg, east, north, rotation_deg, scale)
+        storage = open_storage()
+        with storage.db.session() as session:
+            record = site_service.set_site_crs(session, site_service.get_site(session, site), crs)
+            label = site_service.site_crs(record).export_label()
+    console.print(f"site {site!r}: GeoJSON and KML exports in {label}")

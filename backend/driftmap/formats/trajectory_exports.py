@@ -2,8 +2,9 @@
 
 A :class:`Track` is one named trajectory (a mapping drive of a map version, or a vehicle's position
 history) in the site plane: x east, y north, metres, the floor point under the camera; heading ``yaw``
-in radians counter-clockwise from +x. Sites carry no coordinate reference system yet, so GeoJSON and KML
-hold these plane coordinates, not WGS84, and say so in the file. Every ``*_text`` function is pure and
+in radians counter-clockwise from +x. GeoJSON and KML say in the file what their coordinates are: these
+plane coordinates, or a site's mine grid or WGS84 longitude and latitude (:func:`placed`,
+:mod:`driftmap.formats.site_crs`). Every ``*_text`` function is pure and
 returns the whole file as text; numbers are written with :func:`repr` (the shortest text that reads back
 as the identical float).
 """
@@ -12,11 +13,14 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 from xml.sax.saxutils import escape
 
+import numpy as np
+
+from driftmap.core.types import F64
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import PoseRow
 from driftmap.formats.tables import format_float
@@ -133,16 +137,18 @@ def _feature(track: Track, extra: dict[str, Any]) -> dict[str, Any]:
     return {"type": "Feature", "geometry": geometry, "properties": properties | extra}
 
 
-def geojson_text(tracks: Sequence[Track], about: Mapping[str, Any] | None = None) -> str:
-    """A GeoJSON FeatureCollection (RFC 7946) with one Feature per track, in the site plane.
+def geojson_text(
+    tracks: Sequence[Track], about: Mapping[str, Any] | None = None, coordinates: str = PLANE_COORDINATES
+) -> str:
+    """A GeoJSON FeatureCollection (RFC 7946) with one Feature per track.
 
-    Each track is a LineString of ``[x, y]`` positions, metres (a Point when it has one pose), whose
-    ``properties`` name it (key ``drive`` or ``vehicle``) and hold per-pose arrays ``t_s`` (seconds),
-    ``yaw_rad`` (radians, null when unknown) and, for drives, ``frame``. The collection carries the foreign
-    member ``"driftmap:coordinates": "site plane metres"`` (the coordinates are not WGS84) and ``about``'s
-    keys prefixed ``driftmap:``. Tracks without poses are left out.
+    Each track is a LineString of ``[x, y]`` positions (a Point when it has one pose), whose ``properties``
+    name it (key ``drive`` or ``vehicle``) and hold per-pose arrays ``t_s`` (seconds), ``yaw_rad`` (radians
+    in the site plane, null when unknown) and, for drives, ``frame``. The collection carries the foreign
+    member ``"driftmap:coordinates"`` saying what x, y are (``coordinates``: site plane metres unless the
+    tracks were :func:`placed`) and ``about``'s keys prefixed ``driftmap:``. Tracks without poses are left out.
     """
-    collection: dict[str, Any] = {"type": "FeatureCollection", COORDINATES_MEMBER: PLANE_COORDINATES}
+    collection: dict[str, Any] = {"type": "FeatureCollection", COORDINATES_MEMBER: coordinates}
     for key, value in (about or {}).items():
         collection[f"driftmap:{key}"] = value
     collection["features"] = [_feature(t, {}) for t in tracks if t.poses]
@@ -153,15 +159,20 @@ def _data(name: str, value: object) -> str:
     return f'<Data name="{escape(name, {chr(34): "&quot;"})}"><value>{escape(str(value))}</value></Data>'
 
 
-def kml_text(tracks: Sequence[Track], title: str, about: Mapping[str, Any] | None = None) -> str:
+def kml_text(
+    tracks: Sequence[Track],
+    title: str,
+    about: Mapping[str, Any] | None = None,
+    coordinates: str = PLANE_COORDINATES,
+) -> str:
     """A KML 2.2 document with one Placemark per track: a LineString (a Point for one pose).
 
-    Coordinates are ``x,y,0`` in the site plane, metres, *not* longitude and latitude: the document's
-    ``ExtendedData`` says so (``driftmap:coordinates``) with ``about``'s keys; each Placemark is named by
-    its drive or vehicle and carries ``kind``, ``poses``, ``t_start_s`` and ``t_end_s``. Tracks without
-    poses are left out.
+    Coordinates are ``x,y,0``: longitude and latitude when the tracks were :func:`placed` on the Earth, else
+    site plane (or mine grid) metres; the document's ``ExtendedData`` says which (``driftmap:coordinates``,
+    ``coordinates``) with ``about``'s keys; each Placemark is named by its drive or vehicle and carries
+    ``kind``, ``poses``, ``t_start_s`` and ``t_end_s``. Tracks without poses are left out.
     """
-    meta = {COORDINATES_MEMBER: PLANE_COORDINATES} | {f"driftmap:{k}": v for k, v in (about or {}).items()}
+    meta = {COORDINATES_MEMBER: coordinates} | {f"driftmap:{k}": v for k, v in (about or {}).items()}
     out = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<kml xmlns="{KML_NAMESPACE}">',
@@ -189,6 +200,22 @@ def kml_text(tracks: Sequence[Track], title: str, about: Mapping[str, Any] | Non
         ]
     out += ["</Document>", "</kml>"]
     return "\n".join(out) + "\n"
+
+
+def placed(tracks: Sequence[Track], to_xy: Callable[[F64], F64]) -> list[Track]:
+    """The ``tracks`` with every pose's x, y mapped by ``to_xy`` ((N, 2) plane metres -> (N, 2)), e.g. a
+    site's :meth:`driftmap.formats.site_crs.SiteCrs.export_xy`; times, headings and frames unchanged."""
+    out = []
+    for track in tracks:
+        if not track.poses:
+            out.append(track)
+            continue
+        xy = to_xy(np.array([[p.x_m, p.y_m] for p in track.poses], dtype=np.float64))
+        poses = tuple(
+            replace(p, x_m=float(x), y_m=float(y)) for p, (x, y) in zip(track.poses, xy, strict=True)
+        )
+        out.append(replace(track, poses=poses))
+    return out
 
 
 def tracks_from_poses(rows: Sequence[PoseRow]) -> list[Track]:

@@ -21,16 +21,19 @@ from driftmap.formats.csv_exports import PoseRow, poses_text
 from driftmap.formats.dxf_export import ClosureSegment, NodeMarks, map_dxf_text
 from driftmap.formats.g2o import G2oGraph, g2o_text, relative_poses
 from driftmap.formats.position_exports import PositionRow, positions_text, tracks_from_positions
+from driftmap.formats.site_crs import SiteCrs
 from driftmap.formats.trajectory_exports import (
     Track,
     geojson_text,
     kitti_text,
     kml_text,
     one_track,
+    placed,
     tracks_from_poses,
     tum_text,
 )
 from driftmap.services.map_views import node_arrays
+from driftmap.services.sites import site_crs
 from driftmap.store.access_models import Vehicle, VehiclePosition
 from driftmap.store.blobs import BlobStore
 from driftmap.store.models import (
@@ -197,7 +200,8 @@ def export_map(
             marks = NodeMarks(list(zip(arrays["x_m"], arrays["y_m"], strict=True)), arrays["edges"])
         text = map_dxf_text(tracks, marks, segments)
     else:
-        text = _trajectory_text(fmt, tracks, f"{site.name} map version {version.version}", about, "drive")
+        title = f"{site.name} map version {version.version}"
+        text = _trajectory_text(fmt, tracks, title, about, "drive", site_crs(site))
     suffix = f"-{drive}" if drive is not None else ""
     return ExportFile(
         text,
@@ -208,12 +212,14 @@ def export_map(
 
 
 def _trajectory_text(
-    fmt: str, tracks: list[Track], title: str, about: Mapping[str, object], option: str
+    fmt: str, tracks: list[Track], title: str, about: Mapping[str, object], option: str, crs: SiteCrs
 ) -> str:
+    """GeoJSON and KML in the site's coordinates (WGS84 with an EPSG code, else its mine grid); TUM and
+    KITTI in the site plane (trajectory tools compare them with other plane trajectories)."""
     if fmt == "geojson":
-        return geojson_text(tracks, about)
+        return geojson_text(placed(tracks, crs.export_xy), about, crs.export_label())
     if fmt == "kml":
-        return kml_text(tracks, title, about)
+        return kml_text(placed(tracks, crs.export_xy), title, about, crs.export_label())
     if fmt == "tum":
         return tum_text(one_track(tracks, "TUM", option))
     return kitti_text(one_track(tracks, "KITTI", option))
@@ -302,6 +308,8 @@ def export_positions(
         bounds = {"since_s": since_s, "until_s": until_s}
         about = {"site": site.name} | {k: v for k, v in bounds.items() if v is not None}
         tracks = tracks_from_positions(rows)
-        text = _trajectory_text(fmt, tracks, f"{site.name} vehicle positions", about, "vehicle")
+        text = _trajectory_text(
+            fmt, tracks, f"{site.name} vehicle positions", about, "vehicle", site_crs(site)
+        )
     suffix = f"-{vehicle}" if vehicle is not None else ""
     return ExportFile(text, MEDIA_TYPES[fmt], f"{site.name}-positions{suffix}.{EXTENSIONS[fmt]}", len(rows))

@@ -9,6 +9,7 @@ from sqlalchemy.orm import Session
 
 from driftmap.config import Settings
 from driftmap.errors import BadInputError, ConflictError, NotFoundError, PayloadTooLargeError
+from driftmap.formats.site_crs import SiteCrs
 from driftmap.formats.survey_dxf import DEFAULT_LIMITS, DxfLimits, read_survey_dxf, survey_map_to_json
 from driftmap.services import survey_layers
 from driftmap.store.blobs import BlobBatch
@@ -39,6 +40,19 @@ def create_site(session: Session, name: str, description: str = "") -> Site:
         raise ConflictError(f"a site named {name!r} already exists")
     site = Site(name=name, description=description)
     session.add(site)
+    session.flush()
+    return site
+
+
+def site_crs(site: Site) -> SiteCrs:
+    """The site's mine-grid transform and EPSG code (plane metres, no CRS, when none was set)."""
+    return SiteCrs() if site.crs is None else SiteCrs.from_json(site.crs)
+
+
+def set_site_crs(session: Session, site: Site, crs: SiteCrs | None) -> Site:
+    """Place the site's plane on the mine grid (and with an EPSG code on the Earth); None clears it.
+    Exports written from then on use it; nothing stored in plane metres changes."""
+    site.crs = None if crs is None or crs.is_plane else crs.to_json()
     session.flush()
     return site
 

@@ -50,6 +50,8 @@ class Site(Base):
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(200), unique=True)
     description: Mapped[str] = mapped_column(Text, default="")
+    crs: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True, default=None)
+    """The plane's mine-grid transform and EPSG code (:class:`driftmap.formats.site_crs.SiteCrs` as JSON)."""
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
     survey_maps: Mapped[list[SurveyMap]] = relationship(

@@ -465,6 +465,27 @@ export interface paths {
         patch: operations["update_site_api_sites__site_id__patch"];
         trace?: never;
     };
+    "/api/sites/{site_id}/crs": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        /**
+         * Set Site Crs
+         * @description Place the site plane on the mine grid and, with an EPSG code, on the Earth (GeoJSON and KML exports are
+         *     then WGS84); a body of defaults clears it. An unknown or unprojected EPSG code is 422 naming crs.epsg.
+         */
+        put: operations["set_site_crs_api_sites__site_id__crs_put"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/sites/{site_id}/survey": {
         parameters: {
             query?: never;
@@ -1817,6 +1838,34 @@ export interface components {
              */
             description: string;
         };
+        /**
+         * SiteCrsBody
+         * @description How the site plane sits on the mine grid and on the Earth (docs/formats.md, Site coordinates).
+         */
+        SiteCrsBody: {
+            /** Epsg */
+            epsg?: number | null;
+            /**
+             * False Easting M
+             * @default 0
+             */
+            false_easting_m: number;
+            /**
+             * False Northing M
+             * @default 0
+             */
+            false_northing_m: number;
+            /**
+             * Rotation Deg
+             * @default 0
+             */
+            rotation_deg: number;
+            /**
+             * Scale
+             * @default 1
+             */
+            scale: number;
+        };
         /** SiteRead */
         SiteRead: {
             /** Id */
@@ -1825,6 +1874,7 @@ export interface components {
             name: string;
             /** Description */
             description: string;
+            crs?: components["schemas"]["SiteCrsBody"] | null;
             /**
              * Created At
              * Format: date-time
@@ -3161,6 +3211,41 @@ export interface operations {
         requestBody: {
             content: {
                 "application/json": components["schemas"]["SiteUpdate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["SiteRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    set_site_crs_api_sites__site_id__crs_put: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                site_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["SiteCrsBody"];
             };
         };
         responses: {
