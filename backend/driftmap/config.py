@@ -46,6 +46,18 @@ class Settings(BaseSettings):
     survey_max_stored_bytes: int = 128 * 1024**2
     """Largest JSON of a plan's parsed layers and first-view levels in the database, bytes."""
 
+    # Position history retention, applied by the job workers (docs/operations.md, Position history).
+    history_full_days: float = 7.0
+    """Every stored position is kept this many days (by the time the server received it)."""
+    history_downsample_s: float = 10.0
+    """Older positions are thinned to the first of every this many seconds per vehicle; 0: not thinned."""
+    history_keep_days: float = 365.0
+    """Positions older than this many days are deleted; 0: kept for ever."""
+    history_catch_up_days: float = 7.0
+    """Each pass thins the positions that aged past ``history_full_days`` in the last this many days."""
+    history_every_s: float = 3600.0
+    """How often a worker applies the retention, seconds; 0: never."""
+
     # Login throttling and password hashing, health and supervision (docs/operations.md).
     login_max_failures_per_user: int = 10
     """Failed logins of one user name within ``login_failure_window_s`` before further tries get 429."""

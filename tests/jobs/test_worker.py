@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from datetime import timedelta
 
 from huey import RedisHuey, SqliteHuey
 from sqlalchemy import select
@@ -11,8 +12,11 @@ from sqlalchemy import select
 from driftmap.config import Settings
 from driftmap.jobs.queue import JobQueue, make_huey
 from driftmap.jobs.runtime import process_worker_prefix
-from driftmap.jobs.worker import enqueue_orphans, release_own_jobs, sweep_scratch
+from driftmap.jobs.worker import Reaper, WorkerTimings, enqueue_orphans, release_own_jobs, sweep_scratch
 from driftmap.services import jobs as job_service
+from driftmap.services import sites as site_service
+from driftmap.services import vehicles as vehicle_service
+from driftmap.store.access_models import VehiclePosition
 from driftmap.store.job_models import Job
 from driftmap.store.models import utc_now
 from driftmap.store.storage import Storage
@@ -92,3 +96,32 @@ class TestScratch:
         os.utime(root / "upload-old", (old, old))
         assert sweep_scratch(settings, storage) == 2
         assert [f.exists() for f in keep + drop] == [True, True, False, False]
+
+
+def test_the_reaper_applies_the_history_retention(settings: Settings, storage: Storage) -> None:
+    """A worker's reaper deletes positions past the retention on its first round."""
+    with storage.db.session() as session:
+        site = site_service.create_site(session, "north")
+        vehicle, _token = vehicle_service.create_vehicle(session, "loader", site.id)
+        old = utc_now() - timedelta(days=settings.history_keep_days + 1)
+        for k in range(5):
+            session.add(
+                VehiclePosition(
+                    vehicle_id=vehicle.id, t_s=float(k), node=1, x_m=0.0, y_m=0.0, confidence=1.0,
+                    matched=True, lost=False, received_at=old + timedelta(seconds=k),
+                )
+            )  # fmt: skip
+    queue = JobQueue(settings)
+    reaper = Reaper(queue, storage, WorkerTimings(reap_every_s=0.05), settings)
+    reaper.start()
+    try:
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline:
+            with storage.db.session() as session:
+                if not session.scalars(select(VehiclePosition.id)).all():
+                    break
+            time.sleep(0.05)
+    finally:
+        reaper.stop()
+    with storage.db.session() as session:
+        assert session.scalars(select(VehiclePosition.id)).all() == []

@@ -18,10 +18,12 @@ exits.
 from __future__ import annotations
 
 import logging
+import math
 import shutil
 import threading
 import time
 from dataclasses import dataclass
+from datetime import UTC, datetime
 
 from sqlalchemy import select, update
 
@@ -29,7 +31,7 @@ from driftmap.config import Settings
 from driftmap.jobs.queue import JobQueue
 from driftmap.jobs.runtime import JobRuntime, process_worker_prefix
 from driftmap.services import jobs as job_service
-from driftmap.services import supervision
+from driftmap.services import retention, supervision
 from driftmap.store.job_models import Job
 from driftmap.store.storage import Storage
 
@@ -107,12 +109,21 @@ def sweep_scratch(settings: Settings, storage: Storage, *, upload_age_s: float =
 
 
 class Reaper(threading.Thread):
-    """Re-queues stale jobs every ``timings.reap_every_s`` until stopped."""
+    """Re-queues stale jobs every ``timings.reap_every_s`` until stopped, and applies the position history's
+    retention (:mod:`driftmap.services.retention`) every ``history_every_s`` of ``settings`` (0: never)."""
 
-    def __init__(self, queue: JobQueue, storage: Storage, timings: WorkerTimings) -> None:
+    def __init__(
+        self, queue: JobQueue, storage: Storage, timings: WorkerTimings, settings: Settings | None = None
+    ) -> None:
         super().__init__(name="driftmap-reaper", daemon=True)
         self._queue, self._storage, self._timings = queue, storage, timings
         self._stop_event = threading.Event()
+        self._retention = None
+        self._retention_every_s = 0.0
+        if settings is not None and settings.history_every_s > 0:
+            self._retention = retention.RetentionPolicy.of(settings)
+            self._retention_every_s = settings.history_every_s
+        self._retained_at = -math.inf
 
     def run(self) -> None:
         while True:
@@ -121,8 +132,23 @@ class Reaper(threading.Thread):
                 job_service.requeue_stale(self._storage.db, self._queue.enqueue, self._timings.stale_after_s)
             except Exception:
                 log.warning("stale-job check failed", exc_info=True)
+            self._retain()
             if self._stop_event.wait(self._timings.reap_every_s):
                 return
+
+    def _retain(self) -> None:
+        if self._retention is None or time.monotonic() - self._retained_at < self._retention_every_s:
+            return
+        self._retained_at = time.monotonic()
+        try:
+            with self._storage.db.session() as session:
+                done = retention.apply_retention(session, self._retention, datetime.now(UTC))
+            if done.thinned or done.dropped:
+                log.info(
+                    "position history: %d thinned, %d past retention deleted", done.thinned, done.dropped
+                )
+        except Exception:
+            log.warning("position history retention failed", exc_info=True)
 
     def stop(self) -> None:
         self._stop_event.set()
@@ -141,7 +167,7 @@ def run_worker(settings: Settings, *, workers: int = 1, timings: WorkerTimings |
     orphans = enqueue_orphans(queue, storage)
     if orphans:
         log.warning("enqueued %d queued jobs missing from the queue: %s", len(orphans), orphans)
-    reaper = Reaper(queue, storage, timings)
+    reaper = Reaper(queue, storage, timings, settings)
     reaper.start()
     consumer = queue.huey.create_consumer(
         workers=workers, worker_type="thread", periodic=False, max_delay=timings.poll_max_s

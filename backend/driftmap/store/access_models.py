@@ -74,7 +74,10 @@ class VehiclePosition(Base):
     """One localisation estimate of a vehicle (a processed live frame)."""
 
     __tablename__ = "vehicle_positions"
-    __table_args__ = (Index("ix_vehicle_positions_vehicle_id_t_s", "vehicle_id", "t_s"),)
+    __table_args__ = (
+        Index("ix_vehicle_positions_vehicle_id_t_s", "vehicle_id", "t_s"),
+        Index("ix_vehicle_positions_received_at", "received_at"),  # the history retention's passes
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     vehicle_id: Mapped[int] = mapped_column(ForeignKey("vehicles.id", ondelete="CASCADE"))
