@@ -15,6 +15,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.staticfiles import StaticFiles
 
 from driftmap import __version__
+from driftmap.api import metrics
 from driftmap.api.body_guard import BodyGuard
 from driftmap.api.deps import PrincipalCache
 from driftmap.api.error_handlers import driftmap_error_handler, validation_error_handler
@@ -66,10 +67,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.principals = PrincipalCache()
     app.state.login_guard = LoginGuard.from_settings(settings)
     app.add_middleware(BodyGuard, settings=settings)
+    app.state.metrics_registry = metrics.app_registry(storage, settings)
+    app.add_middleware(metrics.HttpMetrics, registry=app.state.metrics_registry)
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
     app.add_exception_handler(RequestValidationError, validation_error_handler)
     for router in ROUTERS:
         app.include_router(router, prefix="/api")
+    app.include_router(metrics.router)
     add_to_openapi(app)  # the /api/live messages (FastAPI documents no WebSocket)
     if FRONTEND_DIST.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIST, html=True), name="ui")

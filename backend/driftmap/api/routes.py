@@ -39,5 +39,5 @@ ROUTERS: list[APIRouter] = [
     jobs.router,
 ]
 
-OPEN_PATHS: frozenset[str] = frozenset({"/api/health", "/api/auth/login", "/api/auth/logout"})
+OPEN_PATHS: frozenset[str] = frozenset({"/api/health", "/api/auth/login", "/api/auth/logout", "/metrics"})
 """Routes anyone may call without credentials."""

@@ -31,6 +31,7 @@ from driftmap.formats.frame_images import check_complete, check_frame_pixels
 from driftmap.live.hub import InMemoryHub, LiveHub, Message
 from driftmap.live.latest_frames import LatestFrames, MemoryFrames
 from driftmap.live.localise import FrameOutcome, FrameStatus
+from driftmap.live.metrics import count_frame
 from driftmap.live.workers import LocaliserWorkers
 from driftmap.services.positions import PositionView
 from driftmap.store.storage import Storage
@@ -163,6 +164,7 @@ class LiveService:
         if (lane.started_t is not None and t <= lane.started_t) or any(w.t == t for w in lane.waiting):
             lane.unsaved_out_of_order += 1
             self._ensure_draining(lane)  # stores the count when nothing else is running
+            count_frame("out_of_order", None)
             return self._answer(lane, t, "out_of_order")
         answer: asyncio.Future[FrameOutcome] = asyncio.get_running_loop().create_future()
         lane.waiting.append(_Waiting(t, data, answer))
@@ -173,7 +175,9 @@ class LiveService:
             if not dropped.answer.done():
                 dropped.answer.set_result(self._answer(lane, dropped.t, "skipped"))
         self._ensure_draining(lane)
-        return await asyncio.shield(answer)
+        outcome = await asyncio.shield(answer)
+        count_frame(outcome.status, outcome.ms)
+        return outcome
 
     def _ensure_draining(self, lane: _Lane) -> None:
         if not lane.running:
