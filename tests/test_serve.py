@@ -251,3 +251,27 @@ class TestSupervision:
         _wait_until(
             lambda: not any(alive(pid) for pid in children), "end of the server's children", STOP_DEADLINE_S
         )
+
+
+class TestJsonLogs:
+    def test_every_line_is_json_and_requests_carry_their_id(
+        self, env: dict[str, str], tmp_path: Path
+    ) -> None:
+        log = tmp_path / "serve.log"
+        running = _serve(env | {"DRIFTMAP_LOG_FORMAT": "json"}, log)
+        _process, base, _log = next(running)
+        try:
+            answer = httpx.get(f"{base}/api/health", headers={"X-Request-ID": "probe-42"})
+            assert answer.headers["x-request-id"] == "probe-42"
+            assert len(httpx.get(f"{base}/api/health").headers["x-request-id"]) == 32  # a new one
+
+            def logged() -> list[dict]:  # type: ignore[type-arg]
+                lines = [line for line in log.read_text().splitlines() if line.strip()]
+                return [json.loads(line) for line in lines]  # fails on any line that is not JSON
+
+            _wait_until(lambda: any(r.get("request_id") == "probe-42" for r in logged()), "access log line")
+            access = next(r for r in logged() if r.get("request_id") == "probe-42")
+            assert "GET /api/health" in access["message"] and access["level"] == "INFO"
+            assert {"time", "logger"} <= set(access)
+        finally:
+            next(running, None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
@@ -45,6 +46,12 @@ class Settings(BaseSettings):
     """Most points of a whole plan once its curves are flattened."""
     survey_max_stored_bytes: int = 128 * 1024**2
     """Largest JSON of a plan's parsed layers and first-view levels in the database, bytes."""
+
+    # Logs (docs/operations.md, Logs).
+    log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] | None = None
+    """Lowest level logged; None: INFO for ``driftmap serve`` and ``driftmap worker``, WARNING otherwise."""
+    log_format: Literal["text", "json"] = "text"
+    """``json``: one JSON object per line (time, level, logger, message, request_id, exc)."""
 
     # Position history retention, applied by the job workers (docs/operations.md, Position history).
     history_full_days: float = 7.0

@@ -19,6 +19,7 @@ from driftmap.api import metrics
 from driftmap.api.body_guard import BodyGuard
 from driftmap.api.deps import PrincipalCache
 from driftmap.api.error_handlers import driftmap_error_handler, validation_error_handler
+from driftmap.api.request_ids import RequestIds
 from driftmap.api.routes import ROUTERS
 from driftmap.api.schemas_live import add_to_openapi, position_message
 from driftmap.config import Settings, get_settings
@@ -69,6 +70,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodyGuard, settings=settings)
     app.state.metrics_registry = metrics.app_registry(storage, settings)
     app.add_middleware(metrics.HttpMetrics, registry=app.state.metrics_registry)
+    app.add_middleware(RequestIds)  # outermost: the id is set for everything inside, errors too
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
     app.add_exception_handler(RequestValidationError, validation_error_handler)
     for router in ROUTERS:

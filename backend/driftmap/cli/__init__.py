@@ -9,6 +9,8 @@ from typing import Annotated
 import typer
 
 from driftmap.cli import backup, camera, data, exports, localise, maps, replay, server, vpr, worker
+from driftmap.config import get_settings
+from driftmap.logs import TEXT_FORMAT, JsonFormatter, RequestIdFilter
 
 app = typer.Typer(
     help="driftmap: camera-only mapping and localisation for underground mines.", no_args_is_help=True
@@ -34,16 +36,23 @@ app.command()(maps.odometry)
 app.command()(localise.localise)
 
 
+_SERVICES = ("serve", "worker")
+"""Commands that run for long: they log at INFO unless DRIFTMAP_LOG_LEVEL says otherwise."""
+
+
 @app.callback()
 def main(
+    ctx: typer.Context,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
 ) -> None:
-    """Configure logging for every command."""
-    logging.basicConfig(
-        level=logging.DEBUG if verbose else logging.WARNING,
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-        stream=sys.stderr,
-    )
+    """Configure logging for every command (DRIFTMAP_LOG_LEVEL, DRIFTMAP_LOG_FORMAT; docs/operations.md)."""
+    settings = get_settings()
+    default = "INFO" if ctx.invoked_subcommand in _SERVICES else "WARNING"
+    handler = logging.StreamHandler(sys.stderr)
+    handler.addFilter(RequestIdFilter())
+    json_lines = settings.log_format == "json"
+    handler.setFormatter(JsonFormatter() if json_lines else logging.Formatter(TEXT_FORMAT))
+    logging.basicConfig(level="DEBUG" if verbose else settings.log_level or default, handlers=[handler])
 
 
 __all__ = ["app"]

@@ -14,6 +14,8 @@ import logging
 import re
 from typing import Any
 
+from driftmap.config import Settings
+
 _QUERY = re.compile(r"(/[^\s?\"]*)\?[^\s\"]*")
 """A path followed by a query string, inside a longer text."""
 
@@ -36,12 +38,23 @@ class NoQueryStrings(logging.Filter):
         return True
 
 
-def log_config() -> dict[str, Any]:
-    """uvicorn's default ``log_config`` with :class:`NoQueryStrings` on its ``default`` and ``access`` handlers."""
+def log_config(settings: Settings | None = None) -> dict[str, Any]:
+    """uvicorn's default ``log_config`` with :class:`NoQueryStrings` and the request id
+    (:class:`driftmap.logs.RequestIdFilter`) on its ``default`` and ``access`` handlers; with ``settings``, its
+    loggers at ``log_level`` (INFO by default) and JSON lines when ``log_format`` is ``json``."""
     from uvicorn.config import LOGGING_CONFIG
 
     config: dict[str, Any] = copy.deepcopy(LOGGING_CONFIG)
-    config.setdefault("filters", {})["no_query_strings"] = {"()": f"{__name__}.NoQueryStrings"}
+    filters = config.setdefault("filters", {})
+    filters["no_query_strings"] = {"()": f"{__name__}.NoQueryStrings"}
+    filters["request_id"] = {"()": "driftmap.logs.RequestIdFilter"}
     for handler in config["handlers"].values():
-        handler.setdefault("filters", []).append("no_query_strings")
+        handler.setdefault("filters", []).extend(["no_query_strings", "request_id"])
+    if settings is not None:
+        level = settings.log_level or "INFO"
+        for logger in config["loggers"].values():
+            logger["level"] = level
+        if settings.log_format == "json":
+            for name in ("default", "access"):
+                config["formatters"][name] = {"()": "driftmap.logs.JsonFormatter"}
     return config

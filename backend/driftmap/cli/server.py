@@ -115,7 +115,7 @@ def serve(
             host=host,
             port=port,
             log_level="info",
-            log_config=log_config(),
+            log_config=log_config(settings),
             ws_max_size=2 * settings.max_frame_bytes,
             **_healthcheck_option(uvicorn.run),
         )
@@ -133,7 +133,7 @@ def serve(
             host=host,
             port=port,
             log_level="info",
-            log_config=log_config(),
+            log_config=log_config(settings),
             ws_max_size=2 * settings.max_frame_bytes,
         )
     except KeyboardInterrupt:

@@ -20,8 +20,6 @@ import threading
 import time
 from dataclasses import dataclass
 
-from driftmap.cli.common import err_console
-
 log = logging.getLogger(__name__)
 
 
@@ -63,7 +61,7 @@ class WorkerSupervisor:
             if self._stopping.is_set():
                 return
             self.process = subprocess.Popen(command, env=dict(os.environ))
-        err_console.print(f"driftmap: worker process {self.process.pid} started")
+        log.info("driftmap: worker process %d started", self.process.pid)
 
     def _watch(self) -> None:
         delay = self.timings.restart_delay_s
@@ -74,9 +72,12 @@ class WorkerSupervisor:
                 continue
             ran_s = time.monotonic() - started
             delay = self.timings.restart_delay_s if ran_s >= self.timings.stable_after_s else delay
-            err_console.print(
-                f"driftmap: worker process {process.pid} exited with {process.returncode} after {ran_s:.0f} s; "
-                f"restarting it in {delay:g} s"
+            log.error(
+                "driftmap: worker process %d exited with %s after %.0f s; restarting it in %g s",
+                process.pid,
+                process.returncode,
+                ran_s,
+                delay,
             )
             if self._stopping.wait(delay):
                 return
@@ -101,4 +102,4 @@ class WorkerSupervisor:
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
-        err_console.print(f"driftmap: worker process {process.pid} stopped")
+        log.info("driftmap: worker process %d stopped", process.pid)
