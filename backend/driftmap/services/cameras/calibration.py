@@ -68,7 +68,9 @@ def parse_lens(lens: object, field: str = "lens") -> Lens:
         raise BadInputError(exc.reason, field=name) from None
 
 
-def decode_images(files: Iterable[tuple[str, bytes]], field: str = "images") -> Iterator[tuple[str, NDArray]]:
+def decode_images(
+    files: Iterable[tuple[str, bytes]], field: str = "images"
+) -> Iterator[tuple[str, NDArray[np.uint8]]]:
     """Decode uploaded board images ``(name, PNG or JPEG bytes)`` to ``(name, (H, W) uint8)``.
 
     Raises:
@@ -104,7 +106,7 @@ class Intrinsics:
 
 
 def calibrate_intrinsics(
-    images: Iterable[tuple[str, NDArray]], board: Board, model: str, field: str = "images"
+    images: Iterable[tuple[str, NDArray[np.uint8]]], board: Board, model: str, field: str = "images"
 ) -> Intrinsics:
     """Find ``board`` in each ``(name, (H, W) uint8)`` image and fit a ``model`` lens to every view found.
 
@@ -200,7 +202,11 @@ class Ground:
 
 
 def choose_roi(
-    roi: Sequence[int] | None, width: int, height: int, pixels_px: NDArray, field: str = "ground_roi"
+    roi: Sequence[int] | None,
+    width: int,
+    height: int,
+    pixels_px: NDArray[np.float64],
+    field: str = "ground_roi",
 ) -> Rect:
     """The ground ROI ``(x, y, w, h)``: ``roi`` when given, else the bounding box of the ``(N, 2)`` pixels.
 
@@ -224,8 +230,8 @@ def choose_roi(
 
 
 def fit_ground_points(
-    pixels_px: NDArray,
-    floor_m: NDArray,
+    pixels_px: NDArray[np.float64],
+    floor_m: NDArray[np.float64],
     width: int,
     height: int,
     roi: Sequence[int] | None = None,
@@ -256,7 +262,12 @@ def fit_ground_points(
 
 
 def board_ground_points(
-    image: NDArray, name: str, board: Board, centre_m: tuple[float, float], yaw_rad: float, lens: Lens | None
+    image: NDArray[np.uint8],
+    name: str,
+    board: Board,
+    centre_m: tuple[float, float],
+    yaw_rad: float,
+    lens: Lens | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The inner corners of a board lying on the floor in one ``(H, W)`` uint8 frame, as floor points.
 
@@ -289,7 +300,7 @@ def add_ground(
 
 
 def check_drive_scale(
-    frames: Iterable[NDArray], camera: CameraModel, distance_m: float, *, reverse: bool = False
+    frames: Iterable[NDArray[np.uint8]], camera: CameraModel, distance_m: float, *, reverse: bool = False
 ) -> tuple[ScaleCheck, CameraModel]:
     """Dead-reckon a straight drive over ``distance_m`` metres with ``camera``; the check and the corrected
     camera (floor lengths times the ratio, ``forward_sign`` flipped when the travel came out backwards)."""
