@@ -18,7 +18,7 @@ from driftmap.api.input_types import CameraSide, Description, Finite, Name
 from driftmap.api.schemas_access import CameraLens, VehicleCamera
 from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 
-MAX_GROUND_POINTS = 10_000  # more floor points than anyone clicks
+MAX_GROUND_POINTS = 100  # more floor points than anyone clicks; the degeneracy check is cubic in them
 CameraBody = Annotated[dict[str, Any], WithJsonSchema({"$ref": "#/components/schemas/VehicleCamera"})]
 """A ``camera`` block in a request: typed as :class:`VehicleCamera` for clients, checked by the service."""
 Roi = Annotated[list[Annotated[int, Ge(0), Le(MAX_CAMERA_SIDE_PX)]], Len(4, 4)]
