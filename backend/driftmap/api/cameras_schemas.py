@@ -19,8 +19,19 @@ from driftmap.api.schemas_access import CameraLens, VehicleCamera
 from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 
 MAX_GROUND_POINTS = 100  # more floor points than anyone clicks; the degeneracy check is cubic in them
-CameraBody = Annotated[dict[str, Any], WithJsonSchema({"$ref": "#/components/schemas/VehicleCamera"})]
-"""A ``camera`` block in a request: typed as :class:`VehicleCamera` for clients, checked by the service."""
+CameraBody = Annotated[
+    dict[str, Any],
+    WithJsonSchema(
+        {
+            "type": "object",
+            "additionalProperties": True,
+            "description": "A camera block with the keys of VehicleCamera (formats.md), checked as a drive "
+            "import checks it.",
+        }
+    ),
+]
+"""A ``camera`` block in a request: an object for clients (the keys of :class:`VehicleCamera`), checked by the
+service so that its errors name ``camera.<key>``."""
 Roi = Annotated[list[Annotated[int, Ge(0), Le(MAX_CAMERA_SIDE_PX)]], Len(4, 4)]
 
 
