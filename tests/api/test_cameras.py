@@ -147,6 +147,20 @@ class TestIntrinsics:
         none = actors.client.post("/api/cameras/intrinsics", data=BOARD_FORM, headers=surveyor)
         assert _error(none)["field"] == "images"
 
+    def test_an_image_over_the_pixel_limit_is_413_before_decoding(
+        self, settings: Settings, board_pngs: list[tuple[str, bytes]]
+    ) -> None:
+        small = make_actors(settings.model_copy(update={"max_frame_pixels": 320 * 240}))
+        with small.client:
+            response = small.client.post(
+                "/api/cameras/intrinsics",
+                data=BOARD_FORM,
+                files=_files(board_pngs[:3]),
+                headers=small.auth("surveyor"),
+            )
+        body = _error(response, 413)
+        assert (body["field"], body["file"]) == ("images", "view0.png") and "640x480" in body["detail"]
+
     def test_viewers_cannot_calibrate(self, actors: Actors, board_pngs: list[tuple[str, bytes]]) -> None:
         response = actors.client.post(
             "/api/cameras/intrinsics",

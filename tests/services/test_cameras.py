@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from driftmap.core.imaging.calibration import Board
 from driftmap.core.odometry.grid import apply_homography
-from driftmap.errors import BadInputError, ConflictError, NotFoundError
+from driftmap.errors import BadInputError, ConflictError, NotFoundError, PayloadTooLargeError
 from driftmap.formats.drive_json import lens_to_json
 from driftmap.formats.frame_images import encode_png
 from driftmap.services import sites as site_service
@@ -87,6 +87,16 @@ class TestIntrinsics:
         with pytest.raises(BadInputError) as err:
             next(decoded)
         assert (err.value.file, err.value.field) == ("b.txt", "images")
+
+    def test_decoding_checks_the_pixel_limit_first(self) -> None:
+        big = encode_png(np.zeros((40, 50), np.uint8))
+        with pytest.raises(PayloadTooLargeError) as err:
+            next(cal.decode_images([("big.png", big)], max_pixels=1999))
+        assert (err.value.file, err.value.field) == ("big.png", "images")
+        with pytest.raises(PayloadTooLargeError):
+            cal.calibrate_intrinsics(
+                [("frame 0", np.zeros((40, 50), np.uint8))], BOARD, "pinhole", max_pixels=1999
+            )
 
     @pytest.mark.parametrize(("text", "board"), [("8x6", Board(8, 6, 0.03)), (" 9 X 5 ", Board(9, 5, 0.03))])
     def test_board_text(self, text: str, board: Board) -> None:

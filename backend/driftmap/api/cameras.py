@@ -41,6 +41,7 @@ from driftmap.api.input_types import Count, Finite, Id
 from driftmap.api.schemas_access import CameraLens
 from driftmap.api.schemas_data import Page
 from driftmap.api.upload_limits import check_content_length, read_limited
+from driftmap.config import Settings
 from driftmap.core.imaging.calibration import Board
 from driftmap.errors import BadInputError
 from driftmap.formats.camera_setup import video_frames
@@ -74,11 +75,12 @@ def post_intrinsics(
         if len(images) > MAX_BOARD_IMAGES:
             raise BadInputError(f"{len(images)} images, at most {MAX_BOARD_IMAGES}", field="images")
         files = [(_name(f, "image"), f) for f in images]
-        data = [(name, read_limited(f, settings.max_frame_bytes, name)) for name, f in files]
-        found = cal.calibrate_intrinsics(cal.decode_images(data), target, model)
+        data = ((name, read_limited(f, settings.max_frame_bytes, name)) for name, f in files)  # one at a time
+        decoded = cal.decode_images(data, max_pixels=settings.max_frame_pixels)
+        found = cal.calibrate_intrinsics(decoded, target, model)
     else:
         assert video is not None
-        found = _video_intrinsics(video, settings.data_dir, settings.max_upload_bytes, target, model, every)
+        found = _video_intrinsics(video, settings, target, model, every)
     return IntrinsicsRead(
         lens=CameraLens.model_validate(lens_to_json(found.lens)),
         width=found.width_px,
@@ -94,18 +96,21 @@ def _name(file: UploadFile, default: str) -> str:
 
 
 def _video_intrinsics(
-    video: UploadFile, data_dir: Path, max_bytes: int, target: Board, model: str, every: int
+    video: UploadFile, settings: Settings, target: Board, model: str, every: int
 ) -> cal.Intrinsics:
     """Calibrate from every ``every``-th frame of an uploaded video (saved to scratch, then removed)."""
     name = _name(video, "video")
-    scratch = uploads.scratch_dir(data_dir, "camera-")
+    scratch = uploads.scratch_dir(settings.data_dir, "camera-")
     try:
         path = scratch / f"video{Path(name).suffix.lower()}"
-        uploads.save_upload(video.file, path, max_bytes=max_bytes, filename=name)
+        uploads.save_upload(video.file, path, max_bytes=settings.max_upload_bytes, filename=name)
+        frames = video_frames(path, every, name)
         try:
-            return cal.calibrate_intrinsics(video_frames(path, every, name), target, model, field="video")
+            return cal.calibrate_intrinsics(
+                frames, target, model, field="video", max_pixels=settings.max_frame_pixels
+            )
         except BadInputError as exc:
-            raise BadInputError(exc.reason, file=exc.file, field=exc.field or "video") from None
+            raise type(exc)(exc.reason, file=exc.file, field=exc.field or "video") from None
     finally:
         uploads.remove_tree(scratch)
 

@@ -26,9 +26,9 @@ from driftmap.core.odometry.drive import dead_reckon
 from driftmap.core.odometry.grid import Rect
 from driftmap.core.odometry.ground_setup import GroundFit, board_floor_points, fit_ground
 from driftmap.core.odometry.scale_check import ScaleCheck, check_scale, scale_camera
-from driftmap.errors import BadInputError
+from driftmap.errors import BadInputError, PayloadTooLargeError
 from driftmap.formats.drive_json import lens_to_json, parse_lens_block
-from driftmap.formats.frame_images import decode_gray
+from driftmap.formats.frame_images import check_frame_pixels, decode_gray
 
 __all__ = [
     "FITTED_GROUND",
@@ -69,18 +69,21 @@ def parse_lens(lens: object, field: str = "lens") -> Lens:
 
 
 def decode_images(
-    files: Iterable[tuple[str, bytes]], field: str = "images"
+    files: Iterable[tuple[str, bytes]], field: str = "images", max_pixels: int | None = None
 ) -> Iterator[tuple[str, NDArray[np.uint8]]]:
-    """Decode uploaded board images ``(name, PNG or JPEG bytes)`` to ``(name, (H, W) uint8)``.
+    """Decode uploaded board images ``(name, PNG or JPEG bytes)`` to ``(name, (H, W) uint8)``, one at a time.
 
     Raises:
         BadInputError: a file that is not a PNG or JPEG image (naming the file and ``field``).
+        PayloadTooLargeError: an image whose header declares more than ``max_pixels`` pixels (not decoded).
     """
     for name, data in files:
         try:
+            if max_pixels is not None:
+                check_frame_pixels(data, name, max_pixels, field)
             image = decode_gray(data, name)
         except BadInputError as exc:
-            raise BadInputError(exc.reason, file=name, field=field) from None
+            raise type(exc)(exc.reason, file=name, field=field) from None
         yield name, image
 
 
@@ -106,11 +109,16 @@ class Intrinsics:
 
 
 def calibrate_intrinsics(
-    images: Iterable[tuple[str, NDArray[np.uint8]]], board: Board, model: str, field: str = "images"
+    images: Iterable[tuple[str, NDArray[np.uint8]]],
+    board: Board,
+    model: str,
+    field: str = "images",
+    max_pixels: int | None = None,
 ) -> Intrinsics:
     """Find ``board`` in each ``(name, (H, W) uint8)`` image and fit a ``model`` lens to every view found.
 
     Raises:
+        PayloadTooLargeError: an image of more than ``max_pixels`` pixels (a video's frames are checked here).
         BadInputError: an unknown model (field ``model``); no images, images of different sizes or fewer
             views with the board than calibration needs (``field``, with the skipped names).
     """
@@ -122,6 +130,12 @@ def calibrate_intrinsics(
     size: tuple[int, int] | None = None
     for name, image in images:
         shape = (int(image.shape[1]), int(image.shape[0]))
+        if max_pixels is not None and shape[0] * shape[1] > max_pixels:
+            raise PayloadTooLargeError(
+                f"image of {shape[0]}x{shape[1]} pixels is over the {max_pixels} pixel limit",
+                file=name,
+                field=field,
+            )
         if size is not None and shape != size:
             raise BadInputError(
                 f"is {shape[0]}x{shape[1]}, the first image {size[0]}x{size[1]}", file=name, field=field
