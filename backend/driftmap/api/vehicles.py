@@ -3,8 +3,9 @@ their cameras and known starts (surveyors and admins).
 
 ``PUT /api/vehicles/{id}/camera`` takes the ``camera`` block of drive.json (formats.md) as the JSON body and
 checks it as a drive import does (a bad block is 422 naming the field, e.g. ``camera.k_x``, and the old camera
-stays), or ``{"profile": <id>}`` to give the vehicle a copy of a camera profile's block (``/api/camera-profiles``;
-404 for an unknown profile). Changing or deleting the camera restarts the vehicle's live localisation at its next frame.
+stays), or ``{"profile": <id>}`` to give the vehicle a copy of a camera profile's block
+(``/api/camera-profiles``; 404 for an unknown profile). Changing or deleting the camera restarts the vehicle's
+live localisation at its next frame.
 
 ``POST /api/vehicles/{id}/start`` seeds the vehicle's live belief at a known position, as ``driftmap localise
 --start`` does: 422 naming ``x``, ``y`` or ``radius_m`` for a value that is not finite, a radius outside 0-200
