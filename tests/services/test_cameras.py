@@ -1,5 +1,5 @@
-"""Tests of driftmap.services.cameras: calibration on rendered boards and known floor points, and camera profiles
-on a real database."""
+"""Tests of driftmap.services.cameras: calibration on rendered boards and known floor points, and camera
+profiles on a real database."""
 
 from __future__ import annotations
 

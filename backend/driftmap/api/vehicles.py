@@ -114,7 +114,7 @@ def get_camera(vehicle_id: Id, session: SessionDep) -> VehicleCamera:
 
 @router.put("/{vehicle_id}/camera", dependencies=[Depends(SURVEYOR)], openapi_extra=_CAMERA_BODY)
 def put_camera(vehicle_id: Id, session: SessionDep, block: Annotated[Any, Body()]) -> VehicleCamera:
-    """Set the vehicle's camera (a ``camera`` block or ``{"profile": id}``); its live localisation restarts."""
+    """Set the vehicle's camera (a ``camera`` block or ``{"profile": id}``); live localisation restarts."""
     vehicle = vehicle_service.get_vehicle(session, vehicle_id)
     if isinstance(block, dict) and set(block) == {"profile"}:
         return _camera_block(profile_service.assign_profile(session, vehicle, block["profile"]))

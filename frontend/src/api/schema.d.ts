@@ -238,7 +238,7 @@ export interface paths {
         get: operations["get_camera_api_vehicles__vehicle_id__camera_get"];
         /**
          * Put Camera
-         * @description Set the vehicle's camera (a ``camera`` block or ``{"profile": id}``); its live localisation restarts.
+         * @description Set the vehicle's camera (a ``camera`` block or ``{"profile": id}``); live localisation restarts.
          */
         put: operations["put_camera_api_vehicles__vehicle_id__camera_put"];
         post?: never;

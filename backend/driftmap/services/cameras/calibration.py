@@ -1,4 +1,4 @@
-"""Camera calibration: lens intrinsics from chessboard views, the ground plane from floor points, a scale check.
+"""Camera calibration: lens intrinsics from chessboard views, the ground plane from floor points, scale check.
 
 Every function takes plain data (decoded images, point arrays, a camera block as a JSON object) and returns a
 result value, so ``driftmap camera`` and ``/api/cameras`` calibrate identically. Errors are
