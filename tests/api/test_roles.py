@@ -31,6 +31,7 @@ SURVEYOR_WRITES = re.compile(
     r"/(groundings|drives|maps|map-versions|builds|jobs)(/|$)"
     r"|/vehicles/\{vehicle_id\}/(camera|start)$"  # a vehicle's camera calibration and its known start
     r"|/sites/\{site_id\}/crs$"  # the site's survey coordinates
+    r"|/(cameras|camera-profiles)(/|$)"  # camera calibration and stored camera profiles
 )
 WEBSOCKET_RULES = {"/vehicles/{vehicle_id}/stream": "vehicle", "/live": "user"}
 """WebSocket routes (their own auth, closing with 4401/4403) and who may open them."""

@@ -11,6 +11,7 @@ from fastapi import APIRouter
 
 from driftmap.api import (
     auth,
+    cameras,
     drives,
     exports,
     groundings,
@@ -29,6 +30,7 @@ ROUTERS: list[APIRouter] = [
     auth.router,
     users.router,
     vehicles.router,
+    cameras.router,
     live.router,
     positions.router,
     sites.router,

@@ -3,7 +3,9 @@ their cameras and known starts (surveyors and admins).
 
 ``PUT /api/vehicles/{id}/camera`` takes the ``camera`` block of drive.json (formats.md) as the JSON body and
 checks it as a drive import does (a bad block is 422 naming the field, e.g. ``camera.k_x``, and the old camera
-stays). Changing or deleting the camera restarts the vehicle's live localisation at its next frame.
+stays), or ``{"profile": <id>}`` to give the vehicle a copy of a camera profile's block
+(``/api/camera-profiles``; 404 for an unknown profile). Changing or deleting the camera restarts the vehicle's
+live localisation at its next frame.
 
 ``POST /api/vehicles/{id}/start`` seeds the vehicle's live belief at a known position, as ``driftmap localise
 --start`` does: 422 naming ``x``, ``y`` or ``radius_m`` for a value that is not finite, a radius outside 0-200
@@ -30,12 +32,28 @@ from driftmap.api.schemas_access import (
 from driftmap.errors import NotFoundError
 from driftmap.live import start as live_start
 from driftmap.services import vehicles as vehicle_service
+from driftmap.services.cameras import profiles as profile_service
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 _CAMERA_BODY = {
     "requestBody": {
         "required": True,
-        "content": {"application/json": {"schema": {"$ref": "#/components/schemas/VehicleCamera"}}},
+        "content": {
+            "application/json": {
+                "schema": {
+                    "anyOf": [
+                        {"$ref": "#/components/schemas/VehicleCamera"},
+                        {
+                            "title": "CameraProfileRef",
+                            "type": "object",
+                            "properties": {"profile": {"type": "integer", "minimum": 1}},
+                            "required": ["profile"],
+                            "additionalProperties": False,
+                        },
+                    ]
+                }
+            }
+        },
     }
 }
 
@@ -96,8 +114,10 @@ def get_camera(vehicle_id: Id, session: SessionDep) -> VehicleCamera:
 
 @router.put("/{vehicle_id}/camera", dependencies=[Depends(SURVEYOR)], openapi_extra=_CAMERA_BODY)
 def put_camera(vehicle_id: Id, session: SessionDep, block: Annotated[Any, Body()]) -> VehicleCamera:
-    """Set the vehicle's camera (a drive.json ``camera`` block); its live localisation restarts."""
+    """Set the vehicle's camera (a ``camera`` block or ``{"profile": id}``); live localisation restarts."""
     vehicle = vehicle_service.get_vehicle(session, vehicle_id)
+    if isinstance(block, dict) and set(block) == {"profile"}:
+        return _camera_block(profile_service.assign_profile(session, vehicle, block["profile"]))
     return _camera_block(vehicle_service.set_camera(session, vehicle, block))
 
 

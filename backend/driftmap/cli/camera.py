@@ -10,19 +10,15 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any, cast
+from typing import Annotated, Any
 
 import numpy as np
 import typer
 from numpy.typing import NDArray
 
 from driftmap.cli.common import console, err_console, user_errors
-from driftmap.core.imaging.calibration import Board, calibrate_lens, find_board
-from driftmap.core.imaging.lens import LENS_MODELS, Lens, LensModel
+from driftmap.core.imaging.lens import LENS_MODELS, Lens
 from driftmap.core.odometry.camera import CameraModel
-from driftmap.core.odometry.drive import dead_reckon
-from driftmap.core.odometry.ground_setup import board_floor_points, fit_ground
-from driftmap.core.odometry.scale_check import check_scale, scale_camera
 from driftmap.errors import BadInputError
 from driftmap.formats.camera_setup import (
     calibration_images,
@@ -33,23 +29,16 @@ from driftmap.formats.camera_setup import (
     write_camera_file,
 )
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
-from driftmap.formats.drive_json import camera_to_json, lens_to_json
+from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.frame_images import decode_gray
+from driftmap.services.cameras import calibration as cal
 
 camera_app = typer.Typer(
     help="Set up a camera: lens intrinsics, the ground plane, a scale check.", no_args_is_help=True
 )
 
-_FITTED_GROUND = ("k_x", "k_y", "y_h", "ground_homography")  # refer to the undistorted image of one lens
-_BOARD_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+_SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 _ROI_RE = re.compile(r"^\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*$")
-
-
-def _board(text: str, square_m: float) -> Board:
-    match = _BOARD_RE.match(text)
-    if match is None:
-        raise BadInputError(f"must be COLSxROWS inner corners, e.g. 9x6, found {text!r}", field="--board")
-    return Board(int(match.group(1)), int(match.group(2)), square_m)
 
 
 def _start(camera: Path | None) -> dict[str, Any]:
@@ -70,48 +59,23 @@ def intrinsics(
     with user_errors():
         if model not in LENS_MODELS:
             raise BadInputError(f"must be one of {', '.join(LENS_MODELS)}, found {model!r}", field="--model")
-        target = _board(board, square_m)
+        target = cal.parse_board(board, square_m, field="--board")
         block = _start(camera)
-        names: list[str] = []
-        views = []
-        size: tuple[int, int] | None = None
-        for name, image in calibration_images(inputs, every):
-            shape = (image.shape[1], image.shape[0])
-            if size is not None and shape != size:
-                raise BadInputError(
-                    f"is {shape[0]}x{shape[1]}, the first image {size[0]}x{size[1]}", file=name
-                )
-            size = shape
-            corners = find_board(image, target)
-            if corners is None:
-                err_console.print(f"skipped {name}: no {board} board found")
-                continue
-            names.append(name)
-            views.append(corners)
-        if size is None:
-            raise BadInputError("no images given", field="IMAGES")
-        if (block.get("width"), block.get("height")) not in ((None, None), size):
-            raise BadInputError(
-                f"says {block.get('width')}x{block.get('height')} but the images are {size[0]}x{size[1]}",
-                file=camera,
-                field="camera.width",
-            )
-        result = calibrate_lens(views, target, size, cast(LensModel, model))
-        for name, rms in zip(names, result.view_rms_px, strict=True):
+        found = cal.calibrate_intrinsics(calibration_images(inputs, every), target, model, field="IMAGES")
+        for name in found.skipped:
+            err_console.print(f"skipped {name}: no {board} board found")
+        for name, rms in found.views:
             console.print(f"{name}: reprojection RMS {rms:.3f} px")
-        stale = [k for k in _FITTED_GROUND if k in block]
-        if stale and block.get("lens") != lens_to_json(result.lens):
-            for key in stale:  # fitted on the old undistorted image: refit with `driftmap camera ground`
-                del block[key]
+        block, stale = cal.add_lens(block, found, str(camera or "camera"))
+        if stale:
             err_console.print(
                 f"dropped {', '.join(stale)} (fitted for the previous lens): run `camera ground` again"
             )
-        block.update({"width": size[0], "height": size[1], "lens": lens_to_json(result.lens)})
         write_camera_file(out, block)
-    k = result.lens.K
+    k = found.lens.K
     console.print(
-        f"{model} lens from {len(names)} views: fx {k[0][0]:.2f} fy {k[1][1]:.2f} cx {k[0][2]:.2f} "
-        f"cy {k[1][2]:.2f} px, RMS {result.rms_px:.3f} px; wrote {out}"
+        f"{model} lens from {len(found.views)} views: fx {k[0][0]:.2f} fy {k[1][1]:.2f} cx {k[0][2]:.2f} "
+        f"cy {k[1][2]:.2f} px, RMS {found.rms_px:.3f} px; wrote {out}"
     )
 
 
@@ -142,7 +106,7 @@ def ground(
     with user_errors():
         block = _start(camera)
         if size is not None:
-            match = _BOARD_RE.match(size)
+            match = _SIZE_RE.match(size)
             if match is None:
                 raise BadInputError(f"must be WxH, found {size!r}", field="--size")
             block.update({"width": int(match.group(1)), "height": int(match.group(2))})
@@ -158,24 +122,18 @@ def ground(
             pixels, floor = read_ground_points(points)
         else:
             pixels, floor = _board_points(source, board, square_m, board_at, lens)
-        rect = _roi(roi, block, pixels)
         try:
-            fit = fit_ground(pixels, floor, rect, lens)
+            found = cal.fit_ground_points(
+                pixels, floor, int(block["width"]), int(block["height"]), _roi(roi, block), lens, "--roi"
+            )
         except BadInputError as exc:
+            if exc.field == "--roi":
+                raise
             raise BadInputError(exc.reason, file=source, field=exc.field) from None
+        fit = found.fit
         for k, residual in enumerate(fit.residuals_m, start=1):
             console.print(f"{'point' if points else 'corner'} {k}: residual {100 * residual:.1f} cm")
-        block.update(
-            {
-                "ground_roi": list(rect),
-                "k_x": fit.k_x_m_per_px,
-                "k_y": fit.k_y_m_per_px,
-                "y_h": fit.y_h_m,
-                "ground_homography": [list(r) for r in fit.homography],
-            }
-        )
-        block["y_c"] = y_c if y_c is not None else block.get("y_c", 0.0)
-        block["forward_sign"] = forward_sign if forward_sign is not None else block.get("forward_sign", 1)
+        block = cal.add_ground(block, found, y_c, forward_sign)
         write_camera_file(out, block)
         done = complete_camera(block, out) is not None
     console.print(
@@ -190,42 +148,25 @@ def _board_points(
     """Corner pixels of a board lying on the floor in one frame, and their floor positions."""
     if board is None or square_m is None or at is None:
         raise BadInputError("--board-image needs --board, --square-m and --board-at", field="--board-at")
-    target = _board(board, square_m)
+    target = cal.parse_board(board, square_m, field="--board")
     try:
         x, y, yaw_deg = (float(v) for v in at.split(","))
     except ValueError:
         raise BadInputError(f"must be X,Y,YAW_DEG, found {at!r}", field="--board-at") from None
     [(name, image)] = list(calibration_images([Path(str(image_path))]))
-    corners = find_board(image, target)
-    if corners is None:
-        raise BadInputError(f"no {board} board found", file=name)
-    try:
-        floor = board_floor_points(corners, target, (x, y), math.radians(yaw_deg), lens)
-    except BadInputError as exc:
-        raise BadInputError(exc.reason, file=name, field=exc.field) from None
-    return corners, floor
+    return cal.board_ground_points(image, name, target, (x, y), math.radians(yaw_deg), lens)
 
 
-def _roi(text: str | None, block: dict[str, Any], pixels: Any) -> tuple[int, int, int, int]:
-    """The ROI from --roi, else the camera block's, else the bounding box of the clicked pixels."""
+def _roi(text: str | None, block: dict[str, Any]) -> list[int] | None:
+    """The ROI from --roi, else the camera block's, else None (the clicked pixels' bounding box)."""
     if text is not None:
         match = _ROI_RE.match(text)
         if match is None:
             raise BadInputError(f"must be x,y,w,h in pixels, found {text!r}", field="--roi")
-        x, y, w, h = (int(g) for g in match.groups())
-    elif isinstance(block.get("ground_roi"), list) and len(block["ground_roi"]) == 4:
-        x, y, w, h = (int(v) for v in block["ground_roi"])
-    else:
-        lo, hi = pixels.min(axis=0), pixels.max(axis=0)
-        x, y = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        w = min(int(hi[0]) + 1, int(block["width"])) - x
-        h = min(int(hi[1]) + 1, int(block["height"])) - y
-    width, height = int(block["width"]), int(block["height"])
-    if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > width or y + h > height:
-        raise BadInputError(
-            f"[{x}, {y}, {w}, {h}] does not lie inside the {width}x{height} frame", field="--roi"
-        )
-    return (x, y, w, h)
+        return [int(g) for g in match.groups()]
+    if isinstance(block.get("ground_roi"), list) and len(block["ground_roi"]) == 4:
+        return [int(v) for v in block["ground_roi"]]
+    return None
 
 
 @camera_app.command("check")
@@ -247,8 +188,7 @@ def check(
         if camera is not None:
             model = complete_camera(read_camera_file(camera), camera) or _incomplete(camera)
         frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
-        result = check_scale(dead_reckon(frames, model).wTi, distance_m, reverse=reverse)
-        fixed = scale_camera(model, result.ratio, flip_sign=result.sign_wrong)
+        result, fixed = cal.check_drive_scale(frames, model, distance_m, reverse=reverse)
         if out is not None:
             write_camera_file(out, camera_to_json(fixed))
     console.print(

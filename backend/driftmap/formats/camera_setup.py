@@ -40,6 +40,7 @@ __all__ = [
     "lens_of",
     "read_camera_file",
     "read_ground_points",
+    "video_frames",
     "write_camera_file",
 ]
 
@@ -141,7 +142,7 @@ def calibration_images(paths: Sequence[Path], every: int = 15) -> Iterator[tuple
     if videos and len(paths) > 1:
         raise BadInputError("give either image files or one video", file=videos[0])
     if videos:
-        yield from _video_frames(Path(videos[0]), every)
+        yield from video_frames(Path(videos[0]), every)
         return
     for p in paths:
         path = Path(p)
@@ -152,13 +153,29 @@ def calibration_images(paths: Sequence[Path], every: int = 15) -> Iterator[tuple
         yield str(path), decode_gray(data, path)
 
 
-def _video_frames(video: Path, every: int) -> Iterator[tuple[str, NDArray[np.uint8]]]:
+def video_frames(
+    video: Path, every: int = 15, label: str | None = None
+) -> Iterator[tuple[str, NDArray[np.uint8]]]:
+    """Every ``every``-th frame of a video file, gray.
+
+    Args:
+        video: the video file.
+        every: keep frames 0, every, 2 * every, ...
+        label: the name frames and errors carry (default: the path), e.g. an uploaded file's name.
+
+    Yields:
+        ``(name, image)``: ``<label>#frame <index>`` and a ``(H, W)`` uint8 image.
+
+    Raises:
+        BadInputError: a missing file or one OpenCV cannot open as a video.
+    """
+    name = label if label is not None else str(video)
     if not video.is_file():
-        raise BadInputError("video is missing", file=video)
+        raise BadInputError("video is missing", file=name)
     capture = cv2.VideoCapture(str(video))
     if not capture.isOpened():
         capture.release()
-        raise BadInputError("not a readable video (OpenCV/FFmpeg cannot open it)", file=video)
+        raise BadInputError("not a readable video (OpenCV/FFmpeg cannot open it)", file=name)
     try:
         index = 0
         while True:
@@ -167,7 +184,7 @@ def _video_frames(video: Path, every: int) -> Iterator[tuple[str, NDArray[np.uin
                 return
             if index % max(1, every) == 0:
                 gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-                yield f"{video}#frame {index}", np.ascontiguousarray(gray, dtype=np.uint8)
+                yield f"{name}#frame {index}", np.ascontiguousarray(gray, dtype=np.uint8)
             index += 1
     finally:
         capture.release()

@@ -269,3 +269,20 @@ class MapNodeFrame(Base):
     node: Mapped[int] = mapped_column(Integer)
     frame_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
     rank: Mapped[int] = mapped_column(Integer)
+
+
+class CameraProfile(Base):
+    """A named, stored ``camera`` block (drive.json keys of formats.md) that vehicles can be given.
+
+    Profiles are global (one camera model and mount is often fitted to many vehicles on several sites); the
+    block is validated as a drive import validates it and stored in its canonical form.
+    """
+
+    __tablename__ = "camera_profiles"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+    description: Mapped[str] = mapped_column(Text, default="")
+    camera: Mapped[dict[str, Any]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)

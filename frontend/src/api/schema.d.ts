@@ -238,7 +238,7 @@ export interface paths {
         get: operations["get_camera_api_vehicles__vehicle_id__camera_get"];
         /**
          * Put Camera
-         * @description Set the vehicle's camera (a drive.json ``camera`` block); its live localisation restarts.
+         * @description Set the vehicle's camera (a ``camera`` block or ``{"profile": id}``); live localisation restarts.
          */
         put: operations["put_camera_api_vehicles__vehicle_id__camera_put"];
         post?: never;
@@ -267,6 +267,98 @@ export interface paths {
          */
         post: operations["post_start_api_vehicles__vehicle_id__start_post"];
         delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/cameras/intrinsics": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Post Intrinsics
+         * @description Calibrate a lens from chessboard views (images or one video); each view's reprojection RMS, pixels.
+         */
+        post: operations["post_intrinsics_api_cameras_intrinsics_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/cameras/ground": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Post Ground
+         * @description Fit the ground plane to >= 4 clicked floor points; the camera block's ground values and residuals.
+         */
+        post: operations["post_ground_api_cameras_ground_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/camera-profiles": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * List Profiles
+         * @description Every camera profile, oldest first.
+         */
+        get: operations["list_profiles_api_camera_profiles_get"];
+        put?: never;
+        /**
+         * Create Profile
+         * @description Store a named camera block (checked as a drive import checks it).
+         */
+        post: operations["create_profile_api_camera_profiles_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/camera-profiles/{profile_id}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Profile
+         * @description One camera profile.
+         */
+        get: operations["get_profile_api_camera_profiles__profile_id__get"];
+        /**
+         * Update Profile
+         * @description Change a profile's name, description or camera block (vehicles already given it keep their copy).
+         */
+        put: operations["update_profile_api_camera_profiles__profile_id__put"];
+        post?: never;
+        /**
+         * Delete Profile
+         * @description Remove a camera profile (vehicles given it keep their copy of its block).
+         */
+        delete: operations["delete_profile_api_camera_profiles__profile_id__delete"];
         options?: never;
         head?: never;
         patch?: never;
@@ -1091,6 +1183,42 @@ export interface components {
             /** File */
             file: string;
         };
+        /** Body_post_intrinsics_api_cameras_intrinsics_post */
+        Body_post_intrinsics_api_cameras_intrinsics_post: {
+            /**
+             * Board
+             * @description Inner corners COLSxROWS, e.g. 9x6.
+             */
+            board: string;
+            /**
+             * Square M
+             * @description Side of one square, metres.
+             */
+            square_m: number;
+            /**
+             * Model
+             * @description The lens model.
+             * @default pinhole
+             * @enum {string}
+             */
+            model: "pinhole" | "fisheye";
+            /**
+             * Images
+             * @description PNG or JPEG views of the board.
+             */
+            images?: string[] | null;
+            /**
+             * Video
+             * @description One video of the board, instead of images.
+             */
+            video?: string | null;
+            /**
+             * Every
+             * @description Use every N-th frame of the video.
+             * @default 15
+             */
+            every: number;
+        };
         /** Body_upload_drive_video_api_sites__site_id__drives_video_post */
         Body_upload_drive_video_api_sites__site_id__drives_video_post: {
             /** Video */
@@ -1160,6 +1288,63 @@ export interface components {
             K: number[][];
             /** Distortion */
             distortion: number[];
+        };
+        /**
+         * CameraProfileCreate
+         * @description A named camera block to give vehicles.
+         */
+        CameraProfileCreate: {
+            /** Name */
+            name: string;
+            /**
+             * Description
+             * @default
+             */
+            description: string;
+            /**
+             * Camera
+             * @description A camera block with the keys of VehicleCamera (formats.md), checked as a drive import checks it.
+             */
+            camera: {
+                [key: string]: unknown;
+            };
+        };
+        /**
+         * CameraProfileRead
+         * @description A stored camera profile.
+         */
+        CameraProfileRead: {
+            /** Id */
+            id: number;
+            /** Name */
+            name: string;
+            /** Description */
+            description: string;
+            camera: components["schemas"]["VehicleCamera"];
+            /**
+             * Created At
+             * Format: date-time
+             */
+            created_at: string;
+            /**
+             * Updated At
+             * Format: date-time
+             */
+            updated_at: string;
+        };
+        /**
+         * CameraProfileUpdate
+         * @description The fields to change (absent or null: keep).
+         */
+        CameraProfileUpdate: {
+            /** Name */
+            name?: string | null;
+            /** Description */
+            description?: string | null;
+            /** Camera */
+            camera?: {
+                [key: string]: unknown;
+            } | null;
         };
         /** ClosureRead */
         ClosureRead: {
@@ -1349,6 +1534,53 @@ export interface components {
             /** True Yaw Rad */
             true_yaw_rad: number | null;
         };
+        /**
+         * GroundPoint
+         * @description A floor mark clicked in a frame and its measured floor position.
+         */
+        GroundPoint: {
+            /** Px */
+            px: number;
+            /** Py */
+            py: number;
+            /** X M */
+            x_m: number;
+            /** Y M */
+            y_m: number;
+        };
+        /**
+         * GroundRead
+         * @description The camera block's ground values fitted to the points, and each point's residual.
+         */
+        GroundRead: {
+            /** Ground Roi */
+            ground_roi: number[];
+            /** K X */
+            k_x: number;
+            /** K Y */
+            k_y: number;
+            /** Y H */
+            y_h: number;
+            /** Ground Homography */
+            ground_homography: number[][];
+            /** Residuals M */
+            residuals_m: number[];
+        };
+        /**
+         * GroundRequest
+         * @description Four or more clicked floor points of one frame; the points are numbered from 1 in errors.
+         */
+        GroundRequest: {
+            /** Points */
+            points: components["schemas"]["GroundPoint"][];
+            /** Width */
+            width: number;
+            /** Height */
+            height: number;
+            /** Ground Roi */
+            ground_roi?: number[] | null;
+            lens?: components["schemas"]["CameraLens"] | null;
+        };
         /** GroundingCreate */
         GroundingCreate: {
             /**
@@ -1434,6 +1666,33 @@ export interface components {
              */
             workers: number;
             queue?: components["schemas"]["QueueHealth"] | null;
+        };
+        /**
+         * IntrinsicsRead
+         * @description A calibrated lens: the camera block's ``lens``, ``width`` and ``height``, and how well views fit it.
+         */
+        IntrinsicsRead: {
+            lens: components["schemas"]["CameraLens"];
+            /** Width */
+            width: number;
+            /** Height */
+            height: number;
+            /** Rms Px */
+            rms_px: number;
+            /** Views */
+            views: components["schemas"]["IntrinsicsView"][];
+            /** Skipped */
+            skipped: string[];
+        };
+        /**
+         * IntrinsicsView
+         * @description One image the board was found in.
+         */
+        IntrinsicsView: {
+            /** Name */
+            name: string;
+            /** Rms Px */
+            rms_px: number;
         };
         /** JobRead */
         JobRead: {
@@ -1651,6 +1910,17 @@ export interface components {
                 number,
                 number
             ][];
+        };
+        /** Page[CameraProfileRead] */
+        Page_CameraProfileRead_: {
+            /** Items */
+            items: components["schemas"]["CameraProfileRead"][];
+            /** Total */
+            total: number;
+            /** Offset */
+            offset: number;
+            /** Limit */
+            limit: number;
         };
         /** Page[DriveRead] */
         Page_DriveRead_: {
@@ -2750,7 +3020,9 @@ export interface operations {
         };
         requestBody: {
             content: {
-                "application/json": components["schemas"]["VehicleCamera"];
+                "application/json": components["schemas"]["VehicleCamera"] | {
+                    profile: number;
+                };
             };
         };
         responses: {
@@ -2826,6 +3098,232 @@ export interface operations {
                 content: {
                     "application/json": components["schemas"]["StartRead"];
                 };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    post_intrinsics_api_cameras_intrinsics_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "multipart/form-data": components["schemas"]["Body_post_intrinsics_api_cameras_intrinsics_post"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["IntrinsicsRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    post_ground_api_cameras_ground_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["GroundRequest"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["GroundRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    list_profiles_api_camera_profiles_get: {
+        parameters: {
+            query?: {
+                offset?: number;
+                limit?: number;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Page_CameraProfileRead_"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    create_profile_api_camera_profiles_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CameraProfileCreate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CameraProfileRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    get_profile_api_camera_profiles__profile_id__get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                profile_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CameraProfileRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    update_profile_api_camera_profiles__profile_id__put: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                profile_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CameraProfileUpdate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CameraProfileRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    delete_profile_api_camera_profiles__profile_id__delete: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                profile_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            204: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content?: never;
             };
             /** @description Validation Error */
             422: {

@@ -1,0 +1,143 @@
+"""Request and response bodies of camera calibration (``/api/cameras``) and camera profiles
+(``/api/camera-profiles``).
+
+Pixels are of the calibrated frame (``width`` x ``height``); floor positions are metres in the vehicle frame
+at the camera's foot (x forward, y left). A ``camera`` block in a request is checked by the service as a drive
+import checks it (formats.md), so its errors name ``camera.<key>``.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any
+
+from annotated_types import Ge, Le, Len
+from pydantic import BaseModel, WithJsonSchema
+
+from driftmap.api.input_types import CameraSide, Description, Finite, Name
+from driftmap.api.schemas_access import CameraLens, VehicleCamera
+from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
+
+MAX_GROUND_POINTS = 100  # more floor points than anyone clicks; the degeneracy check is cubic in them
+CameraBody = Annotated[
+    dict[str, Any],
+    WithJsonSchema(
+        {
+            "type": "object",
+            "additionalProperties": True,
+            "description": "A camera block with the keys of VehicleCamera (formats.md), checked as a drive "
+            "import checks it.",
+        }
+    ),
+]
+"""A ``camera`` block in a request: an object for clients (the keys of :class:`VehicleCamera`), checked by the
+service so that its errors name ``camera.<key>``."""
+Roi = Annotated[list[Annotated[int, Ge(0), Le(MAX_CAMERA_SIDE_PX)]], Len(4, 4)]
+
+
+class IntrinsicsView(BaseModel):
+    """One image the board was found in."""
+
+    name: str
+    """The uploaded file's name (``video.mp4#frame 30`` for a frame of a video)."""
+    rms_px: float
+    """Reprojection RMS of the view, pixels: one far above the others is blurred or mis-detected."""
+
+
+class IntrinsicsRead(BaseModel):
+    """A calibrated lens: the camera block's ``lens``, ``width`` and ``height``, and how well views fit it."""
+
+    lens: CameraLens
+    width: int
+    """Frame width, pixels."""
+    height: int
+    """Frame height, pixels."""
+    rms_px: float
+    """Reprojection RMS over every view, pixels."""
+    views: list[IntrinsicsView]
+    """The views calibrated, in upload order."""
+    skipped: list[str]
+    """Names of the images the board was not found in."""
+
+
+class GroundPoint(BaseModel):
+    """A floor mark clicked in a frame and its measured floor position."""
+
+    px: Finite
+    """Pixel column of the mark in the recorded (raw) frame."""
+    py: Finite
+    """Pixel row of the mark in the recorded (raw) frame."""
+    x_m: Finite
+    """Floor position forward of the camera's foot, metres."""
+    y_m: Finite
+    """Floor position to the left of the camera's foot, metres."""
+
+
+class GroundRequest(BaseModel):
+    """Four or more clicked floor points of one frame; the points are numbered from 1 in errors."""
+
+    points: Annotated[list[GroundPoint], Len(0, MAX_GROUND_POINTS)]
+    width: CameraSide
+    """Frame width, pixels."""
+    height: CameraSide
+    """Frame height, pixels."""
+    ground_roi: Roi | None = None
+    """``[x, y, w, h]`` ground ROI of the undistorted image; null: the points' bounding box."""
+    lens: CameraLens | None = None
+    """The camera's lens (``POST /api/cameras/intrinsics``); the clicked pixels are undistorted first."""
+
+
+class GroundRead(BaseModel):
+    """The camera block's ground values fitted to the points, and each point's residual."""
+
+    ground_roi: list[int]
+    """``[x, y, w, h]`` the scales were taken at, pixels of the undistorted image."""
+    k_x: float
+    """Metres per pixel of image shift in x at the ROI centre."""
+    k_y: float
+    """Metres per pixel of image shift in y at the ROI centre."""
+    y_h: float
+    """Metres from the camera's foot to the floor point at the ROI centre."""
+    ground_homography: list[list[float]]
+    """3x3 map from undistorted pixel (u, v, 1) to the floor point, metres."""
+    residuals_m: list[float]
+    """Per point (in request order), metres between its measured and its fitted floor position."""
+
+
+class CameraProfileCreate(BaseModel):
+    """A named camera block to give vehicles."""
+
+    name: Name
+    description: Description = ""
+    camera: CameraBody
+
+
+class CameraProfileUpdate(BaseModel):
+    """The fields to change (absent or null: keep)."""
+
+    name: Name | None = None
+    description: Description | None = None
+    camera: CameraBody | None = None
+
+
+class CameraProfileRead(BaseModel):
+    """A stored camera profile."""
+
+    id: int
+    name: str
+    description: str
+    camera: VehicleCamera
+    created_at: datetime
+    updated_at: datetime
+
+
+def profile_read(profile: Any) -> CameraProfileRead:
+    """The response body of a stored :class:`~driftmap.store.models.CameraProfile`."""
+    return CameraProfileRead(
+        id=profile.id,
+        name=profile.name,
+        description=profile.description,
+        camera=VehicleCamera.model_validate({"ground_homography": None, "lens": None, **profile.camera}),
+        created_at=profile.created_at,
+        updated_at=profile.updated_at,
+    )
