@@ -47,7 +47,8 @@ def test_a_surveyor_places_the_site_and_exports_follow(actors: Actors) -> None:
     assert plane["driftmap:coordinates"] == "site plane metres"
     r = actors.client.put(f"/api/sites/{site}/crs", json=MGA_55, headers=actors.auth("surveyor"))
     assert r.status_code == 200, r.text
-    assert r.json()["crs"] == MGA_55 | {"scale": 1.0}
+    assert r.json()["crs"] == MGA_55 | {"scale": 1.0, "proj4": SiteCrs(28355).proj4()}
+    assert "+proj=utm +zone=55 +south" in r.json()["crs"]["proj4"]
     assert _site(actors)["crs"]["epsg"] == 28355
 
     placed = json.loads(_export(actors, site, "geojson"))

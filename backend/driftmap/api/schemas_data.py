@@ -10,10 +10,11 @@ from datetime import datetime
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from annotated_types import Ge, Le, Len
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, computed_field
 
 from driftmap.api.input_types import CameraSide, Count, Description, Finite, Id, Name
 from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
+from driftmap.formats.site_crs import SiteCrs
 
 T = TypeVar("T")
 DriveKind = Literal["mapping", "localisation"]
@@ -53,13 +54,23 @@ class SiteCrsBody(BaseModel):
     scale: Annotated[float, Ge(0.5), Le(2.0)] = 1.0
 
 
+class SiteCrsRead(SiteCrsBody):
+    """The site's coordinates as stored, with the EPSG system's PROJ string for converting in the browser."""
+
+    @computed_field  # type: ignore[prop-decorator]
+    @property
+    def proj4(self) -> str | None:
+        """The ``epsg`` system as a PROJ string (proj4js reads it); None without one."""
+        return SiteCrs(**self.model_dump(exclude={"proj4"})).proj4()
+
+
 class SiteRead(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
     id: int
     name: str
     description: str
-    crs: SiteCrsBody | None = None
+    crs: SiteCrsRead | None = None
     """The site's coordinates; None: plane metres only."""
     created_at: datetime
 

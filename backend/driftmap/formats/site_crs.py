@@ -18,6 +18,7 @@ identity), and say which in the file.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 from typing import Any
@@ -122,6 +123,15 @@ class SiteCrs:
         ll = np.asarray(lonlat_deg, dtype=np.float64).reshape(-1, 2)
         e, n = _from_wgs84(self.epsg).transform(ll[:, 0], ll[:, 1])
         return self.from_grid(np.column_stack([e, n]))
+
+    def proj4(self) -> str | None:
+        """The EPSG system as a PROJ string for a browser's proj4js to show longitude and latitude with, None
+        without ``epsg``. A PROJ string may drop a datum shift (metres on some systems): exports use pyproj."""
+        if self.epsg is None:
+            return None
+        with warnings.catch_warnings():  # pyproj warns that a PROJ string loses information: said above
+            warnings.simplefilter("ignore", UserWarning)
+            return str(CRS.from_epsg(self.epsg).to_proj4())
 
     def export_label(self) -> str:
         """What the coordinates of this site's GeoJSON and KML exports are, in words."""

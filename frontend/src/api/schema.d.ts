@@ -2136,6 +2136,39 @@ export interface components {
              */
             scale: number;
         };
+        /**
+         * SiteCrsRead
+         * @description The site's coordinates as stored, with the EPSG system's PROJ string for converting in the browser.
+         */
+        SiteCrsRead: {
+            /** Epsg */
+            epsg?: number | null;
+            /**
+             * False Easting M
+             * @default 0
+             */
+            false_easting_m: number;
+            /**
+             * False Northing M
+             * @default 0
+             */
+            false_northing_m: number;
+            /**
+             * Rotation Deg
+             * @default 0
+             */
+            rotation_deg: number;
+            /**
+             * Scale
+             * @default 1
+             */
+            scale: number;
+            /**
+             * Proj4
+             * @description The ``epsg`` system as a PROJ string (proj4js reads it); None without one.
+             */
+            readonly proj4: string | null;
+        };
         /** SiteRead */
         SiteRead: {
             /** Id */
@@ -2144,7 +2177,7 @@ export interface components {
             name: string;
             /** Description */
             description: string;
-            crs?: components["schemas"]["SiteCrsBody"] | null;
+            crs?: components["schemas"]["SiteCrsRead"] | null;
             /**
              * Created At
              * Format: date-time
