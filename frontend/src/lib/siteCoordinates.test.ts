@@ -49,7 +49,13 @@ describe("siteCoordinatesOf", () => {
 
   it("rotates counter-clockwise, scales and shifts (by hand)", () => {
     // r = 30 deg: x cos r - y sin r = 10 * 0.8660254 - 20 * 0.5 = -1.3397460, x sin r + y cos r = 22.3205081
-    const c = siteCoordinatesOf({ ...plain, false_easting_m: 1000, false_northing_m: 2000, rotation_deg: 30, scale: 1.5 })!;
+    const c = siteCoordinatesOf({
+      ...plain,
+      false_easting_m: 1000,
+      false_northing_m: 2000,
+      rotation_deg: 30,
+      scale: 1.5,
+    })!;
     const [e, n] = c.toGrid(10, 20);
     expect(e).toBeCloseTo(1000 + 1.5 * -1.339746, 5);
     expect(n).toBeCloseTo(2000 + 1.5 * 22.3205081, 5);
@@ -79,7 +85,9 @@ describe("readout", () => {
       grid: "grid E 101.00  N 2.00",
     });
     const utm = siteReadout(siteCoordinatesOf({ epsg: 28355, ...plain, proj4: UTM55S }), 500_000, 10_000_000);
-    expect(utm).toEqual({ lonLat: "147.000000° E  0.000000° N" });
+    expect(utm).toMatchObject({ lonLat: "147.000000° E  0.000000° N" });
+    expect(utm.grid).toBeUndefined();
+    expect(utm.lonLatDeg![0]).toBeCloseTo(147, 9);
   });
 });
 
@@ -98,7 +106,13 @@ describe("the settings form", () => {
   });
 
   it("builds the PUT body: empty EPSG is none, empty numbers their defaults", () => {
-    const form = { epsg: " 28355 ", false_easting_m: "321000", false_northing_m: "6123000", rotation_deg: "", scale: "" };
+    const form = {
+      epsg: " 28355 ",
+      false_easting_m: "321000",
+      false_northing_m: "6123000",
+      rotation_deg: "",
+      scale: "",
+    };
     expect(crsBodyOf(form)).toEqual({
       body: { epsg: 28355, false_easting_m: 321000, false_northing_m: 6123000, rotation_deg: 0, scale: 1 },
     });
@@ -109,10 +123,16 @@ describe("the settings form", () => {
   });
 
   it("names the fields that are not numbers", () => {
-    const form = { epsg: "EPSG:28355", false_easting_m: "1e3", false_northing_m: "north", rotation_deg: "0", scale: "1" };
-    expect(crsBodyOf(form)).toEqual({
-      errors: { epsg: expect.stringContaining("whole number"), false_northing_m: "not a number" },
-    });
+    const form = {
+      epsg: "EPSG:28355",
+      false_easting_m: "1e3",
+      false_northing_m: "north",
+      rotation_deg: "0",
+      scale: "1",
+    };
+    const built = crsBodyOf(form);
+    expect("errors" in built && Object.keys(built.errors).sort()).toEqual(["epsg", "false_northing_m"]);
+    expect("errors" in built && built.errors.epsg).toContain("whole number");
   });
 
   it("finds the field a refusal names", () => {

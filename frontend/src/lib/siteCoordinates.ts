@@ -48,7 +48,7 @@ export function siteCoordinatesOf(crs: SiteCrs | null | undefined): SiteCoordina
       const converter = proj4(crs.proj4, WGS84);
       toLonLat = (x, y) => {
         const [lon, lat] = converter.forward(toGrid(x, y));
-        return [lon!, lat!];
+        return [lon, lat];
       };
     } catch {
       toLonLat = null;
@@ -64,17 +64,28 @@ export function formatLonLat(lon: number, lat: number): string {
   return `${Math.abs(lon).toFixed(6)}° ${ew}  ${Math.abs(lat).toFixed(6)}° ${ns}`;
 }
 
-/** The readout's lines for a plane point: the mine grid (unless the identity) and longitude/latitude. */
-export function siteReadout(coords: SiteCoordinates | null, x: number, y: number): { grid?: string; lonLat?: string } {
+/** What a readout shows of a plane point: the mine grid (unless the identity) and longitude/latitude. */
+export interface SiteReadout {
+  grid?: string;
+  lonLat?: string;
+  /** Longitude, latitude, degrees (for tests and tooltips). */
+  lonLatDeg?: [number, number];
+}
+
+/** The readout's lines for a plane point (none without coordinates). */
+export function siteReadout(coords: SiteCoordinates | null, x: number, y: number): SiteReadout {
   if (!coords) return {};
-  const out: { grid?: string; lonLat?: string } = {};
+  const out: SiteReadout = {};
   if (!coords.identity) {
     const [e, n] = coords.toGrid(x, y);
     out.grid = `grid E ${e.toFixed(2)}  N ${n.toFixed(2)}`;
   }
   if (coords.toLonLat) {
     const [lon, lat] = coords.toLonLat(x, y);
-    if (Number.isFinite(lon) && Number.isFinite(lat)) out.lonLat = formatLonLat(lon, lat);
+    if (Number.isFinite(lon) && Number.isFinite(lat)) {
+      out.lonLat = formatLonLat(lon, lat);
+      out.lonLatDeg = [lon, lat];
+    }
   }
   return out;
 }
