@@ -1,7 +1,8 @@
 """The site's coordinates in the browser: a surveyor places the plan on the mine grid and the Earth through the
 form beside the survey map, the pointer's readout then shows the grid and longitude/latitude (proj4js in the
 browser, checked against pyproj), and so do the selected vehicle's details; a refused EPSG code is explained next
-to its field and changes nothing; a viewer reads the values without a form. Against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+to its field and changes nothing; a viewer reads the values without a form. Against a real ``driftmap serve``
+(fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
