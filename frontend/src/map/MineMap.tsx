@@ -1,5 +1,5 @@
-// The plan view every page shares: survey layers (WebGL when available), pan/zoom, grid readout, scale bar,
-// fit-to-site. Pages add their own layers through ``overlay``, which gets the map and the local origin.
+// The plan view every page shares: survey layers (WebGL when available), pan/zoom, the pointer's readout (plan
+// metres; with the site's coordinates the mine grid and longitude/latitude too), scale bar, fit-to-site. Pages add their own layers through ``overlay``, which gets the map and the local origin.
 import { useEffect, useRef, useState, type ReactNode } from "react";
 import { useLatest } from "../lib/useLatest";
 import OlMap from "ol/Map";
@@ -16,7 +16,7 @@ import type { Geometry } from "ol/geom";
 import Feature from "ol/Feature";
 import MultiLineString from "ol/geom/MultiLineString";
 import { apiGet, ApiError } from "../api/client";
-import { LocalOrigin, formatGrid, type Extent } from "../lib/localOrigin";
+import { LocalOrigin, type Extent } from "../lib/localOrigin";
 import { snapTargetsOf, type SnapTargets } from "../lib/snap";
 import { wallRingsOf, type WallRings } from "../lib/placement";
 import { serverZoomFor } from "../lib/surveyZoom";
@@ -24,6 +24,8 @@ import { mark } from "../lib/perf";
 import { flattenLines } from "../lib/surveyLines";
 import { chooseSurveyRenderer, webglRenderer } from "../lib/surveyRenderer";
 import { mineGrid } from "./projection";
+import { useSiteCoordinates } from "./siteCrs";
+import { PointReadout } from "./PointReadout";
 
 export interface MapCtx {
   map: OlMap;
@@ -57,7 +59,8 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
   const [ctx, setCtx] = useState<MapCtx | null>(null);
   const [layers, setLayers] = useState<SurveyLayer[]>([]);
   const [visible, setVisible] = useState<Record<string, boolean>>({});
-  const [readout, setReadout] = useState("");
+  const [pointer, setPointer] = useState<[number, number] | null>(null);
+  const coords = useSiteCoordinates(siteId);
   const [error, setError] = useState<string | null>(null);
   const [renderer] = useState(() =>
     chooseSurveyRenderer(webglRenderer(), new URLSearchParams(location.search).get("renderer")),
@@ -156,7 +159,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
       const o = originRef.current;
       if (!o) return;
       const [x, y] = o.toWorld(ev.coordinate[0]!, ev.coordinate[1]!);
-      setReadout(formatGrid(x, y));
+      setPointer([x, y]);
     });
     map.on("singleclick", (ev) => {
       const o = originRef.current;
@@ -214,7 +217,13 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
         </button>
       </div>
       <div className="overlay-box readout" data-testid="grid-readout">
-        {error ? <span className="error">{error}</span> : readout || "mine grid (m)"}
+        {error ? (
+          <span className="error">{error}</span>
+        ) : pointer ? (
+          <PointReadout x={pointer[0]} y={pointer[1]} coords={coords} />
+        ) : (
+          "mine grid (m)"
+        )}
       </div>
       {ctx && overlay?.(ctx)}
     </div>

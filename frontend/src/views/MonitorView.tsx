@@ -16,6 +16,7 @@ import { HISTORY_S, VehicleDetails } from "./VehicleDetails";
 import { SetStartPanel, useSetStart } from "./SetStart";
 import { BandDot, VehicleList } from "./VehicleList";
 import { PositionsExport } from "./PositionsExport";
+import { useSiteCoordinates } from "../map/siteCrs";
 
 function liveUrl(since: number | null): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
@@ -98,6 +99,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
   );
   const drawn = useMemo(() => vehicles.map(withHeading), [vehicles]);
   const selected = vehicles.find((v) => v.id === selectedId) ?? null;
+  const coords = useSiteCoordinates(siteId);
   const alerts = alertsOf(vehicles);
   const setStart = useSetStart(editable ? (selected?.id ?? null) : null);
   const placedStart = setStart.result?.state === "accepted" ? setStart.result.start : null;
@@ -151,7 +153,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
           trailS={state.trailWindowS}
         />
         {selected && (
-          <VehicleDetails v={selected} actions={editable && <SetStartPanel control={setStart} />}>
+          <VehicleDetails v={selected} coords={coords} actions={editable && <SetStartPanel control={setStart} />}>
             <ReplayPanel key={`replay-${selected.id}`} vehicle={selected} session={replay} onSession={setReplay} />
           </VehicleDetails>
         )}

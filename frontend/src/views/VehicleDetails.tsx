@@ -8,6 +8,8 @@ import { formatBearing, formatMotion, formatSpeed } from "../lib/motion";
 import { statusOf, type VehicleState } from "../lib/liveState";
 import { formatFrameTime, formatTime } from "../lib/time";
 import { LatestFrame } from "./LatestFrame";
+import { PointReadout } from "../map/PointReadout";
+import type { SiteCoordinates } from "../lib/siteCoordinates";
 
 export const HISTORY_S = 300; // the history: the last five minutes of frame time
 
@@ -44,9 +46,11 @@ interface Props {
   actions?: ReactNode;
   /** Shown under the latest frame (the replay). */
   children?: ReactNode;
+  /** The site's coordinates: the position on the mine grid and in longitude/latitude too. */
+  coords?: SiteCoordinates | null;
 }
 
-export function VehicleDetails({ v, actions, children }: Props) {
+export function VehicleDetails({ v, actions, children, coords = null }: Props) {
   const [history, setHistory] = useState<Schemas["PositionRead"][]>([]);
   const seq = v.position?.seq;
   const since = v.position ? v.position.t - HISTORY_S : null;
@@ -75,8 +79,8 @@ export function VehicleDetails({ v, actions, children }: Props) {
             </tr>
             <tr>
               <th>Position</th>
-              <td>
-                E {p.x.toFixed(2)} N {p.y.toFixed(2)}
+              <td data-testid="detail-position">
+                <PointReadout x={p.x} y={p.y} coords={coords} testId="vehicle" />
               </td>
             </tr>
             <tr data-testid="detail-confidence">
