@@ -64,8 +64,8 @@ describe("pointsReducer", () => {
   });
   it("edits one row's field and deletes a row without reusing its id", () => {
     let state = pointsReducer(withPoints(3), { type: "edit", id: 2, field: "x_m", value: "1.5" });
-    expect(state.rows[1].x_m).toBe("1.5");
-    expect(state.rows[0].x_m).toBe("");
+    expect(state.rows[1]?.x_m).toBe("1.5");
+    expect(state.rows[0]?.x_m).toBe("");
     state = pointsReducer(state, { type: "remove", id: 2 });
     expect(state.rows.map((r) => r.id)).toEqual([1, 3]);
     state = pointsReducer(state, { type: "add", px: 1, py: 1 });
@@ -103,7 +103,15 @@ describe("typed metres", () => {
   });
 });
 
-const LENS = { model: "pinhole" as const, K: [[300, 0, 160], [0, 300, 120], [0, 0, 1]], distortion: [0.1, 0, 0, 0] };
+const LENS = {
+  model: "pinhole" as const,
+  K: [
+    [300, 0, 160],
+    [0, 300, 120],
+    [0, 0, 1],
+  ],
+  distortion: [0.1, 0, 0, 0],
+};
 
 describe("request bodies", () => {
   it("the ground route's: points in table order, pixels to a hundredth, metres as numbers", () => {

@@ -97,7 +97,7 @@ export function pointsReducer(state: PointsState, action: PointsAction): PointsS
       return { ...state, rows: stale(state.rows.filter((r) => r.id !== action.id)) };
     case "residuals":
       if (action.residuals_m.length !== state.rows.length) return state;
-      return { ...state, rows: state.rows.map((r, i) => ({ ...r, residual_m: action.residuals_m[i] })) };
+      return { ...state, rows: state.rows.map((r, i) => ({ ...r, residual_m: action.residuals_m[i] ?? null })) };
     case "clear":
       return NO_POINTS;
   }
