@@ -129,7 +129,7 @@ describe("request bodies", () => {
     });
     expect(groundBody([], 320, 240, null, LENS).lens).toBe(LENS);
   });
-  it("the profile's camera block: fitted values, mount and lens", () => {
+  it("the profile's camera block: fitted values, mount, and the lens only when there is one", () => {
     const ground: GroundRead = {
       ground_roi: [0, 100, 320, 140],
       k_x: 0.01,
@@ -152,8 +152,8 @@ describe("request bodies", () => {
       y_h: 3,
       forward_sign: -1,
       ground_homography: ground.ground_homography,
-      lens: null,
     });
+    expect(cameraBlock(ground, 320, 240, { y_c: 0, forward_sign: 1 }, LENS).lens).toBe(LENS);
   });
   it("the intrinsics route's multipart form", () => {
     const files = [new File(["a"], "b1.png"), new File(["b"], "b2.png")];

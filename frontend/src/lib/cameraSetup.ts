@@ -146,7 +146,10 @@ export interface Mount {
   forward_sign: 1 | -1;
 }
 
-/** The ``camera`` block of a profile: the frame's size, the fitted ground, the mount and the lens (or none). */
+/**
+ * The ``camera`` block of a profile: the frame's size, the fitted ground, the mount and the lens; without a lens
+ * the ``lens`` key is left out (a drive.json block has no ``lens: null``).
+ */
 export function cameraBlock(
   ground: GroundRead,
   width: number,
@@ -164,7 +167,7 @@ export function cameraBlock(
     y_h: ground.y_h,
     forward_sign: mount.forward_sign,
     ground_homography: ground.ground_homography,
-    lens,
+    ...(lens ? { lens } : {}),
   };
 }
 
