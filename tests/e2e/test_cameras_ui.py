@@ -78,7 +78,12 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
     _ensure_frontend_built()
     work = tmp_path_factory.mktemp("e2e-cameras")
     env = driftmap_env(work / "data")
-    for name, role, password in (("admin", "admin", ADMIN_PASSWORD), ("surveyor", "surveyor", "surveyor-pw")):
+    users = (
+        ("admin", "admin", ADMIN_PASSWORD),
+        ("surveyor", "surveyor", "surveyor-pw"),
+        ("guard", "viewer", "guard-pw"),
+    )
+    for name, role, password in users:
         added = subprocess.run(
             [sys.executable, "-m", "driftmap", "user", "add", name, "--role", role, "--password-stdin"],
             input=f"{password}\n".encode(),
@@ -107,14 +112,19 @@ def frame_png(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return floor_frame(tmp_path_factory.mktemp("frames") / "floor.png")
 
 
-def open_cameras_page(page: Page, server: Server, frame: Path) -> None:
-    """Log in as the surveyor, open the Cameras page and upload the frame. The page is asked for in the address
-    (the site has no survey plan, whose page would answer 404 for its layers)."""
+def log_in(page: Page, server: Server, username: str, password: str) -> None:
+    """Log in, asking for the Cameras page in the address (the site has no survey plan, whose page would
+    answer 404 for its layers)."""
     page.goto(f"{server.base}/#cameras")
-    page.fill("#username", "surveyor")
-    page.fill("#password", "surveyor-pw")
+    page.fill("#username", username)
+    page.fill("#password", password)
     page.click("button[type=submit]")
-    expect(page.get_by_test_id("whoami")).to_contain_text("surveyor")
+    expect(page.get_by_test_id("whoami")).to_contain_text(username)
+
+
+def open_cameras_page(page: Page, server: Server, frame: Path) -> None:
+    """Log in as the surveyor, open the Cameras page and upload the frame."""
+    log_in(page, server, "surveyor", "surveyor-pw")
     expect(page.get_by_test_id("nav-cameras")).to_have_class("active")
     page.get_by_test_id("camera-frames-input").set_input_files(str(frame))
     expect(page.get_by_test_id("camera-frame-size")).to_contain_text(f"{WIDTH}x{HEIGHT}")
@@ -181,6 +191,7 @@ class TestCameraSetUp:
         expect(p.get_by_test_id("camera-profiles-done")).to_contain_text(
             f"lhd-4 now has the camera of {PROFILE}"
         )
+        p.get_by_test_id("cameras-page").evaluate("page => page.scrollTo(0, 0)")
         screenshot(p, "ui_cameras")
 
         camera = server.api("GET", f"/api/vehicles/{vehicle['id']}/camera")
@@ -219,3 +230,10 @@ class TestCameraSetUp:
         expect(p.get_by_test_id("camera-fit-result")).to_have_count(0)
         expect(p.get_by_test_id("camera-profile-create")).to_be_disabled()
         assert all(" 422 " in e for e in page.errors), page.errors
+
+    def test_a_viewer_has_no_cameras_page(self, server: Server, page: PageWithLog) -> None:
+        p = page.page
+        log_in(p, server, "guard", "guard-pw")
+        expect(p.get_by_test_id("nav-grounding")).to_be_visible()
+        expect(p.get_by_test_id("nav-cameras")).to_have_count(0)
+        expect(p.get_by_test_id("cameras-page")).to_have_count(0)

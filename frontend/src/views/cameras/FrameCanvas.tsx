@@ -69,7 +69,7 @@ export function FrameCanvas({ url, name, mode, roi, rows, size, onSize, onRoi, o
     <div
       className="camframe"
       data-testid="camera-frame-wrap"
-      style={size ? { width: `min(100%, ${MAX_ZOOM * size.width}px, calc((100vh - 250px) * ${aspect(size)}))` } : {}}
+      style={size ? { width: `min(100%, ${MAX_ZOOM * size.width}px, calc((100vh - 320px) * ${aspect(size)}))` } : {}}
     >
       <img
         src={url}
