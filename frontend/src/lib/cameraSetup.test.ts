@@ -5,6 +5,7 @@ import {
   groundBody,
   incompleteRows,
   intrinsicsForm,
+  parseLens,
   parseMetres,
   pointsReducer,
   roiFromDrag,
@@ -162,5 +163,17 @@ describe("request bodies", () => {
     expect(form.get("board")).toBe("9x6");
     expect(form.get("square_m")).toBe("0.025");
     expect(form.get("model")).toBe("fisheye");
+  });
+});
+
+describe("parseLens", () => {
+  it("reads a lens block, or the lens of a whole camera block", () => {
+    expect(parseLens(JSON.stringify(LENS))).toEqual(LENS);
+    expect(parseLens(JSON.stringify({ width: 320, lens: LENS }))).toEqual(LENS);
+  });
+  it("refuses text that is not a lens", () => {
+    expect(() => parseLens("{")).toThrow();
+    expect(() => parseLens('{"model": "wide", "K": [], "distortion": []}')).toThrow(/pinhole or fisheye/);
+    expect(() => parseLens('{"model": "pinhole", "distortion": []}')).toThrow(/"K"/);
   });
 });

@@ -191,3 +191,17 @@ export function intrinsicsForm(
   form.append("model", model);
   return form;
 }
+
+/** A pasted lens block (or a whole camera block with one), checked for its three keys; the server checks the values. */
+export function parseLens(text: string): Lens {
+  const value = JSON.parse(text) as Partial<Lens> & { lens?: Lens };
+  const lens = value.lens ?? value; // a whole camera block, or its lens
+  if (
+    (lens.model !== "pinhole" && lens.model !== "fisheye") ||
+    !Array.isArray(lens.K) ||
+    !Array.isArray(lens.distortion)
+  ) {
+    throw new Error('a lens needs "model" (pinhole or fisheye), "K" (3x3) and "distortion"');
+  }
+  return { model: lens.model, K: lens.K, distortion: lens.distortion };
+}

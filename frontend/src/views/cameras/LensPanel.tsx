@@ -4,7 +4,7 @@
 import { useState } from "react";
 import { postIntrinsics } from "../../api/cameras";
 import type { Schemas } from "../../api/client";
-import { intrinsicsForm, type Lens } from "../../lib/cameraSetup";
+import { intrinsicsForm, parseLens, type Lens } from "../../lib/cameraSetup";
 import { useErrors } from "../useErrors";
 
 type Source = "none" | "board" | "paste";
@@ -12,20 +12,6 @@ type Source = "none" | "board" | "paste";
 interface Props {
   lens: Lens | null;
   onLens: (lens: Lens | null, size: { width: number; height: number } | null) => void;
-}
-
-/** A pasted lens block, checked for its three keys; the server checks the values. */
-function parseLens(text: string): Lens {
-  const value = JSON.parse(text) as Partial<Lens> & { lens?: Lens };
-  const lens = value.lens ?? value; // a whole camera block, or its lens
-  if (
-    (lens.model !== "pinhole" && lens.model !== "fisheye") ||
-    !Array.isArray(lens.K) ||
-    !Array.isArray(lens.distortion)
-  ) {
-    throw new Error('a lens needs "model" (pinhole or fisheye), "K" (3x3) and "distortion"');
-  }
-  return { model: lens.model, K: lens.K, distortion: lens.distortion };
 }
 
 export function LensPanel({ lens, onLens }: Props) {
@@ -55,7 +41,7 @@ export function LensPanel({ lens, onLens }: Props) {
         setBusy(false);
       }
     });
-  const usePasted = () =>
+  const applyPasted = () =>
     void run(async () => {
       onLens(parseLens(pasted), null);
       await Promise.resolve();
@@ -151,7 +137,7 @@ export function LensPanel({ lens, onLens }: Props) {
             onChange={(e) => setPasted(e.target.value)}
             data-testid="camera-lens-text"
           />
-          <button onClick={usePasted}>Use this lens</button>
+          <button onClick={applyPasted}>Use this lens</button>
         </>
       )}
       {lens && source !== "none" && (
