@@ -16,7 +16,9 @@ const IMAGE_TYPES = "image/png,image/jpeg";
 
 export function FramePicker({ frames, selected, onAdd, onSelect }: Props) {
   const add = (list: FileList | null) => {
-    const files = Array.from(list ?? []).filter((f) => f.type === "image/png" || f.type === "image/jpeg");
+    const files = Array.from(list ?? []).filter(
+      (f) => f.type === "image/png" || f.type === "image/jpeg" || /\.(png|jpe?g)$/i.test(f.name),
+    );
     if (files.length > 0) onAdd(files);
   };
   return (
