@@ -6,12 +6,14 @@ import { SurveyView } from "./views/SurveyView";
 import { MonitorView } from "./views/MonitorView";
 import { GroundingView } from "./views/GroundingView";
 import { AdminView } from "./views/AdminView";
+import { CamerasView } from "./views/cameras/CamerasView";
 
-type Page = "survey" | "monitor" | "grounding" | "admin";
+type Page = "survey" | "monitor" | "grounding" | "cameras" | "admin";
 const PAGES: { id: Page; label: string; show: (me: Me) => boolean }[] = [
   { id: "survey", label: "Survey map", show: () => true },
   { id: "monitor", label: "Monitoring", show: () => true },
   { id: "grounding", label: "Grounding", show: () => true },
+  { id: "cameras", label: "Cameras", show: canEdit },
   { id: "admin", label: "Admin", show: isAdmin },
 ];
 
@@ -93,6 +95,8 @@ export function App() {
       <main className="content">
         {current === "admin" ? (
           <AdminView sites={sites} onSitesChanged={loadSites} meId={me.id} />
+        ) : current === "cameras" ? (
+          <CamerasView />
         ) : siteId === null ? (
           <p className="muted" style={{ margin: 24 }}>
             No site yet.{isAdmin(me) ? " Create one under Admin." : ""}
