@@ -45,7 +45,7 @@ def chromium_path() -> str | None:
     return "/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None
 
 
-def _ensure_frontend_built() -> None:
+def ensure_frontend_built() -> None:
     """Build frontend/dist when it is missing (``make test`` has built it already)."""
     if (FRONTEND / "dist" / "index.html").exists():
         return
@@ -87,7 +87,7 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
     """``driftmap serve`` (no job worker) over a private copy of the tiny site with its FAST map."""
     if chromium_path() is None:  # skip before building anything
         pytest.skip("chromium is not installed (make test installs it with apt-get)")
-    _ensure_frontend_built()
+    ensure_frontend_built()
     work = tmp_path_factory.mktemp("e2e")
     data, database_url = copy_data_to_new_database(
         built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), work / "data"

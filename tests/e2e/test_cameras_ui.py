@@ -25,8 +25,8 @@ from tests.e2e.conftest import (
     START_DEADLINE_S,
     PageWithLog,
     Server,
-    _ensure_frontend_built,
     chromium_path,
+    ensure_frontend_built,
     screenshot,
 )
 from tests.processes import driftmap_env, start_server, stop
@@ -75,7 +75,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
     """``driftmap serve`` (no job worker) over a new data directory with one site, a vehicle and a surveyor."""
     if chromium_path() is None:
         pytest.skip("chromium is not installed (make test installs it with apt-get)")
-    _ensure_frontend_built()
+    ensure_frontend_built()
     work = tmp_path_factory.mktemp("e2e-cameras")
     env = driftmap_env(work / "data")
     users = (

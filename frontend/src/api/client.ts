@@ -149,6 +149,23 @@ export function imageUrl(path: string): string {
   return path;
 }
 
+export function apiPut<P extends PathsWith<"put">>(
+  path: P,
+  params: Record<string, string | number>,
+  body: BodyOf<Op<P, "put">>,
+): Promise<Ok<Op<P, "put">>> {
+  return send("put", buildUrl(path, params), body) as Promise<Ok<Op<P, "put">>>;
+}
+
+/** POST a multipart form (e.g. images to calibrate from) to a route. */
+export function apiPostForm<P extends PathsWith<"post">>(
+  path: P,
+  params: Record<string, string | number>,
+  form: FormData,
+): Promise<Ok<Op<P, "post">>> {
+  return send("post", buildUrl(path, params), form) as Promise<Ok<Op<P, "post">>>;
+}
+
 /** PUT a multipart form (e.g. a CSV upload) to a route. */
 export function apiPutForm<P extends PathsWith<"put">>(
   path: P,

@@ -2,7 +2,7 @@
 // origin, rotation, scale) and, with an EPSG code, on the Earth. Surveyors and admins edit them (Save: PUT
 // /api/sites/{id}/crs; Clear: the defaults' body), a refusal shows next to the field it names; viewers read them.
 import { useState, type FormEvent } from "react";
-import { ApiError, buildUrl, detailText, getToken, type Schemas } from "../api/client";
+import { ApiError, apiPut, type Schemas } from "../api/client";
 import { publishSiteCrs, useSiteCrs } from "../map/siteCrs";
 import {
   CLEAR_CRS,
@@ -30,22 +30,7 @@ const LABELS: Record<CrsField, { label: string; unit: string; hint: string }> = 
 
 /** PUT the site's coordinates; the answer's ``crs`` (null when cleared). Refusals throw an ApiError. */
 async function putCrs(siteId: number, body: CrsBody): Promise<SiteCrs | null> {
-  const token = getToken();
-  const response = await fetch(buildUrl("/api/sites/{site_id}/crs", { site_id: siteId }), {
-    method: "PUT",
-    headers: { "Content-Type": "application/json", ...(token ? { Authorization: `Bearer ${token}` } : {}) },
-    body: JSON.stringify(body satisfies Schemas["SiteCrsBody"]),
-  });
-  if (!response.ok) {
-    let message = response.statusText || `HTTP ${response.status}`;
-    try {
-      message = detailText((await response.json()) as { detail?: unknown }) ?? message;
-    } catch {
-      /* not JSON */
-    }
-    throw new ApiError(response.status, message);
-  }
-  const site = (await response.json()) as Schemas["SiteRead"];
+  const site = await apiPut("/api/sites/{site_id}/crs", { site_id: siteId }, body satisfies Schemas["SiteCrsBody"]);
   return site.crs ?? null;
 }
 
