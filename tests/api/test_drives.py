@@ -189,6 +189,58 @@ class TestVideoUpload:
         assert response.json()["field"] == "camera.k_x"
         assert _stored(users.storage) == before
 
+    def test_a_video_recorded_with_a_camera_profile(
+        self, users: ApiUsers, site_id: int, mini_site: Path, tmp_path: Path
+    ) -> None:
+        camera = _camera(mini_site)
+        created = users.client.post(
+            "/api/camera-profiles",
+            json={"name": "rear-cam", "camera": camera},
+            headers=users.auth("surveyor"),
+        )
+        assert created.status_code == 201, created.text
+        size = (int(str(camera["width"])), int(str(camera["height"])))
+        video = tmp_path / "clip.avi"
+        writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5.0, size)
+        for _ in range(4):
+            writer.write(np.full((size[1], size[0], 3), 90, dtype=np.uint8))
+        writer.release()
+        clip = ("clip.avi", video.read_bytes(), "video/x-msvideo")
+        response = users.client.post(
+            f"/api/sites/{site_id}/drives/video",
+            files={"video": clip},
+            data={"profile": str(created.json()["id"]), "name": "profiled"},
+            headers=users.auth("surveyor"),
+        )
+        assert response.status_code == 202, response.text
+        job = users.job(response.json()["id"])
+        assert job["status"] == "succeeded", job["error"]
+        drive = users.get(f"/api/drives/{job['result']['drive_id']}")
+        assert drive["camera"]["k_x"] == camera["k_x"] and drive["frame_count"] == 4
+
+    def test_a_video_needs_a_calibration_or_a_profile_and_not_both(
+        self, users: ApiUsers, site_id: int, mini_site: Path
+    ) -> None:
+        before = _stored(users.storage)
+        clip = ("clip.avi", b"RIFF....AVI ", "video/x-msvideo")
+        calibration = ("camera.json", json.dumps({"camera": _camera(mini_site)}).encode(), "application/json")
+        for files, data in (
+            ({"video": clip}, {}),
+            ({"video": clip, "calibration": calibration}, {"profile": "1"}),
+        ):
+            response = users.client.post(
+                f"/api/sites/{site_id}/drives/video", files=files, data=data, headers=users.auth("surveyor")
+            )
+            assert response.status_code == 422 and response.json()["field"] == "calibration", response.text
+        response = users.client.post(
+            f"/api/sites/{site_id}/drives/video",
+            files={"video": clip},
+            data={"profile": "999"},
+            headers=users.auth("surveyor"),
+        )
+        assert response.status_code == 404
+        assert _stored(users.storage) == before
+
 
 class TestFrameByFrame:
     def test_frames_are_appended_in_order_and_checked(

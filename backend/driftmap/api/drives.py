@@ -3,6 +3,7 @@ thumbnails, delete, and localisation of a stored drive against a map (a job)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated
 
@@ -33,6 +34,7 @@ from driftmap.formats.frame_images import encode_png
 from driftmap.services import deletion, uploads
 from driftmap.services import drives as drive_service
 from driftmap.services import jobs as job_service
+from driftmap.services.cameras import profiles as profile_service
 from driftmap.store.models import Drive, Frame
 
 router = APIRouter(tags=["drives"])
@@ -151,22 +153,33 @@ def upload_drive_video(
     response: Response,
     site_id: Id,
     video: UploadFile,
-    calibration: UploadFile,
     session: SessionDep,
     storage: StorageDep,
     settings: SettingsDep,
     queue: QueueDep,
     user: SurveyorDep,
+    calibration: UploadFile | None = None,
+    profile: Annotated[
+        Id | None, Form(description="A camera profile's id, instead of a calibration file.")
+    ] = None,
     name: Annotated[Name | None, Form(description="Drive name (default: the video's file stem).")] = None,
     kind: Annotated[DriveKind, Form()] = "mapping",
 ) -> JobRead:
-    """Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``)."""
+    """Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``) or
+    the id of a stored camera profile (``profile``) whose block it was recorded with: one of the two."""
     site = site_by_id(session, site_id)
     filename = Path(video.filename or "drive.mp4").name
     if Path(filename).suffix.lower() not in drive_service.VIDEO_SUFFIXES:
         raise BadRequestError(f"not a video file ({', '.join(drive_service.VIDEO_SUFFIXES)})", file=filename)
-    calibration_name = Path(calibration.filename or "calibration.json").name
-    calibration_data = read_limited(calibration, CALIBRATION_MAX_BYTES, calibration_name)
+    if (calibration is None) == (profile is None):
+        raise BadInputError("send either a calibration file or a camera profile's id", field="calibration")
+    if calibration is not None:
+        calibration_name = Path(calibration.filename or "calibration.json").name
+        calibration_data = read_limited(calibration, CALIBRATION_MAX_BYTES, calibration_name)
+    elif profile is not None:
+        record = profile_service.get_profile(session, profile)
+        calibration_name = f"camera profile {record.name!r}"
+        calibration_data = json.dumps({"camera": record.camera}).encode()
     uploads.check_calibration(calibration_data, calibration_name)
     drive_name = (name or Path(filename).stem).strip()
     _ensure_new_name(session, site.id, drive_name)
