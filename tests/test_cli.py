@@ -140,3 +140,21 @@ class TestMapping:
         assert result.exit_code == 2 and "no grounding" in result.output
         result = runner.invoke(app, ["report", "mapping", "bare"])
         assert result.exit_code == 2 and "--truth" in result.output
+
+
+class TestSettings:
+    @pytest.mark.parametrize(
+        ("variable", "value"), [("DRIFTMAP_LOG_LEVEL", "verbose"), ("DRIFTMAP_HISTORY_FULL_DAYS", "a week")]
+    )
+    def test_a_setting_that_does_not_parse_is_named(
+        self, monkeypatch: pytest.MonkeyPatch, variable: str, value: str
+    ) -> None:
+        monkeypatch.setenv(variable, value)
+        get_settings.cache_clear()
+        try:
+            result = runner.invoke(app, ["site", "list"])
+        finally:
+            monkeypatch.delenv(variable)
+            get_settings.cache_clear()
+        assert result.exit_code == 2 and f"error: {variable}:" in result.output
+        assert "Traceback" not in result.output

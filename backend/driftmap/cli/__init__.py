@@ -7,8 +7,10 @@ import sys
 from typing import Annotated
 
 import typer
+from pydantic import ValidationError
 
 from driftmap.cli import backup, camera, data, exports, localise, maps, replay, server, vpr, worker
+from driftmap.cli.common import err_console
 from driftmap.config import get_settings
 from driftmap.logs import TEXT_FORMAT, JsonFormatter, RequestIdFilter
 
@@ -46,7 +48,13 @@ def main(
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
 ) -> None:
     """Configure logging for every command (DRIFTMAP_LOG_LEVEL, DRIFTMAP_LOG_FORMAT; docs/operations.md)."""
-    settings = get_settings()
+    try:
+        settings = get_settings()
+    except ValidationError as exc:  # a DRIFTMAP_* variable that does not parse: name it, no traceback
+        first = exc.errors()[0]
+        variable = "DRIFTMAP_" + str(first["loc"][0]).upper() if first["loc"] else "DRIFTMAP_*"
+        err_console.print(f"error: {variable}: {first['msg']}", soft_wrap=True)
+        raise typer.Exit(2) from None
     default = "INFO" if ctx.invoked_subcommand in _SERVICES else "WARNING"
     handler = logging.StreamHandler(sys.stderr)
     handler.addFilter(RequestIdFilter())
