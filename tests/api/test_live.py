@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
 
+from driftmap.api import live as live_api
 from driftmap.api.app import create_app
 from driftmap.api.schemas_live import position_message
 from driftmap.config import Settings
@@ -370,6 +372,23 @@ class TestStream:
         assert error["status"] == "error" and error["code"] == 400 and error["field"] == "message"
         assert garbage["code"] == 422 and garbage["t"] == 99.0
         assert after["status"] == "processed" and after["t"] == frames[10].t
+
+    def test_a_rotated_token_closes_the_stream(
+        self, actors: Actors, frames: list[RecordedFrame], monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        monkeypatch.setattr(live_api, "TOKEN_RECHECK_S", 0.0)  # check at every message
+        url = f"/api/vehicles/{actors.vehicle_id}/stream"
+        with actors.client.websocket_connect(url, headers=actors.auth("vehicle")) as ws:
+            ws.send_bytes(_framed(frames[0]))
+            assert ws.receive_json()["status"] == "processed"
+            rotated = actors.client.post(
+                f"/api/vehicles/{actors.vehicle_id}/token", headers=actors.auth("admin")
+            )
+            assert rotated.status_code == 200, rotated.text
+            ws.send_bytes(_framed(frames[1]))
+            with pytest.raises(WebSocketDisconnect) as closed:
+                ws.receive_json()
+        assert closed.value.code == 4401
 
 
 class TestWatch:

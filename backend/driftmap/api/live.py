@@ -173,11 +173,17 @@ async def vehicle_stream(websocket: WebSocket, vehicle_id: int) -> None:
         except DriftmapError as exc:
             await send({"status": "error", "t": t, "code": status_of(exc), **error_body(exc)})
 
+    checked_at = time.monotonic()
     try:
         while True:
             message = await websocket.receive()
             if message["type"] == "websocket.disconnect":
                 break
+            if time.monotonic() - checked_at > TOKEN_RECHECK_S:  # a rotated or deleted vehicle's token
+                checked_at = time.monotonic()
+                if not await still_valid(websocket):
+                    await websocket.close(WS_CLOSE_UNAUTHORIZED, "the token was revoked or expired")
+                    break
             data = message.get("bytes")
             t = float("nan")
             try:
