@@ -677,7 +677,8 @@ export interface paths {
         put?: never;
         /**
          * Upload Drive Video
-         * @description Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``).
+         * @description Upload a video (mp4/avi/mov/mkv) with its calibration JSON (the ``camera`` block, optional ``fps``) or
+         *     the id of a stored camera profile (``profile``) whose block it was recorded with: one of the two.
          */
         post: operations["upload_drive_video_api_sites__site_id__drives_video_post"];
         delete?: never;
@@ -1224,7 +1225,12 @@ export interface components {
             /** Video */
             video: string;
             /** Calibration */
-            calibration: string;
+            calibration?: string | null;
+            /**
+             * Profile
+             * @description A camera profile's id, instead of a calibration file.
+             */
+            profile?: number | null;
             /**
              * Name
              * @description Drive name (default: the video's file stem).
