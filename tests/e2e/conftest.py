@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -93,15 +94,26 @@ def server(tmp_path_factory: pytest.TempPathFactory, tiny_site_dir: Path) -> Ite
         built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), work / "data"
     )
     env = driftmap_env(data, database_url, stale_after_s=str(STALE_AFTER_S))
+    add_user(env, "admin", "admin", ADMIN_PASSWORD)
+    with admin_server(env, work / "serve.log") as running:
+        yield running
+
+
+def add_user(env: dict[str, str], name: str, role: str, password: str) -> None:
+    """``driftmap user add`` in the environment ``env`` (the server's data dir and database)."""
     added = subprocess.run(
-        [sys.executable, "-m", "driftmap", "user", "add", "admin", "--role", "admin", "--password-stdin"],
-        input=f"{ADMIN_PASSWORD}\n".encode(),
+        [sys.executable, "-m", "driftmap", "user", "add", name, "--role", role, "--password-stdin"],
+        input=f"{password}\n".encode(),
         env=env,
         capture_output=True,
         check=False,
     )
     assert added.returncode == 0, added.stderr.decode()
-    log = work / "serve.log"
+
+
+@contextmanager
+def admin_server(env: dict[str, str], log: Path) -> Iterator[Server]:
+    """``driftmap serve`` (no job worker) in ``env``, logged in as the admin ``add_user`` made; stopped after."""
     process, base = start_server(env, log, "--no-worker", deadline_s=START_DEADLINE_S)
     try:
         login = httpx.post(f"{base}/api/auth/login", json={"username": "admin", "password": ADMIN_PASSWORD})

@@ -9,27 +9,25 @@ Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); 
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
-import httpx
 import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
 
 from tests.e2e.conftest import (
     ADMIN_PASSWORD,
-    START_DEADLINE_S,
     PageWithLog,
     Server,
+    add_user,
+    admin_server,
     chromium_path,
     ensure_frontend_built,
     screenshot,
 )
-from tests.processes import driftmap_env, start_server, stop
+from tests.processes import driftmap_env
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
@@ -84,27 +82,13 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
         ("guard", "viewer", "guard-pw"),
     )
     for name, role, password in users:
-        added = subprocess.run(
-            [sys.executable, "-m", "driftmap", "user", "add", name, "--role", role, "--password-stdin"],
-            input=f"{password}\n".encode(),
-            env=env,
-            capture_output=True,
-            check=False,
-        )
-        assert added.returncode == 0, added.stderr.decode()
-    log = work / "serve.log"
-    process, base = start_server(env, log, "--no-worker", deadline_s=START_DEADLINE_S)
-    try:
-        login = httpx.post(f"{base}/api/auth/login", json={"username": "admin", "password": ADMIN_PASSWORD})
-        assert login.status_code == 200, login.text
-        running = Server(base, env, {"Authorization": f"Bearer {login.json()['access_token']}"}, log)
+        add_user(env, name, role, password)
+    with admin_server(env, work / "serve.log") as running:
         site = running.api("POST", "/api/sites", json={"name": "east", "description": ""})
         assert site.status_code == 201, site.text
         made = running.api("POST", "/api/vehicles", json={"name": "lhd-4", "site_id": site.json()["id"]})
         assert made.status_code == 201, made.text
         yield running
-    finally:
-        stop(process)
 
 
 @pytest.fixture(scope="module")

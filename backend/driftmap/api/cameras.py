@@ -39,7 +39,7 @@ from driftmap.api.cameras_schemas import (
 from driftmap.api.deps import SURVEYOR, VIEWER, SessionDep, SettingsDep
 from driftmap.api.input_types import Count, Finite, Id
 from driftmap.api.schemas_access import CameraLens
-from driftmap.api.schemas_data import Page
+from driftmap.api.schemas_data import Page, paged
 from driftmap.api.upload_limits import check_content_length, read_limited
 from driftmap.config import Settings
 from driftmap.core.imaging.calibration import Board
@@ -132,11 +132,7 @@ def list_profiles(
     limit: Annotated[int, Query(ge=1, le=500)] = 100,
 ) -> Page[CameraProfileRead]:
     """Every camera profile, oldest first."""
-    profiles = profile_service.list_profiles(session)
-    page = profiles[offset : offset + limit]
-    return Page[CameraProfileRead](
-        items=[profile_read(p) for p in page], total=len(profiles), offset=offset, limit=limit
-    )
+    return paged(profile_service.list_profiles(session), offset, limit, profile_read)
 
 
 @router.post("/camera-profiles", status_code=status.HTTP_201_CREATED, dependencies=[Depends(SURVEYOR)])

@@ -26,6 +26,7 @@ from driftmap.api.schemas_data import (
     JobRead,
     LocaliseCreate,
     Page,
+    paged,
 )
 from driftmap.api.sites import site_by_id
 from driftmap.api.upload_limits import check_content_length, read_limited
@@ -74,17 +75,18 @@ def list_drives(
     site = site_by_id(session, site_id)
     summaries = drive_service.list_drives(session, site)
     drives = {d.id: d for d in session.scalars(select(Drive).where(Drive.site_id == site.id))}
-    items = [
-        DriveRead(
+    return paged(
+        summaries,
+        offset,
+        limit,
+        lambda s: DriveRead(
             **vars(s),
             site_id=site.id,
             source=drives[s.id].source,
             camera=drives[s.id].camera,
             created_at=drives[s.id].created_at,
-        )
-        for s in summaries[offset : offset + limit]
-    ]
-    return Page[DriveRead](items=items, total=len(summaries), offset=offset, limit=limit)
+        ),
+    )
 
 
 @router.post("/sites/{site_id}/drives", status_code=status.HTTP_201_CREATED)

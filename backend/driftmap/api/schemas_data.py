@@ -6,6 +6,7 @@ Families per resource: ``XCreate`` (request), ``XUpdate`` (partial request), ``X
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from datetime import datetime
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
@@ -17,6 +18,7 @@ from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 from driftmap.formats.site_crs import SiteCrs
 
 T = TypeVar("T")
+R = TypeVar("R")
 DriveKind = Literal["mapping", "localisation"]
 MAX_FPS = 10_000.0  # frames per second above any camera's
 
@@ -28,6 +30,13 @@ class Page(BaseModel, Generic[T]):
     total: int
     offset: int
     limit: int
+
+
+def paged(rows: Sequence[R], offset: int, limit: int, read: Callable[[R], T]) -> Page[T]:
+    """The page of ``rows`` from ``offset`` (at most ``limit``), each turned into its answer by ``read``."""
+    return Page[T](
+        items=[read(r) for r in rows[offset : offset + limit]], total=len(rows), offset=offset, limit=limit
+    )
 
 
 class SiteCreate(BaseModel):

@@ -20,6 +20,7 @@ from driftmap.api.schemas_data import (
     SiteUpdate,
     SurveyLayersRead,
     SurveyMapRead,
+    paged,
 )
 from driftmap.api.upload_limits import check_content_length, read_limited
 from driftmap.errors import BadInputError, ConflictError
@@ -44,11 +45,7 @@ def list_sites(
     limit: Annotated[int, Query(ge=1, le=500)] = 100,
 ) -> Page[SiteRead]:
     """Every site, oldest first."""
-    sites = site_service.list_sites(session)
-    page = sites[offset : offset + limit]
-    return Page[SiteRead](
-        items=[SiteRead.model_validate(s) for s in page], total=len(sites), offset=offset, limit=limit
-    )
+    return paged(site_service.list_sites(session), offset, limit, SiteRead.model_validate)
 
 
 @router.post("/sites", status_code=status.HTTP_201_CREATED, dependencies=[Depends(ADMIN)])
