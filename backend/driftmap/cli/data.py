@@ -32,12 +32,21 @@ def simulate(
     obscurants: Annotated[
         bool, typer.Option("--obscurants/--no-obscurants", help="Also write dust and water copies.")
     ] = True,
+    camera: Annotated[
+        str,
+        typer.Option(
+            help="pinhole (320x240, looking ahead) or wide180 (paper 000's 944x800 180-degree fisheye at the"
+            " rear, with chessboard images to calibrate it in OUT/calibration)."
+        ),
+    ] = "pinhole",
 ) -> None:
     """Simulate a synthetic mine: survey.dxf, mapping and localisation drives with ground truth."""
     from driftmap.sim import simulate_site
 
     with user_errors(), stage_progress("simulating") as report:
-        summary = simulate_site(out, seed=seed, size=size, obscurants=obscurants, progress=report)
+        summary = simulate_site(
+            out, seed=seed, size=size, obscurants=obscurants, progress=report, camera=camera
+        )
     console.print(summary.describe())
 
 

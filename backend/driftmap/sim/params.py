@@ -10,13 +10,16 @@ import math
 from dataclasses import dataclass
 
 __all__ = [
+    "RIGS",
     "RIG_DEFAULT",
+    "RIG_WIDE180",
     "SIZES",
     "VEHICLE_DEFAULT",
     "CameraRigParams",
     "LayoutParams",
     "SiteSize",
     "VehicleParams",
+    "camera_rig",
     "site_size",
 ]
 
@@ -81,14 +84,18 @@ def site_size(name: str) -> SiteSize:
 
 @dataclass(frozen=True)
 class CameraRigParams:
-    """The pinhole camera on the vehicle and its mounting (see :mod:`driftmap.sim.rig`)."""
+    """The camera on the vehicle, its lens and its mounting (see :mod:`driftmap.sim.rig`)."""
 
     width_px: int = 320  # frame width
     height_px: int = 240  # frame height
     focal_px: float = 150.0  # focal length (square pixels); 320 px wide gives ~94 deg horizontal FOV
     height_m: float = 2.2  # camera centre above the floor
     pitch_rad: float = math.radians(20.0)  # optical axis below the horizontal
-    y_c_m: float = 1.0  # camera ahead of the rear axle along the vehicle axis (paper eq. 1)
+    y_c_m: float = 1.0  # rear axle to camera along the way the camera looks (paper eq. 1), metres
+    facing: str = "front"  # "front": looks ahead of the vehicle; "rear": mounted at the back, looks behind
+    lens: str = "pinhole"  # "pinhole" (ideal, no distortion) or "fisheye" (OpenCV equidistant model)
+    distortion: tuple[float, ...] = ()  # fisheye k1..k4 (OpenCV); () for the ideal pinhole
+    max_angle_rad: float = math.pi / 2  # fisheye: rays further than this off the optical axis are black
     roi_height_px: int = 92  # rows of the ground ROI, ending roi_bottom_margin_px above the bottom
     roi_bottom_margin_px: int = 4  # rows left out at the bottom of the frame
     tunnel_width_m: float = 5.0  # narrowest tunnel the ROI must see only floor in
@@ -97,6 +104,44 @@ class CameraRigParams:
 
 
 RIG_DEFAULT = CameraRigParams()
+
+_WIDE180_DISTORTION = (0.012, -0.003, 0.0005, 0.0)  # a real 180-degree lens departs a little from f * theta
+
+
+def _focal_for_half_width(half_width_px: float, half_angle_rad: float, k: tuple[float, ...]) -> float:
+    """Fisheye focal length putting a ray ``half_angle_rad`` off axis at ``half_width_px`` from the centre."""
+    t = half_angle_rad
+    return half_width_px / (t * (1 + sum(c * t ** (2 * i + 2) for i, c in enumerate(k))))
+
+
+# The camera of paper 000: 944x800 monochrome, 180 degrees across the width, on the back of an LHD,
+# looking behind it and down at the floor.
+RIG_WIDE180 = CameraRigParams(
+    width_px=944,
+    height_px=800,
+    focal_px=_focal_for_half_width(471.5, math.pi / 2, _WIDE180_DISTORTION),
+    height_m=2.0,
+    pitch_rad=math.radians(25.0),
+    y_c_m=1.6,
+    facing="rear",
+    lens="fisheye",
+    distortion=_WIDE180_DISTORTION,
+    roi_height_px=208,
+    roi_bottom_margin_px=168,
+)
+RIGS: dict[str, CameraRigParams] = {"pinhole": RIG_DEFAULT, "wide180": RIG_WIDE180}
+
+
+def camera_rig(name: str) -> CameraRigParams:
+    """The rig called ``name`` in :data:`RIGS`.
+
+    Raises:
+        ValueError: an unknown camera name.
+    """
+    try:
+        return RIGS[name]
+    except KeyError:
+        raise ValueError(f"unknown camera {name!r}; choose one of {', '.join(RIGS)}") from None
 
 
 @dataclass(frozen=True)

@@ -123,11 +123,18 @@ class Renderer:
         rh = np.hypot(d[:, 0], d[:, 1])
         psi = np.arctan2(d[:, 1], d[:, 0])
         self.cos_psi, self.sin_psi = np.cos(psi).astype(np.float32), np.sin(psi).astype(np.float32)
+        rh = np.maximum(rh, 1e-9)  # a fisheye may look straight down
         self.rh = rh.astype(np.float32)
         self.slope = (d[:, 2] / rh).astype(np.float32)
-        lo, hi = psi.min() - 1e-6, psi.max() + 1e-6
-        self.bin_psi = np.linspace(lo, hi, params.azimuth_bins)
-        self.bin_of_px = np.rint((psi - lo) / (hi - lo) * (params.azimuth_bins - 1)).astype(np.int32)
+        # Azimuth bins span the azimuths seen, measured from the way the camera looks (a rear camera's
+        # azimuths straddle +-pi in the foot frame); at least two bins per pixel column.
+        self.mount_yaw = 0.0 if rig.params.facing == "front" else math.pi
+        look = (psi - self.mount_yaw + math.pi) % (2 * math.pi) - math.pi
+        bins = max(params.azimuth_bins, 2 * w)
+        lo, hi = look.min() - 1e-6, look.max() + 1e-6
+        self.bin_psi = np.linspace(lo, hi, bins) + self.mount_yaw
+        self.bin_of_px = np.rint((look - lo) / (hi - lo) * (bins - 1)).astype(np.int32)
+        self.seen = rig.image_circle.reshape(-1).astype(np.float32)
         cam_h = rig.params.height_m
         self.pix_rad = 1.0 / rig.params.focal_px
         self.floor = _plane(d, np.flatnonzero(d[:, 2] < -1e-4), -cam_h, self.pix_rad)
@@ -135,10 +142,19 @@ class Renderer:
         self.floor_lv_fine = level_for(self.floor.footprint, 0.01, len(world.floor_fine.levels))
         self.floor_lv_mid = level_for(self.floor.footprint, 0.08, len(world.floor_mid.levels))
         self.roof_lv = level_for(self.roof.footprint, 0.02, len(world.roof.levels))
-        axis = np.array([math.cos(params.beam_pitch_rad), 0.0, -math.sin(params.beam_pitch_rad)])
+        ahead = math.cos(self.mount_yaw)  # the headlight at the camera shines the way it looks
+        axis = np.array([ahead * math.cos(params.beam_pitch_rad), 0.0, -math.sin(params.beam_pitch_rad)])
         self.beam = (np.clip(d @ axis, 0.0, 1.0) ** params.beam_exponent).astype(np.float32)
-        u, v = np.meshgrid(np.linspace(-1, 1, w), np.linspace(-1, 1, h))
-        self.vignette = (1.0 - params.vignette * ((u**2 + v**2) / 2).reshape(-1)).astype(np.float32)
+        # Brightness falls off towards the frame's corners (a pinhole: 1 - vignette * r^2 / 2, r the
+        # position in [-1, 1] across the frame) or the rim of a fisheye's image circle (1 - vignette * (angle
+        # off the axis / the widest angle)^2).
+        if rig.lens is None:
+            u, v = np.meshgrid(np.linspace(-1, 1, w), np.linspace(-1, 1, h))
+            fall = ((u**2 + v**2) / 2).reshape(-1)
+        else:
+            off_axis = np.arccos(np.clip(rig.rays_c.reshape(-1, 3)[:, 2], -1.0, 1.0))
+            fall = (off_axis / rig.params.max_angle_rad) ** 2
+        self.vignette = (1.0 - params.vignette * fall).astype(np.float32)
         self.gamma_lut = np.rint(np.power(np.linspace(0.0, 1.0, _LUT_SIZE), params.gamma) * 255.0).astype(
             np.uint8
         )
@@ -272,7 +288,7 @@ class Renderer:
         rad, emission = self.radiance(x_m, y_m, yaw_rad)
         if pr.bloom > 0 and float(emission.max()) > 0:
             rad += emission + np.float32(pr.bloom) * cv2.GaussianBlur(emission, (0, 0), 4.0)
-        sig = rad.reshape(-1) * self.vignette * np.float32(exposure)
+        sig = rad.reshape(-1) * self.vignette * self.seen * np.float32(exposure)
         if pr.noise:
             rng = np.random.default_rng(noise_seed)
             sigma = np.sqrt(

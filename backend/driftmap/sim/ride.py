@@ -4,8 +4,9 @@ The renderer draws every frame from the nominal camera mounting; a real camera o
 does not hold still. This module adds the three effects that make real ground-plane odometry drift:
 
 * **Ride bounce.** Suspension and an uneven floor pitch and roll the camera by a degree or so at 1-3 Hz,
-  more at speed. A camera rotation about its centre moves every pixel by the homography K R K^-1,
-  whatever the depth, so :func:`apply_ride` warps the rendered frame exactly. Odometry, which assumes the
+  more at speed. A camera rotation about its centre moves every pixel along its ray whatever the depth, so
+  :func:`apply_ride` warps the rendered frame exactly (a pinhole by the homography K R K^-1, a fisheye
+  through its lens). Odometry, which assumes the
   calibrated mounting, sees a slightly wrong floor scale and lateral shift in every frame.
 * **Motion blur.** The floor streaks along the image column during the exposure; :func:`apply_ride`
   blurs vertically by the floor motion of the exposure time, in pixels at the ground ROI centre.
@@ -86,8 +87,8 @@ def ride_motion(
     return out
 
 
-def _rotation_homography(rig: CameraRig, pitch_rad: float, roll_rad: float, yaw_rad: float) -> FloatArray:
-    """(3, 3) pixel map from the nominal camera to the camera pitched down, rolled and yawed by the angles.
+def _rotation(rig: CameraRig, pitch_rad: float, roll_rad: float, yaw_rad: float) -> FloatArray:
+    """(3, 3) rotation taking a ray of the nominal camera to the camera pitched down, rolled and yawed.
 
     Pitch turns about the camera x axis, roll about the optical axis, yaw about the vehicle's vertical
     (the foot frame's z axis expressed in camera coordinates).
@@ -98,15 +99,38 @@ def _rotation_homography(rig: CameraRig, pitch_rad: float, roll_rad: float, yaw_
     roll = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
     up_c = rig.fRc.T @ np.array([0.0, 0.0, 1.0])
     yaw, _ = cv2.Rodrigues(np.asarray(up_c * -yaw_rad, dtype=np.float64))
-    c_R_nominal = roll @ pitch @ np.asarray(yaw)
-    K = rig.K
-    return np.asarray(K @ c_R_nominal @ np.linalg.inv(K))
+    return np.asarray(roll @ pitch @ np.asarray(yaw))
+
+
+def _turn_fisheye(img: np.ndarray, rig: CameraRig, c_R_nominal: FloatArray) -> np.ndarray:
+    """The fisheye frame of the turned camera: each pixel samples the nominal frame where its ray fell.
+
+    A recorded pixel with ray ``r`` (camera frame) saw the nominal camera's ray ``R^T r``; that ray is
+    projected through the lens (``theta_d = theta (1 + k1 theta^2 + ...)``, any ``theta`` up to pi) and
+    sampled bilinearly. Pixels outside the image circle stay black.
+    """
+    lens = rig.lens
+    assert lens is not None
+    k, coeffs = lens.matrix(), lens.distortion
+    src = (rig.rays_c @ c_R_nominal).astype(np.float32)
+    rho = np.hypot(src[..., 0], src[..., 1])
+    theta = np.arctan2(rho, src[..., 2])
+    t2 = theta * theta
+    theta_d = theta * (1 + t2 * (coeffs[0] + t2 * (coeffs[1] + t2 * (coeffs[2] + t2 * coeffs[3]))))
+    scale = np.where(rho > 1e-9, theta_d / np.maximum(rho, 1e-9), 1.0)
+    map_u = (k[0, 0] * src[..., 0] * scale + k[0, 2]).astype(np.float32)
+    map_v = (k[1, 1] * src[..., 1] * scale + k[1, 2]).astype(np.float32)
+    out = cv2.remap(img, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return np.asarray(np.where(rig.image_circle, out, 0).astype(img.dtype))
 
 
 def apply_ride(
     img: np.ndarray, rig: CameraRig, pitch_rad: float, roll_rad: float, yaw_rad: float, blur_px: float
 ) -> np.ndarray:
     """The frame seen by the bounced camera: rotation warp, then vertical motion blur.
+
+    A pinhole frame is warped by the homography ``K R K^-1``; a fisheye frame is resampled through its lens
+    (:func:`_turn_fisheye`).
 
     Args:
         img: (H, W) uint8 frame rendered from the nominal mounting.
@@ -116,10 +140,15 @@ def apply_ride(
     """
     out = img
     if pitch_rad != 0.0 or roll_rad != 0.0 or yaw_rad != 0.0:
-        H = _rotation_homography(rig, pitch_rad, roll_rad, yaw_rad)
-        out = cv2.warpPerspective(
-            out, H, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT101
-        )
+        c_R_nominal = _rotation(rig, pitch_rad, roll_rad, yaw_rad)
+        if rig.lens is not None:
+            out = _turn_fisheye(out, rig, c_R_nominal)
+        else:
+            K = rig.K
+            H = K @ c_R_nominal @ np.linalg.inv(K)
+            out = cv2.warpPerspective(
+                out, H, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT101
+            )
     if blur_px >= 1.0:
         n = math.ceil(blur_px)
         kernel = np.full((n, 1), 1.0 / blur_px, np.float32)

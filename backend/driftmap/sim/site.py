@@ -33,11 +33,12 @@ from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 from driftmap.sim import frames as frame_worker
+from driftmap.sim.boards import write_calibration_set
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.layout import Layout, generate_layout
 from driftmap.sim.motion import DrivePlan, plan_localisation, plan_mapping
 from driftmap.sim.obscurants import LEVELS, water_centre, water_diameter_px
-from driftmap.sim.params import VEHICLE_DEFAULT, site_size
+from driftmap.sim.params import VEHICLE_DEFAULT, camera_rig, site_size
 from driftmap.sim.render import Renderer
 from driftmap.sim.ride import RIDE_DEFAULT, RideParams, calibrated_rig, floor_px_per_m, ride_motion
 from driftmap.sim.rig import CameraRig
@@ -108,33 +109,34 @@ class SitePlan:
     poses: tuple[FramePoses, ...]  # per drive: frame times, camera floor points (grid m), yaw, groundings
 
 
-def plan_site(seed: int, size: str) -> SitePlan:
+def plan_site(seed: int, size: str, camera: str = "pinhole") -> SitePlan:
     """Lay out the site and plan every drive (no rendering); deterministic per seed.
 
     Mapping drives come first; the localisation drives share what the mapping leaves of the size's
-    frame budget (at least ``min_localisation_frames``).
+    frame budget (at least ``min_localisation_frames``). ``camera`` names the rig (:data:`RIGS`): the
+    drives are the same for every camera, the ground truth is the floor point under that camera.
 
     Raises:
-        ValueError: an unknown size.
+        ValueError: an unknown size or camera.
     """
     spec = site_size(size)
     vp = VEHICLE_DEFAULT
     layout = generate_layout(seed, spec)
-    rig = CameraRig()
+    rig = CameraRig(camera_rig(camera))
     graph = Graph(layout, vp.turn_max_rad)
-    plans = plan_mapping(graph, vp, rig.params.y_c_m, seed)
+    plans = plan_mapping(graph, vp, rig.lever_m, seed)
     used = sum(p.frame_count(vp.fps) for p in plans)
     loc_total = max(spec.frame_budget - used, spec.min_localisation_frames)
     share = max(loc_total // spec.localisation_drives, 1)
     plans += [
-        plan_localisation(graph, vp, rig.params.y_c_m, seed, i, share)
+        plan_localisation(graph, vp, rig.lever_m, seed, i, share)
         for i in range(spec.localisation_drives)
     ]
     poses = [
         sample_frames(
             list(p.runs),
             vp.fps,
-            rig.params.y_c_m,
+            rig.lever_m,
             p.start_dwell_s,
             vp.grounding_sigma_m,
             np.random.default_rng([seed, 53, i]),
@@ -166,6 +168,7 @@ def simulate_site(
     workers: int | None = None,
     max_frames_per_drive: int | None = None,
     ride: RideParams = RIDE_DEFAULT,
+    camera: str = "pinhole",
 ) -> SimulationSummary:
     """Generate the synthetic site ``size`` for ``seed`` and write it to ``out_dir``.
 
@@ -178,9 +181,12 @@ def simulate_site(
         workers: rendering processes (default: up to 2, the CPU count).
         max_frames_per_drive: keep only the first frames of every drive (quick previews and tests).
         ride: camera bounce, motion blur and per-drive calibration error (:data:`RIDE_NONE`: a perfect rig).
+        camera: the vehicle camera (:data:`~driftmap.sim.params.RIGS`): ``"pinhole"`` (320x240, looking
+            ahead) or ``"wide180"`` (paper 000's 944x800 180-degree fisheye at the rear, looking back), which
+            also writes chessboard images for calibration and the lens's truth (:mod:`driftmap.sim.boards`).
 
     Raises:
-        BadInputError: a bad seed or size.
+        BadInputError: a bad seed, size or camera.
         ConflictError: ``out_dir`` exists and is not empty.
     """
     started = time.perf_counter()
@@ -191,11 +197,15 @@ def simulate_site(
         site_size(size)
     except ValueError as exc:
         raise BadInputError(str(exc), field="size") from None
+    try:
+        camera_rig(camera)
+    except ValueError as exc:
+        raise BadInputError(str(exc), field="camera") from None
     out_dir = Path(out_dir)
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
         raise ConflictError(f"{out_dir} already exists and is not empty")
     report("planning", 0.0)
-    site = plan_site(seed, size)
+    site = plan_site(seed, size, camera)
     layout, plans, rig, vp = site.layout, list(site.plans), site.rig, VEHICLE_DEFAULT
     poses = list(site.poses)
     if max_frames_per_drive is not None:
@@ -230,7 +240,10 @@ def simulate_site(
                 vp.fps,
                 pending.pop(task.drive),
             )
-    _write_site_json(out_dir, seed, size, layout, rig.camera_model, vp.fps, summaries)
+    if rig.lens is not None:
+        report("rendering calibration boards", 0.99)
+        write_calibration_set(out_dir / "calibration", rig, world, seed)
+    _write_site_json(out_dir, seed, size, camera, layout, rig.camera_model, vp.fps, summaries)
     report("done", 1.0)
     return SimulationSummary(
         out_dir=out_dir,
@@ -345,12 +358,20 @@ def _write_drive(
 
 
 def _write_site_json(
-    out_dir: Path, seed: int, size: str, layout: Any, camera: Any, fps: float, drives: list[DriveSummary]
+    out_dir: Path,
+    seed: int,
+    size: str,
+    camera_name: str,
+    layout: Any,
+    camera: Any,
+    fps: float,
+    drives: list[DriveSummary],
 ) -> None:
     doc = {
         "format": SITE_FORMAT,
         "seed": seed,
         "size": size,
+        "camera_name": camera_name,
         "tunnel_length_m": round(layout.total_length_m, 2),
         "tunnel_height_m": layout.height_m,
         "fps": fps,

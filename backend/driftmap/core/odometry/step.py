@@ -21,14 +21,20 @@ a drive's steps, their self-calibration and dead reckoning in :mod:`driftmap.cor
 
 Signs. ``theta`` is counter-clockwise (left turn) positive. Floor content moves right in the
 image (+u) when the vehicle turns left, for forward- and rear-looking cameras alike (the camera
-yaws left with the vehicle), so ``x_p > 0`` gives ``theta > 0``. ``forward_sign = +1``: content
-moves down (+v) when driving forward, so ``d = +y_p k_y``; reversing gives ``d < 0``.
+yaws left with the vehicle), so ``x_p > 0`` gives ``theta > 0``.
 
-Motion model (rear-axle arc, midpoint heading). Poses are of the camera's floor point (x forward,
-y left), ``y_c`` ahead of the rear axle. In a step the rear axle travels ``d`` along the chord at
-the midpoint heading ``theta / 2``, so the camera foot moves by
-``t = d (cos theta/2, sin theta/2) + y_c (cos theta - 1, sin theta)`` in the previous frame and
-``wT_{k+1} = wT_k * (t, theta)`` (SE(2): translate, then rotate).
+Look frame. Both models measure the motion in the camera's *look frame*: x the way the camera looks, y
+left of it, origin at the camera's foot, ``y_c`` the rear axle to the camera along x (the frame of
+``ground_homography``). ``forward_sign = +1``: the camera looks ahead and the look frame is the vehicle's;
+content moves down (+v) when driving forward, so ``d = +y_p k_y``. ``forward_sign = -1``: the camera looks
+behind, the look frame is the vehicle's turned half a turn, and :func:`finish_step` turns the step into the
+vehicle's frame (travel and displacement negated, the turn kept). Reversing gives ``d < 0``.
+
+Motion model (rear-axle arc, midpoint heading). Poses are of the camera's floor point, ``y_c`` from the
+rear axle along the look direction. In a step the rear axle travels ``d`` along the chord at the midpoint
+heading ``theta / 2``, so the camera foot moves by ``t = d (cos theta/2, sin theta/2) + y_c (cos theta - 1,
+sin theta)`` in the previous look frame and ``wT_{k+1} = wT_k * (t, theta)`` (SE(2): translate, then
+rotate); poses are reported in the vehicle's frame (x forward, y left).
 """
 
 from __future__ import annotations
@@ -155,13 +161,19 @@ def finish_step(
     model: str,
     params: OdometryParams,
 ) -> OdometryStep:
-    """The step record: stationary detection, sigmas, and the arc as a relative pose."""
+    """The step record: stationary detection, sigmas, and the arc as a relative pose.
+
+    ``d`` (metres) and ``theta`` (radians) are the rear axle's arc in the camera's look frame; a camera with
+    ``forward_sign`` -1 looks behind, so its step is turned into the vehicle's frame here.
+    """
     stationary = math.hypot(*shift_px) < params.stationary_px
     stationary = stationary and confidence >= params.stationary_min_confidence
     if stationary:
         d, theta = 0.0, 0.0
     floor = max(confidence, params.confidence_floor)
     tx, ty = _arc(d, theta, camera.y_c_m)
+    if camera.forward_sign < 0:
+        d, tx, ty = -d, -tx, -ty
     return OdometryStep(
         dx_m=d, dtheta_rad=theta, shift_px=shift_px, confidence=float(confidence),
         stationary=stationary, prev_T_curr=(tx, ty, theta), model=model,
@@ -181,7 +193,7 @@ def _match_linear(
     ]  # fmt: skip
     shift = (float(np.median([m.shift_px[0] for m in ms])), float(np.median([m.shift_px[1] for m in ms])))
     x_p, y_p = shift[0] / setup.scale, shift[1] / setup.scale
-    d = y_p * camera.k_y_m_per_px * camera.forward_sign
+    d = y_p * camera.k_y_m_per_px  # along the look direction; finish_step applies forward_sign
     theta = math.atan(x_p * camera.k_x_m_per_px / (camera.y_c_m + camera.y_h_m))
     conf = min(prev.quality, curr.quality) * min(
         1.0, float(np.median([m.distinctiveness for m in ms])) / params.distinct_ref
