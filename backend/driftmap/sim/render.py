@@ -288,12 +288,13 @@ class Renderer:
         rad, emission = self.radiance(x_m, y_m, yaw_rad)
         if pr.bloom > 0 and float(emission.max()) > 0:
             rad += emission + np.float32(pr.bloom) * cv2.GaussianBlur(emission, (0, 0), 4.0)
-        sig = rad.reshape(-1) * self.vignette * self.seen * np.float32(exposure)
+        sig = rad.reshape(-1) * self.vignette * np.float32(exposure)
         if pr.noise:
             rng = np.random.default_rng(noise_seed)
             sigma = np.sqrt(
                 np.float32(pr.read_noise**2) + np.float32(pr.shot_noise**2) * np.maximum(sig, 0.0)
             )
             sig += sigma * rng.standard_normal(sig.size, dtype=np.float32)
+        sig *= self.seen  # a fisheye's sensor is dark outside the image circle
         code = (np.clip(sig, 0.0, 1.0) * np.float32(_LUT_SIZE - 1) + np.float32(0.5)).astype(np.int32)
         return np.asarray(self.gamma_lut[code].reshape(self.shape))

@@ -52,6 +52,20 @@ class TestBirdseye:
         expected = arc_step((0.0, 0.0, 0.0), d, theta, cam.y_c_m)
         assert np.allclose(step.prev_T_curr, expected, atol=D_TOL_M)
 
+    def test_a_rear_camera_reports_the_vehicles_motion(self, tex: np.ndarray) -> None:
+        """forward_sign -1: the camera looks behind, so its look frame backing away is the vehicle driving
+        forward, and the camera foot (behind the axle) swings the other way in a turn."""
+        look = pinhole_camera()
+        rear = dataclasses.replace(look, forward_sign=-1)
+        d, theta = -0.3, 0.04  # rear axle arc in the look frame
+        step = estimate_step(
+            render(tex, look, START), render(tex, look, arc_step(START, d, theta, look.y_c_m)), rear
+        )
+        assert step.dx_m == pytest.approx(-d, abs=D_TOL_M)
+        assert step.dtheta_rad == pytest.approx(theta, abs=THETA_TOL_RAD)
+        tx, ty, turn = arc_step((0.0, 0.0, 0.0), d, theta, look.y_c_m)
+        assert np.allclose(step.prev_T_curr, (-tx, -ty, turn), atol=D_TOL_M)
+
     def test_left_turn_is_positive_and_content_moves_right(self, tex: np.ndarray) -> None:
         cam = pinhole_camera()
         step = estimate_step(

@@ -35,7 +35,8 @@ class GroundFit:
     """A fitted ground plane.
 
     Attributes:
-        homography: (3, 3) map from undistorted pixel (u, v, 1) to the floor point (x, y, w), metres.
+        homography: (3, 3) map from undistorted pixel (u, v, 1) to the floor point (x, y, w), metres; w > 0
+            on the floor.
         k_x_m_per_px: floor metres per pixel step along u at the ROI centre.
         k_y_m_per_px: floor metres per pixel step along v at the ROI centre.
         y_h_m: distance from the camera's foot to the floor point at the ROI centre, metres.
@@ -107,6 +108,8 @@ def fit_ground(pixels_px: NDArray, floor_m: NDArray, roi: Rect, lens: Lens | Non
     hom, _ = cv2.findHomography(pix, floor, 0)
     if hom is None:
         raise BadInputError("the points fix no homography", field="points")
+    if float(hom[2] @ np.array([*pix.mean(axis=0), 1.0])) < 0:
+        hom = -hom  # the scale OpenCV picks (h33 = 1) may be negative; floor points have w > 0
     residuals = np.linalg.norm(apply_homography(hom, pix) - floor, axis=1)
     c = centre_px(roi)
     if float(hom[2] @ np.array([c[0], c[1], 1.0])) * float(hom[2] @ np.array([*pix[0], 1.0])) <= 0:
