@@ -65,20 +65,22 @@ class TestFiles:
         assert not img[~circle].any() and img[circle].mean() > 10
 
 
+@pytest.fixture(scope="module")
+def found(site: Path) -> tuple[dict, dict, object]:
+    """boards.json, truth.json and the product's lens calibration from the rendered hand-held boards."""
+    boards = json.loads((site / "calibration" / "boards.json").read_text())
+    truth = json.loads((site / "calibration" / "truth.json").read_text())
+    spec = boards["intrinsics"]
+    views = []
+    for name in spec["images"]:
+        corners = find_board(cv2.imread(str(site / "calibration" / name), cv2.IMREAD_GRAYSCALE), _board(spec))
+        assert corners is not None, name
+        views.append(corners)
+    return boards, truth, calibrate_lens(views, _board(spec), (944, 800), spec["model"])
+
+
 class TestCalibratedByTheProduct:
     """The issue's targets on rendered boards: focal 1 %, principal point 2 px, RMS 0.5 px, k_x/k_y 1 %."""
-
-    @pytest.fixture(scope="class")
-    def found(self, site: Path) -> tuple[dict, dict, object]:
-        boards = json.loads((site / "calibration" / "boards.json").read_text())
-        truth = json.loads((site / "calibration" / "truth.json").read_text())
-        spec = boards["intrinsics"]
-        views = []
-        for name in spec["images"]:
-            corners = find_board(cv2.imread(str(site / "calibration" / name), cv2.IMREAD_GRAYSCALE), _board(spec))
-            assert corners is not None, name
-            views.append(corners)
-        return boards, truth, calibrate_lens(views, _board(spec), (944, 800), spec["model"])
 
     def test_lens(self, found: tuple) -> None:
         _, truth, cal = found
