@@ -55,7 +55,10 @@ class TestFiles:
         cam = folder.meta.camera
         assert (cam.width_px, cam.height_px) == (944, 800)
         assert cam.lens is not None and cam.lens.model == "fisheye" and cam.forward_sign == -1
-        assert json.loads((site / "drives" / "map-01" / "drive.json").read_text())["format"] == "driftmap-drive/2"
+        assert (
+            json.loads((site / "drives" / "map-01" / "drive.json").read_text())["format"]
+            == "driftmap-drive/2"
+        )
         assert json.loads((site / "site.json").read_text())["camera_name"] == "wide180"
 
     def test_outside_the_image_circle_is_dark(self, site: Path) -> None:
@@ -115,7 +118,11 @@ def test_four_clicked_points_with_1cm_noise() -> None:
     for seed in range(20):
         noisy = floor + np.random.default_rng(seed).normal(0.0, CLICK_NOISE_M, floor.shape)
         fit = fit_ground(raw, noisy, truth.ground_roi_px, rig.lens)
-        errors.append(max(abs(fit.k_x_m_per_px / truth.k_x_m_per_px - 1), abs(fit.k_y_m_per_px / truth.k_y_m_per_px - 1)))
+        errors.append(
+            max(
+                abs(fit.k_x_m_per_px / truth.k_x_m_per_px - 1), abs(fit.k_y_m_per_px / truth.k_y_m_per_px - 1)
+            )
+        )
         x, y, w, h = truth.ground_roi_px
         corners = np.array([[x, y, 1.0], [x + w, y, 1.0], [x, y + h, 1.0], [x + w, y + h, 1.0]])
         assert np.all(corners @ np.array(fit.homography)[2] > 0)  # the ROI lies on the floor (w > 0)

@@ -126,7 +126,11 @@ def _hand_poses(rig: CameraRig, seed: int) -> list[tuple[FloatArray, FloatArray]
         azimuth = rng.uniform(-math.pi, math.pi)
         dist = rng.uniform(0.35, 0.8)
         direction = np.array(
-            [math.sin(off_axis) * math.cos(azimuth), math.sin(off_axis) * math.sin(azimuth), math.cos(off_axis)]
+            [
+                math.sin(off_axis) * math.cos(azimuth),
+                math.sin(off_axis) * math.sin(azimuth),
+                math.cos(off_axis),
+            ]
         )
         # The board faces the camera (its -z towards the lens), then tilts up to 35 degrees and spins.
         tilt = rng.uniform(-0.6, 0.6, size=2)
@@ -173,7 +177,9 @@ def write_calibration_set(out_dir: Path, rig: CameraRig, world: World, seed: int
         cv2.imwrite(str(out_dir / name), board_image(rig, c_R_b, c_t_b, HAND_BOARD, seed * 1000 + k))
         names.append(name)
     c_R_b, c_t_b = _floor_pose(rig)
-    cv2.imwrite(str(out_dir / "floor-board.png"), board_image(rig, c_R_b, c_t_b, FLOOR_BOARD, seed * 1000 + 999))
+    cv2.imwrite(
+        str(out_dir / "floor-board.png"), board_image(rig, c_R_b, c_t_b, FLOOR_BOARD, seed * 1000 + 999)
+    )
     lens = rig.lens
     boards = {
         "intrinsics": {

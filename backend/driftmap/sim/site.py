@@ -129,8 +129,7 @@ def plan_site(seed: int, size: str, camera: str = "pinhole") -> SitePlan:
     loc_total = max(spec.frame_budget - used, spec.min_localisation_frames)
     share = max(loc_total // spec.localisation_drives, 1)
     plans += [
-        plan_localisation(graph, vp, rig.lever_m, seed, i, share)
-        for i in range(spec.localisation_drives)
+        plan_localisation(graph, vp, rig.lever_m, seed, i, share) for i in range(spec.localisation_drives)
     ]
     poses = [
         sample_frames(
