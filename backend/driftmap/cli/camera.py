@@ -1,5 +1,6 @@
 """``driftmap camera``: set up a camera: lens intrinsics from a chessboard, the ground plane from floor points,
-and a check of the floor scale and ``forward_sign`` against a drive over a measured distance.
+a check of the floor scale and ``forward_sign`` against a drive over a measured distance, and named camera
+profiles (``save``, ``profiles``) that drive imports and vehicles use.
 
 The set-up commands read an optional ``--camera camera.json`` (a camera block in progress), add what they measure
 and write ``--out``, so ``intrinsics`` then ``ground`` combine into one camera block (``docs/formats.md``).
@@ -15,8 +16,9 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 from numpy.typing import NDArray
+from rich.table import Table
 
-from driftmap.cli.common import console, err_console, user_errors
+from driftmap.cli.common import console, err_console, open_storage, user_errors
 from driftmap.core.imaging.lens import LENS_MODELS, Lens
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
@@ -32,6 +34,7 @@ from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.cameras import calibration as cal
+from driftmap.services.cameras import profiles as profile_service
 
 camera_app = typer.Typer(
     help="Set up a camera: lens intrinsics, the ground plane, a scale check.", no_args_is_help=True
@@ -197,6 +200,33 @@ def check(
         + ("; forward_sign is wrong" if result.sign_wrong else "")
         + (f"; wrote {out}" if out is not None else "")
     )
+
+
+@camera_app.command("save")
+def save(
+    name: Annotated[str, typer.Argument(help="Name of the camera profile.")],
+    camera: Annotated[Path, typer.Argument(help="A complete camera.json.")],
+    description: Annotated[str, typer.Option(help="Free text: the camera, its mount, the vehicles.")] = "",
+) -> None:
+    """Store a complete camera.json as a named camera profile (for vehicles and `drive import --profile`)."""
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
+        block = read_camera_file(camera)
+        profile = profile_service.create_profile(session, name, block, description)
+        console.print(f"camera profile {profile.name!r} saved (id {profile.id})")
+
+
+@camera_app.command("profiles")
+def profiles() -> None:
+    """List the stored camera profiles."""
+    storage = open_storage()
+    with user_errors(), storage.db.session() as session:
+        table = Table("id", "name", "size", "lens", "description")
+        for p in profile_service.list_profiles(session):
+            lens = p.camera.get("lens") or {}
+            size = f"{p.camera.get('width')}x{p.camera.get('height')}"
+            table.add_row(str(p.id), p.name, size, str(lens.get("model", "none")), p.description)
+        console.print(table)
 
 
 def _incomplete(path: Path) -> CameraModel:

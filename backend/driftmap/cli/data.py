@@ -14,6 +14,7 @@ from driftmap.errors import BadInputError
 from driftmap.formats.site_crs import SiteCrs
 from driftmap.services import drives as drive_service
 from driftmap.services import sites as site_service
+from driftmap.services.cameras import profiles as profile_service
 from driftmap.store.storage import Storage
 
 site_app = typer.Typer(help="Sites and their survey maps.", no_args_is_help=True)
@@ -92,6 +93,7 @@ def _import_one(
     path: Path,
     *,
     calibration: Path | None = None,
+    profile: str | None = None,
     name: str | None = None,
     kind: str = "mapping",
 ) -> None:
@@ -102,6 +104,9 @@ def _import_one(
 
         with storage.blobs.batch() as batch, storage.db.session() as session:
             site = site_service.get_site(session, site_name)
+            camera = None
+            if profile is not None:
+                camera = profile_service.profile_camera(profile_service.find_profile(session, profile))
             drive = drive_service.import_drive(
                 session,
                 batch,
@@ -109,6 +114,7 @@ def _import_one(
                 path,
                 progress=report,
                 calibration=str(calibration) if calibration else None,
+                camera=camera,
                 name=name,
                 kind=kind,
             )
@@ -121,7 +127,15 @@ def drive_import(
     site: Annotated[str, typer.Argument(help="Site name.")],
     path: Annotated[Path, typer.Argument(help="A drive folder (formats.md), or an mp4/avi video file.")],
     calibration: Annotated[
-        Path | None, typer.Option(help="For a video: JSON file holding the camera block (and optional fps).")
+        Path | None,
+        typer.Option(
+            help="JSON file holding the camera block (and optional fps): a video's calibration, or for a"
+            " folder one replacing its drive.json block."
+        ),
+    ] = None,
+    profile: Annotated[
+        str | None,
+        typer.Option(help="A stored camera profile (name or id) the drive was recorded with, instead."),
     ] = None,
     name: Annotated[
         str | None, typer.Option(help="For a video: the drive's name (default: file stem).")
@@ -131,7 +145,7 @@ def drive_import(
     """Import one drive into a site; a failed import leaves nothing behind."""
     storage = open_storage()
     with user_errors():
-        _import_one(storage, site, path, calibration=calibration, name=name, kind=kind)
+        _import_one(storage, site, path, calibration=calibration, profile=profile, name=name, kind=kind)
 
 
 @drive_app.command("export")

@@ -77,7 +77,7 @@ def read_calibration_json(path: Path) -> tuple[CameraModel, float | None]:
 
 
 def read_video_drive(
-    video: Path, calibration_json: Path, *, name: str, kind: str
+    video: Path, calibration_json: Path | CameraModel, *, name: str, kind: str
 ) -> tuple[DriveMeta, list[FrameRow], Iterator[bytes]]:
     """Read a video drive: its metadata and frame rows now, its PNG frames lazily.
 
@@ -86,7 +86,7 @@ def read_video_drive(
 
     Args:
         video: the video file.
-        calibration_json: the calibration file (see :func:`read_calibration_json`).
+        calibration_json: the calibration file (see :func:`read_calibration_json`), or the camera itself.
         name: the drive name.
         kind: ``"mapping"`` or ``"localisation"``.
 
@@ -104,7 +104,10 @@ def read_video_drive(
         raise BadInputError("the drive name must not be empty", field="name")
     if kind not in DRIVE_KINDS:
         raise BadInputError(f"kind must be one of {', '.join(DRIVE_KINDS)}, got {kind!r}", field="kind")
-    camera, fps_override = read_calibration_json(calibration_json)
+    if isinstance(calibration_json, CameraModel):
+        camera, fps_override = calibration_json, None
+    else:
+        camera, fps_override = read_calibration_json(calibration_json)
     if not video.is_file():
         raise BadInputError("video file is missing", file=video)
 

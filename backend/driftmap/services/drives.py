@@ -7,6 +7,7 @@ frame leaves neither rows nor orphan blobs once the caller's ``with`` blocks unw
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,12 +15,18 @@ from pathlib import Path
 from sqlalchemy import func, insert, select
 from sqlalchemy.orm import Session
 
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.types import ProgressFn
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
-from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder, write_drive_folder
+from driftmap.formats.drive_folder import (
+    DriveFolder,
+    iter_frame_images,
+    read_drive_folder,
+    write_drive_folder,
+)
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
 from driftmap.formats.records import DriveKind, DriveMeta, FrameRow, GroundingRow
-from driftmap.formats.video import read_video_drive
+from driftmap.formats.video import read_calibration_json, read_video_drive
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import Drive, Frame, Grounding, Site
 
@@ -50,6 +57,19 @@ def drive_folders_in(root: Path) -> list[Path]:
     return folders
 
 
+def _with_camera(folder: DriveFolder, camera: CameraModel) -> DriveFolder:
+    """The folder with ``camera`` instead of its ``drive.json`` block; the frame size must agree."""
+    own = folder.meta.camera
+    if (camera.width_px, camera.height_px) != (own.width_px, own.height_px):
+        raise BadInputError(
+            f"the camera is {camera.width_px}x{camera.height_px}, the drive's frames "
+            f"{own.width_px}x{own.height_px}",
+            file=folder.path,
+            field="camera",
+        )
+    return dataclasses.replace(folder, meta=dataclasses.replace(folder.meta, camera=camera))
+
+
 def get_drive(session: Session, site: Site, name_or_id: str | int) -> Drive:
     """The drive of ``site`` with that name (or numeric id)."""
     drive = session.scalar(select(Drive).where(Drive.site_id == site.id, Drive.name == str(name_or_id)))
@@ -68,6 +88,7 @@ def import_drive(
     *,
     progress: ProgressFn | None = None,
     calibration: str | None = None,
+    camera: CameraModel | None = None,
     name: str | None = None,
     kind: str = "mapping",
 ) -> Drive:
@@ -79,12 +100,24 @@ def import_drive(
         site: the site receiving the drive.
         path: a drive folder (``docs/formats.md``) or an mp4/avi/mov/mkv video file.
         progress: called with ``("import", fraction of frames done)``.
-        calibration: for a video, the JSON file with the camera block (required).
+        calibration: a JSON file with the camera block: a video's calibration (it or ``camera`` is
+            required), or for a folder one that replaces its ``drive.json`` camera block.
+        camera: the camera the drive was recorded with (a camera profile's block), instead of ``calibration``.
         name: for a video, the drive name (default: the file stem).
         kind: for a video, ``mapping`` or ``localisation``.
+
+    Raises:
+        BadInputError: a bad folder or video, both ``calibration`` and ``camera``, or a camera whose frame
+            size is not the folder's.
     """
+    if calibration is not None and camera is not None:
+        raise BadInputError("give a calibration file or a camera profile, not both", field="calibration")
+    if calibration is not None and path.is_dir():
+        camera, _ = read_calibration_json(Path(calibration))
     if path.is_dir():
         folder = read_drive_folder(path)
+        if camera is not None:
+            folder = _with_camera(folder, camera)
         _ensure_new_name(session, site, folder.meta.name)
         pairs: Iterable[tuple[FrameRow, bytes, str]] = (
             (row, data, file.suffix.lower())
@@ -97,11 +130,14 @@ def import_drive(
         raise BadInputError("no such file or folder", file=path)
     if path.suffix.lower() not in VIDEO_SUFFIXES:
         raise BadInputError(f"neither a drive folder nor a video ({', '.join(VIDEO_SUFFIXES)})", file=path)
-    if calibration is None:
+    if calibration is None and camera is None:
         raise BadInputError(
-            "a video import needs --calibration (the camera JSON)", file=path, field="calibration"
+            "a video import needs --calibration (the camera JSON) or --profile",
+            file=path,
+            field="calibration",
         )
-    meta, rows, images = read_video_drive(path, Path(calibration), name=name or path.stem, kind=kind)
+    source = camera if camera is not None else Path(str(calibration))
+    meta, rows, images = read_video_drive(path, source, name=name or path.stem, kind=kind)
     _ensure_new_name(session, site, meta.name)
     video_pairs = ((row, data, ".png") for row, data in zip(rows, images, strict=True))
     return _store_drive(session, batch, site, meta, rows, video_pairs, [], str(path), progress)

@@ -9,11 +9,13 @@ not change vehicles already given it.
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
 from driftmap.formats.bounds import INT64_MAX
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
@@ -26,8 +28,10 @@ __all__ = [
     "canonical_camera",
     "create_profile",
     "delete_profile",
+    "find_profile",
     "get_profile",
     "list_profiles",
+    "profile_camera",
     "update_profile",
 ]
 
@@ -81,6 +85,21 @@ def get_profile(session: Session, profile_id: int) -> CameraProfile:
     if profile is None:
         raise NotFoundError(f"no camera profile with id {profile_id}")
     return profile
+
+
+def find_profile(session: Session, name_or_id: str) -> CameraProfile:
+    """The profile called ``name_or_id`` (or with that numeric id)."""
+    profile = session.scalar(select(CameraProfile).where(CameraProfile.name == name_or_id.strip()))
+    if profile is None and name_or_id.strip().isdigit():
+        profile = session.get(CameraProfile, int(name_or_id))
+    if profile is None:
+        raise NotFoundError(f"no camera profile named {name_or_id!r}")
+    return profile
+
+
+def profile_camera(profile: CameraProfile) -> CameraModel:
+    """The profile's block as a :class:`CameraModel` (stored blocks are canonical, so this cannot fail)."""
+    return parse_camera_block(profile.camera, json.dumps(profile.camera), f"camera profile {profile.name!r}")
 
 
 def update_profile(
