@@ -6,9 +6,10 @@ the same bytes. :func:`plan_site` returns the layout and every drive's frame pos
 
 Modules: ``params`` (sizes, camera, vehicle), ``layout`` (tunnel network), ``survey`` (DXF),
 ``routes`` and ``motion`` (where the vehicle drives), ``trajectory`` (how: timing, wander, frame
-poses), ``rig`` (pinhole camera and its drive.json block), ``textures``, ``strip``, ``patches``,
-``decor`` and ``world`` (what the tunnel looks like), ``shading`` and ``render`` (the ray caster),
-``frames`` (rendering work units) and ``site`` (the writer).
+poses), ``rig`` (the camera, pinhole or fisheye, and its drive.json block), ``boards`` (chessboard images
+to calibrate a camera with a lens), ``textures``, ``strip``, ``patches``, ``decor`` and ``world`` (what the
+tunnel looks like), ``shading`` and ``render`` (the ray caster), ``frames`` (rendering work units), ``site``
+(the writer) and ``site_files`` (drive folders and site.json).
 """
 
 from driftmap.sim.params import SIZES

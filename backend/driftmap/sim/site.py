@@ -16,7 +16,6 @@ of workers.
 
 from __future__ import annotations
 
-import json
 import logging
 import multiprocessing
 import os
@@ -24,14 +23,10 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from driftmap.errors import BadInputError, ConflictError
-from driftmap.formats.drive_folder import write_drive_folder
-from driftmap.formats.drive_json import camera_to_json
-from driftmap.formats.records import DriveMeta, FrameRow, GroundingRow
 from driftmap.sim import frames as frame_worker
 from driftmap.sim.boards import write_calibration_set
 from driftmap.sim.geometry import FloatArray
@@ -43,6 +38,7 @@ from driftmap.sim.render import Renderer
 from driftmap.sim.ride import RIDE_DEFAULT, RideParams, calibrated_rig, floor_px_per_m, ride_motion
 from driftmap.sim.rig import CameraRig
 from driftmap.sim.routes import Graph
+from driftmap.sim.site_files import SITE_FORMAT, DriveSummary, write_drive, write_site_json
 from driftmap.sim.survey import write_survey_dxf
 from driftmap.sim.trajectory import FramePoses, sample_frames
 from driftmap.sim.world import build_world
@@ -51,22 +47,8 @@ __all__ = ["SITE_FORMAT", "DriveSummary", "SimulationSummary", "SitePlan", "plan
 
 log = logging.getLogger(__name__)
 
-SITE_FORMAT = "driftmap-sim-site/1"
 OBSCURANT_NAMES: tuple[str, ...] = ("dust1", "dust2", "water1", "water2")
 _CHUNK = 48  # frames per rendering task
-
-
-@dataclass(frozen=True)
-class DriveSummary:
-    """One written drive folder."""
-
-    name: str
-    kind: str  # "mapping" or "localisation"
-    frames: int
-    duration_s: float
-    groundings: int
-    source: str | None = None  # for an obscured copy: the drive it copies
-    obscurant: str | None = None  # "dust1", "dust2", "water1" or "water2"
 
 
 @dataclass(frozen=True)
@@ -150,13 +132,6 @@ def _truncate(p: FramePoses, n: int) -> FramePoses:
     return FramePoses(p.t[:n], p.xy[:n], p.yaw[:n], [g for g in p.groundings if g[0] < n])
 
 
-def _frame_rows(poses: FramePoses) -> list[FrameRow]:
-    return [
-        FrameRow(i, round(float(t), 4), round(float(x), 4), round(float(y), 4), round(float(a), 6))
-        for i, (t, (x, y), a) in enumerate(zip(poses.t, poses.xy, poses.yaw, strict=True))
-    ]
-
-
 def simulate_site(
     out_dir: Path,
     *,
@@ -231,7 +206,7 @@ def simulate_site(
         done_frames += len(task.poses)
         report(f"rendering {plans[task.drive].name}", 0.05 + 0.93 * done_frames / max(total, 1))
         if task.last:
-            summaries += _write_drive(
+            summaries += write_drive(
                 out_dir,
                 plans[task.drive],
                 poses[task.drive],
@@ -242,7 +217,7 @@ def simulate_site(
     if rig.lens is not None:
         report("rendering calibration boards", 0.99)
         write_calibration_set(out_dir / "calibration", rig, world, seed)
-    _write_site_json(out_dir, seed, size, camera, layout, rig.camera_model, vp.fps, summaries)
+    write_site_json(out_dir, seed, size, camera, layout, rig.camera_model, vp.fps, summaries)
     report("done", 1.0)
     return SimulationSummary(
         out_dir=out_dir,
@@ -327,80 +302,3 @@ def _run(
     ctx = multiprocessing.get_context(method)
     with ctx.Pool(n_workers, initializer=frame_worker.init_worker, initargs=(renderer,)) as pool:
         yield from zip(tasks, pool.imap(frame_worker.render_chunk, tasks), strict=True)
-
-
-def _write_drive(
-    out_dir: Path, plan: DrivePlan, poses: FramePoses, camera: Any, fps: float, images: dict[str, list[bytes]]
-) -> list[DriveSummary]:
-    rows = _frame_rows(poses)
-    ground = [GroundingRow(f, round(x, 3), round(y, 3)) for f, x, y in poses.groundings]
-    kind = plan.kind
-    out = []
-    for variant, data in images.items():
-        name = plan.name if variant == "" else f"{plan.name}-{variant}"
-        meta = DriveMeta(name=name, kind=kind, fps=fps, camera=camera)
-        g = ground if kind == "mapping" else None
-        write_drive_folder(out_dir / "drives" / name, meta, rows, data, g)
-        out.append(
-            DriveSummary(
-                name,
-                kind,
-                len(rows),
-                round(float(poses.t[-1]), 3),
-                len(g or []),
-                plan.name if variant else None,
-                variant or None,
-            )
-        )
-    log.info("wrote drive %s (%d frames)", plan.name, len(rows))
-    return out
-
-
-def _write_site_json(
-    out_dir: Path,
-    seed: int,
-    size: str,
-    camera_name: str,
-    layout: Any,
-    camera: Any,
-    fps: float,
-    drives: list[DriveSummary],
-) -> None:
-    doc = {
-        "format": SITE_FORMAT,
-        "seed": seed,
-        "size": size,
-        "camera_name": camera_name,
-        "tunnel_length_m": round(layout.total_length_m, 2),
-        "tunnel_height_m": layout.height_m,
-        "fps": fps,
-        "camera": camera_to_json(camera),
-        "nodes": [
-            {"id": n.id, "name": n.name, "kind": n.kind, "x": round(n.xy[0], 3), "y": round(n.xy[1], 3)}
-            for n in layout.nodes
-        ],
-        "edges": [
-            {
-                "id": e.id,
-                "a": e.a,
-                "b": e.b,
-                "kind": e.kind,
-                "width_m": e.width_m,
-                "length_m": round(e.length_m, 2),
-            }
-            for e in layout.edges
-        ],
-        "drives": [
-            {
-                "name": d.name,
-                "kind": d.kind,
-                "frames": d.frames,
-                "duration_s": d.duration_s,
-                "groundings": d.groundings,
-                "source": d.source,
-                "obscurant": d.obscurant,
-            }
-            for d in drives
-        ],
-    }
-    (out_dir / "site.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
