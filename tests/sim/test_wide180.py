@@ -36,10 +36,10 @@ NCC_MARGIN = 0.1  # ... and clearly better than a pose 0.25 m off
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The tiny site through the wide180 camera: the first 60 frames of each drive, a perfect ride."""
+    """The tiny site through the wide180 camera: the first 45 frames of each drive, a perfect ride."""
     out = tmp_path_factory.mktemp("wide180") / "site"
     simulate_site(
-        out, seed=4, size="tiny", max_frames_per_drive=60, ride=RIDE_NONE, obscurants=False, camera="wide180"
+        out, seed=4, size="tiny", max_frames_per_drive=45, ride=RIDE_NONE, obscurants=False, camera="wide180"
     )
     return out
 

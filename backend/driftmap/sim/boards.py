@@ -12,7 +12,7 @@ the image files; for the floor board, its board, image, and the floor position o
 direction of its rows in the look frame (x the way the camera looks, y left, metres; :mod:`driftmap.sim.rig`),
 as a tape measure gives them. Only ``truth.json`` holds what calibration must recover.
 
-Each image is ray-traced through the lens: every pixel is sampled at 3 x 3 points, each ray meets the board
+Each image is ray-traced through the lens: every pixel is sampled at 2 x 2 points, each ray meets the board
 plane, the board's pattern (black squares, a white border of one square) is looked up; a mid-grey backdrop
 fills the rest; then sensor noise and 8-bit quantisation. Pixels outside the fisheye's image circle are black.
 """
@@ -37,7 +37,7 @@ HAND_BOARD = (9, 6, 0.05)  # hand-held board: inner corners (cols, rows), square
 FLOOR_BOARD = (7, 5, 0.20)  # floor board: inner corners (cols, rows), square side metres
 FLOOR_BOARD_CENTRE_M = (2.4, 0.0)  # floor board's centre in the look frame, metres
 INTRINSIC_VIEWS = 14  # hand-held views written
-_SUPER = 3  # samples per pixel along each axis
+_SUPER = 2  # samples per pixel along each axis
 _WHITE, _BLACK, _BACKDROP = 0.82, 0.06, 0.32  # reflectances
 
 
