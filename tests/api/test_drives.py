@@ -72,6 +72,38 @@ class TestZipUpload:
         missing = users.client.get(f"/api/drives/{drive_id}/frames/100", headers=users.auth("viewer"))
         assert missing.status_code == 404
 
+    def test_a_zip_recorded_with_a_camera_profile(
+        self, users: ApiUsers, site_id: int, mini_site: Path
+    ) -> None:
+        """A profile's camera replaces drive.json's; one of another frame size is refused, nothing stored."""
+        folder = drive_folders(mini_site, "loc")[0]
+        camera = {**_camera(mini_site), "k_x": 0.0123}
+        profiles = [
+            users.client.post(
+                "/api/camera-profiles", json={"name": name, "camera": cam}, headers=users.auth("surveyor")
+            ).json()["id"]
+            for name, cam in (("zip-cam", camera), ("big-cam", {**camera, "width": 640, "height": 480}))
+        ]
+        before = _stored(users.storage)
+        refused = users.client.post(
+            f"/api/sites/{site_id}/drives/zip",
+            files={"file": ("loc.zip", zip_folder(folder), "application/zip")},
+            data={"profile": str(profiles[1])},
+            headers=users.auth("surveyor"),
+        )
+        assert refused.status_code == 422 and refused.json()["field"] == "camera", refused.text
+        assert "640x480" in refused.json()["detail"] and _stored(users.storage) == before
+        response = users.client.post(
+            f"/api/sites/{site_id}/drives/zip",
+            files={"file": ("loc.zip", zip_folder(folder), "application/zip")},
+            data={"profile": str(profiles[0])},
+            headers=users.auth("surveyor"),
+        )
+        assert response.status_code == 202, response.text
+        job = users.job(response.json()["id"])
+        assert job["status"] == "succeeded", job["error"]
+        assert users.get(f"/api/drives/{job['result']['drive_id']}")["camera"]["k_x"] == 0.0123
+
     def test_zip_with_the_folder_at_its_root_works_too(
         self, users: ApiUsers, site_id: int, mini_site: Path
     ) -> None:

@@ -123,22 +123,36 @@ def upload_drive_zip(
     settings: SettingsDep,
     queue: QueueDep,
     user: SurveyorDep,
+    profile: Annotated[
+        Id | None,
+        Form(
+            description="A camera profile's id: the drive was recorded with it (replaces drive.json's camera)."
+        ),
+    ] = None,
 ) -> JobRead:
-    """Upload a zipped drive folder (multipart field ``file``); it is checked now and imported by a job."""
+    """Upload a zipped drive folder (multipart field ``file``); it is checked now and imported by a job. With
+    ``profile``, the drive is imported with that stored camera instead of its ``drive.json`` block."""
     site = site_by_id(session, site_id)
     filename = Path(file.filename or "drive.zip").name
     scratch = uploads.scratch_dir(settings.data_dir, "upload-")
+    camera_data = None
     try:
         zip_path = scratch / "upload.zip"
         uploads.save_upload(file.file, zip_path, max_bytes=settings.max_upload_bytes, filename=filename)
         folder = uploads.unpack_drive_zip(
             zip_path, scratch / "unpacked", label=filename, max_bytes=settings.max_upload_bytes
         )
+        if profile is not None:
+            record = profile_service.get_profile(session, profile)
+            drive_service.with_camera(folder, profile_service.profile_camera(record))
+            camera_data = json.dumps({"camera": record.camera}).encode()
         _ensure_new_name(session, site.id, folder.meta.name)
         sha = uploads.store_file_as_blob(storage.blobs, zip_path)
     finally:
         uploads.remove_tree(scratch)
     args = {"format": "zip", "upload_sha256": sha, "filename": filename, "name": folder.meta.name}
+    if camera_data is not None:
+        args["calibration_sha256"], _created = storage.blobs.put(camera_data)
     job = job_service.submit(
         session, queue.enqueue, "drive.import", args, site_id=site.id, created_by=user.name
     )

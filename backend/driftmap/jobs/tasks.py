@@ -73,7 +73,8 @@ def drive_import(ctx: JobContext) -> None:
     """Import an uploaded drive into the job's site.
 
     Args (job row): ``upload_sha256`` (blob of the zip or video), ``filename``, ``format`` (``zip`` or
-    ``video``); for a video ``calibration_sha256``, ``name`` and ``kind``.
+    ``video``); for a video ``calibration_sha256``, ``name`` and ``kind``; for a zip an optional
+    ``calibration_sha256`` (a camera profile's block replacing the folder's).
     """
     try:
         _import_upload(ctx)
@@ -97,6 +98,10 @@ def _import_upload(ctx: JobContext) -> None:
                 data_path, work / "unpacked", label=filename, max_bytes=ctx.runtime.settings.max_upload_bytes
             )
             source = folder.path
+            if args.get("calibration_sha256"):  # a camera profile's block replacing drive.json's
+                calibration_path = work / "calibration.json"
+                _copy_blob(ctx, str(args["calibration_sha256"]), calibration_path)
+                calibration = str(calibration_path)
         else:
             source = data_path
             calibration_path = work / "calibration.json"

@@ -57,8 +57,12 @@ def drive_folders_in(root: Path) -> list[Path]:
     return folders
 
 
-def _with_camera(folder: DriveFolder, camera: CameraModel) -> DriveFolder:
-    """The folder with ``camera`` instead of its ``drive.json`` block; the frame size must agree."""
+def with_camera(folder: DriveFolder, camera: CameraModel) -> DriveFolder:
+    """The folder with ``camera`` instead of its ``drive.json`` block.
+
+    Raises:
+        BadInputError: the camera's frame size is not the folder's (naming both).
+    """
     own = folder.meta.camera
     if (camera.width_px, camera.height_px) != (own.width_px, own.height_px):
         raise BadInputError(
@@ -117,7 +121,7 @@ def import_drive(
     if path.is_dir():
         folder = read_drive_folder(path)
         if camera is not None:
-            folder = _with_camera(folder, camera)
+            folder = with_camera(folder, camera)
         _ensure_new_name(session, site, folder.meta.name)
         pairs: Iterable[tuple[FrameRow, bytes, str]] = (
             (row, data, file.suffix.lower())

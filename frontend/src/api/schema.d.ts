@@ -657,7 +657,8 @@ export interface paths {
         put?: never;
         /**
          * Upload Drive Zip
-         * @description Upload a zipped drive folder (multipart field ``file``); it is checked now and imported by a job.
+         * @description Upload a zipped drive folder (multipart field ``file``); it is checked now and imported by a job. With
+         *     ``profile``, the drive is imported with that stored camera instead of its ``drive.json`` block.
          */
         post: operations["upload_drive_zip_api_sites__site_id__drives_zip_post"];
         delete?: never;
@@ -1247,6 +1248,11 @@ export interface components {
         Body_upload_drive_zip_api_sites__site_id__drives_zip_post: {
             /** File */
             file: string;
+            /**
+             * Profile
+             * @description A camera profile's id: the drive was recorded with it (replaces drive.json's camera).
+             */
+            profile?: number | null;
         };
         /** Body_upload_survey_api_sites__site_id__survey_post */
         Body_upload_survey_api_sites__site_id__survey_post: {
