@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,18 @@ class TestSiteCrud:
         assert page["total"] == 2 and [s["name"] for s in page["items"]] == ["south"]
         assert users.client.delete(f"/api/sites/{site_id}", headers=users.auth("admin")).status_code == 204
         assert users.client.get(f"/api/sites/{site_id}", headers=users.auth("viewer")).status_code == 404
+
+    def test_moments_are_answered_with_their_zone(self, users: ApiUsers) -> None:
+        """Stored moments read back timezone-aware on SQLite too, as the OpenAPI date-time format says."""
+        created = users.client.post("/api/sites", json={"name": "zoned"}, headers=users.auth("admin")).json()
+        job = users.client.post(
+            "/api/sites/simulate",
+            json={"name": "zoned-sim", "seed": 1, "size": "tiny"},
+            headers=users.auth("admin"),
+        ).json()
+        users_page = users.get("/api/users", role="admin")
+        for moment in (created["created_at"], users_page[0]["created_at"], job["created_at"]):
+            assert datetime.fromisoformat(moment).utcoffset() == timedelta(0), moment
 
     def test_duplicate_names_conflict_and_only_admins_write(self, users: ApiUsers) -> None:
         assert (

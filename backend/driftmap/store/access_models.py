@@ -13,7 +13,6 @@ from typing import Any
 from sqlalchemy import (
     JSON,
     Boolean,
-    DateTime,
     Float,
     ForeignKey,
     Index,
@@ -24,7 +23,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
-from driftmap.store.models import Base, utc_now
+from driftmap.store.models import Base, UtcDateTime, utc_now
 
 
 class User(Base):
@@ -43,10 +42,10 @@ class User(Base):
     role: Mapped[str] = mapped_column(String(20))
     token_generation: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
     """Login tokens carry the generation they were issued under; only the current one is accepted."""
-    disabled_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    disabled_at: Mapped[datetime | None] = mapped_column(UtcDateTime(), nullable=True)
     """When an admin disabled the user (None: active)."""
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, onupdate=utc_now)
 
 
 class Vehicle(Base):
@@ -59,8 +58,8 @@ class Vehicle(Base):
     site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"), index=True)
     name: Mapped[str] = mapped_column(String(200))
     token_sha256: Mapped[str] = mapped_column(String(64))
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    token_rotated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+    token_rotated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
     camera: Mapped[dict[str, Any] | None] = mapped_column(JSON(none_as_null=True), nullable=True)
     """The vehicle camera's ``camera`` block (drive.json keys of formats.md), None when not calibrated."""
 
@@ -94,7 +93,7 @@ class VehiclePosition(Base):
     """The calibrated probability, 0-1, that the position is right."""
     matched: Mapped[bool] = mapped_column(Boolean)
     lost: Mapped[bool] = mapped_column(Boolean)
-    received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    received_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
     # the obscured-camera judgement after this frame (driftmap.core.localisation.camera_check); None on older rows
     obscured: Mapped[bool | None] = mapped_column(Boolean, nullable=True)
     obscured_reason: Mapped[str | None] = mapped_column(String(16), nullable=True)
@@ -134,6 +133,6 @@ class VehicleLiveState(Base):
     out_of_order: Mapped[int] = mapped_column(Integer, default=0)
     """Frames refused because their ``t`` was not after ``last_t_s``."""
     revision: Mapped[int] = mapped_column(Integer, default=0)
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, onupdate=utc_now)
 
     __mapper_args__ = {"version_id_col": revision}  # noqa: RUF012 (SQLAlchemy reads it as a class attribute)

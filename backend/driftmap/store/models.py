@@ -21,7 +21,9 @@ from sqlalchemy import (
     Text,
     UniqueConstraint,
 )
+from sqlalchemy.engine import Dialect
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+from sqlalchemy.types import TypeDecorator
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -35,6 +37,29 @@ NAMING_CONVENTION = {
 def utc_now() -> datetime:
     """The current time, timezone-aware UTC."""
     return datetime.now(UTC)
+
+
+class UtcDateTime(TypeDecorator[datetime]):
+    """A moment in time, stored in UTC and always read back timezone-aware (UTC).
+
+    PostgreSQL keeps the zone itself; SQLite stores the UTC wall time and returns it naive, which is tagged
+    UTC here, so every API answer states its zone on either database. Naive values are refused on write.
+    """
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("a stored moment must be timezone-aware")
+        return value.astimezone(UTC)
+
+    def process_result_value(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
 
 
 class Base(DeclarativeBase):
@@ -52,7 +77,7 @@ class Site(Base):
     description: Mapped[str] = mapped_column(Text, default="")
     crs: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True, default=None)
     """The plane's mine-grid transform and EPSG code (:class:`driftmap.formats.site_crs.SiteCrs` as JSON)."""
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
     survey_maps: Mapped[list[SurveyMap]] = relationship(
         back_populates="site", cascade="all, delete-orphan", order_by="SurveyMap.id"
@@ -78,7 +103,7 @@ class SurveyMap(Base):
     max_y_m: Mapped[float] = mapped_column(Float)
     layers: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)
     """Layer name -> GeoJSON-like FeatureCollection in plane metres (loaded on first access: it can be large)."""
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
     site: Mapped[Site] = relationship(back_populates="survey_maps")
 
@@ -126,7 +151,7 @@ class Drive(Base):
     """The ``camera`` block of drive.json, verbatim keys of formats.md."""
     frame_count: Mapped[int] = mapped_column(Integer, default=0)
     source: Mapped[str] = mapped_column(String(1000), default="")
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
     site: Mapped[Site] = relationship(back_populates="drives")
     frames: Mapped[list[Frame]] = relationship(
@@ -169,8 +194,8 @@ class Grounding(Base):
     x_m: Mapped[float] = mapped_column(Float)
     y_m: Mapped[float] = mapped_column(Float)
     created_by: Mapped[str] = mapped_column(String(200), default="import")
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, onupdate=utc_now)
 
     drive: Mapped[Drive] = relationship(back_populates="groundings")
     frame: Mapped[Frame] = relationship()
@@ -195,7 +220,7 @@ class MapVersion(Base):
     """Build figures: frames, keyframes, closures, graph errors, seconds per stage."""
     topomap_sha256: Mapped[str] = mapped_column(String(64))
     created_by: Mapped[str] = mapped_column(String(200), default="cli")
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
 
 class MapPose(Base):
@@ -284,5 +309,5 @@ class CameraProfile(Base):
     name: Mapped[str] = mapped_column(String(200), unique=True)
     description: Mapped[str] = mapped_column(Text, default="")
     camera: Mapped[dict[str, Any]] = mapped_column(JSON)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, onupdate=utc_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, onupdate=utc_now)

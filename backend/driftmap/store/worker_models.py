@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from datetime import datetime
 
-from sqlalchemy import DateTime, String
+from sqlalchemy import String
 from sqlalchemy.orm import Mapped, mapped_column
 
-from driftmap.store.models import Base, utc_now
+from driftmap.store.models import Base, UtcDateTime, utc_now
 
 
 class WorkerProcess(Base):
@@ -20,6 +20,6 @@ class WorkerProcess(Base):
     __tablename__ = "workers"
 
     id: Mapped[str] = mapped_column(String(200), primary_key=True)
-    started_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    seen_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utc_now, index=True)
+    started_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+    seen_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, index=True)
     """Last time the worker said it was alive (every reaper round)."""
