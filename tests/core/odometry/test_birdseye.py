@@ -4,45 +4,25 @@ refused."""
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
-from numpy.typing import NDArray
 
 from driftmap.core.odometry.birdseye import birdseye_view, roi_footprint
 from driftmap.core.odometry.grid import apply_homography
 from driftmap.errors import BadInputError
-from tests.floor_frames import pinhole_camera
+from tests.floor_frames import PATCH_M, patch_frame, pinhole_camera
 
-TEXEL_M = 0.005  # the drawn floor, metres per texel
-PATCH_M = ((1.6, 2.2), (0.3, 0.7))  # a bright floor patch: x from..to (along the look), y from..to (left)
 SIZE_TOL_M = 0.02  # the patch's sides in the view: two view pixels (1 cm here)
 PLACE_TOL_M = 0.01  # the patch's centre
 # a camera whose horizon is the image row v = 40 (pixel -> floor: x = 600 / (v - 40), y = 3 (160 - u) / (v - 40))
 LOW_HORIZON = np.array([[0.0, 0.0, 600.0], [-3.0, 0.0, 480.0], [0.0, 1.0, -40.0]])
 
 
-def floor_frame(hom: NDArray[np.float64], size: tuple[int, int]) -> NDArray[np.uint8]:
-    """(H, W) frame of a dark floor (x 0..8 m, y -4..4 m) with the bright ``PATCH_M`` seen through ``hom``."""
-    n = round(8.0 / TEXEL_M)
-    floor = np.full((n, n), 60, np.uint8)
-    (x0, x1), (y0, y1) = PATCH_M
-    floor[
-        round((8 - x1) / TEXEL_M) : round((8 - x0) / TEXEL_M),
-        round((4 - y1) / TEXEL_M) : round((4 - y0) / TEXEL_M),
-    ] = 230
-    texel_from_floor = np.array(
-        [[0.0, -1 / TEXEL_M, 4 / TEXEL_M], [-1 / TEXEL_M, 0.0, 8 / TEXEL_M], [0, 0, 1]]
-    )
-    flags = cv2.INTER_AREA | cv2.WARP_INVERSE_MAP
-    return np.asarray(cv2.warpPerspective(floor, texel_from_floor @ hom, size, flags=flags), dtype=np.uint8)
-
-
 class TestBirdsEye:
     def test_a_floor_patch_shows_at_its_size_and_place(self) -> None:
         camera = pinhole_camera()
         hom = np.asarray(camera.homography())
-        view = birdseye_view(floor_frame(hom, (320, 240)), hom, camera.ground_roi_px)
+        view = birdseye_view(patch_frame(hom, (320, 240)), hom, camera.ground_roi_px)
         assert max(view.image.shape) <= 400 and view.res_m_per_px * 1000 == round(view.res_m_per_px * 1000)
         rows, cols = np.nonzero(view.image > 145)  # half-way between floor and patch
         top_left = view.floor_from_px @ [cols.min() - 0.5, rows.min() - 0.5, 1.0]

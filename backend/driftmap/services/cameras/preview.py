@@ -128,7 +128,10 @@ def parse_preview_camera(text: str, field: str = "camera") -> PreviewCamera:
 
 def _decode_frame(data: bytes, name: str, camera: PreviewCamera, max_pixels: int) -> NDArray[np.uint8]:
     """The frame as ``(H, W)`` uint8 grey, its size checked from its header before decoding."""
-    size = check_frame_pixels(data, name, max_pixels, "frame")
+    try:
+        size = check_frame_pixels(data, name, max_pixels, "frame")
+    except BadInputError as exc:
+        raise type(exc)(exc.reason, file=name, field="frame") from None
     if size != (camera.width_px, camera.height_px):
         raise BadInputError(
             f"is {size[0]}x{size[1]} pixels but the camera block says {camera.width_px}x{camera.height_px}",
