@@ -96,7 +96,9 @@ export function Previews({ frame, size, lens, ground, roi }: Props) {
               )}
             </svg>
           </div>
-          <figcaption>Undistorted: the pinhole image of the lens's K, the ground region's image</figcaption>
+          <figcaption>
+            Undistorted: the pinhole image of the same size and K, the ground region where it lies
+          </figcaption>
         </figure>
       )}
       {view && (
