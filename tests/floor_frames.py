@@ -6,12 +6,14 @@ import math
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.odometry.drive import compose, shift_horizon
 
 SEED = 11
 TEX_RES_M = 0.005  # floor texture, metres per texel
+PATCH_M = ((1.6, 2.2), (0.3, 0.7))  # a bright floor patch: x from..to (along the look), y from..to (left)
 
 
 def floor_texture(size: int = 2400, seed: int = SEED) -> np.ndarray:
@@ -55,6 +57,22 @@ def render(tex: np.ndarray, camera: CameraModel, wT: tuple[float, float, float])
     m = texel_from_world @ world_from_vehicle @ np.asarray(camera.homography())
     flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     return np.asarray(cv2.warpPerspective(tex, m, (camera.width_px, camera.height_px), flags=flags))
+
+
+def patch_frame(hom: NDArray[np.float64], size: tuple[int, int]) -> NDArray[np.uint8]:
+    """(H, W) frame of a dark floor (x 0..8 m, y -4..4 m) with the bright ``PATCH_M`` seen through ``hom``."""
+    n = round(8.0 / TEX_RES_M)
+    floor = np.full((n, n), 60, np.uint8)
+    (x0, x1), (y0, y1) = PATCH_M
+    floor[
+        round((8 - x1) / TEX_RES_M) : round((8 - x0) / TEX_RES_M),
+        round((4 - y1) / TEX_RES_M) : round((4 - y0) / TEX_RES_M),
+    ] = 230
+    texel_from_floor = np.array(
+        [[0.0, -1 / TEX_RES_M, 4 / TEX_RES_M], [-1 / TEX_RES_M, 0.0, 8 / TEX_RES_M], [0, 0, 1]]
+    )
+    flags = cv2.INTER_AREA | cv2.WARP_INVERSE_MAP
+    return np.asarray(cv2.warpPerspective(floor, texel_from_floor @ hom, size, flags=flags), dtype=np.uint8)
 
 
 def arc_step(

@@ -1,8 +1,11 @@
-"""Camera calibration and camera profiles through the API, on a real database: chessboards rendered through a
-known lens, floor points of a known homography."""
+"""Camera calibration, previews and camera profiles through the API, on a real database: chessboards rendered
+through a known lens, floor points of a known homography, a floor patch of known size seen through a fisheye."""
 
 from __future__ import annotations
 
+import base64
+import json
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -12,19 +15,22 @@ import numpy as np
 import pytest
 
 from driftmap.config import Settings
+from driftmap.core.imaging.lens import undistort_image, undistort_points
 from driftmap.core.odometry.grid import apply_homography
-from driftmap.formats.frame_images import encode_png
+from driftmap.formats.drive_json import lens_to_json
+from driftmap.formats.frame_images import decode_gray, encode_png
 from driftmap.store.access_models import Vehicle
 from driftmap.store.models import CameraProfile
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import Actors, make_actors
-from tests.core.imaging.boards import PINHOLE, board_poses, render_view
-from tests.floor_frames import pinhole_camera
+from tests.core.imaging.boards import FISHEYE, PINHOLE, board_poses, render_view
+from tests.floor_frames import PATCH_M, patch_frame, pinhole_camera
 
 FOCAL_REL_TOL = 0.01  # issue 21: focal length within 1 %
 RMS_TOL_PX = 0.5  # reprojection RMS
 SCALE_REL_TOL = 0.01  # issue 21: k_x, k_y within 1 % from 4 points measured to 1 cm
 NOISE_M = 0.01
+PATCH_TOL_M = 0.03  # the floor patch's sides in the bird's-eye view (view pixels of 1 cm, two resamplings)
 VIEWS = 8
 BOARD_FORM = {"board": "8x6", "square_m": "0.03", "model": "pinhole"}
 WIDE_CLICKS_PX = [[15.0, 100.0], [305.0, 100.0], [310.0, 235.0], [10.0, 235.0]]  # 320x240 test camera
@@ -235,6 +241,104 @@ class TestGround:
             _error(actors.client.post("/api/cameras/ground", json=roi, headers=surveyor))["field"]
             == "ground_roi"
         )
+
+
+def fisheye_floor() -> tuple[dict[str, Any], bytes]:
+    """A 640x480 camera block with the ``FISHEYE`` lens, 1.5 m above the floor pitched 40 degrees down, and the
+    PNG of a frame it records of the floor patch ``PATCH_M`` (the ideal view, distorted through the lens)."""
+    width, height = 640, 480
+    phi, height_m = math.radians(40.0), 1.5
+    camera_from_floor = np.array(
+        [
+            [0, -1, 0],
+            [-math.sin(phi), 0, height_m * math.cos(phi)],
+            [math.cos(phi), 0, height_m * math.sin(phi)],
+        ]
+    )
+    hom = np.linalg.inv(FISHEYE.matrix() @ camera_from_floor)  # undistorted pixel -> floor, look frame
+    hom *= np.sign(hom[2] @ [width / 2, height - 1, 1]) / np.abs(hom).max()
+    ideal = patch_frame(hom, (width, height))
+    uu, vv = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
+    pix = undistort_points(FISHEYE, np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(height, width, 2)
+    pix = np.where(np.isfinite(pix), pix, -10.0).astype(np.float32)
+    raw = cv2.remap(ideal, pix[..., 0], pix[..., 1], cv2.INTER_LINEAR)
+    block = {
+        "width": width,
+        "height": height,
+        "lens": lens_to_json(FISHEYE),
+        "ground_roi": [160, 180, 320, 220],
+        "ground_homography": hom.tolist(),
+    }
+    return block, encode_png(np.asarray(raw, dtype=np.uint8))
+
+
+def _preview(actors: Actors, block: dict[str, Any] | str, frame: bytes, role: str = "surveyor") -> Any:
+    camera = block if isinstance(block, str) else json.dumps(block)
+    return actors.client.post(
+        "/api/cameras/preview",
+        data={"camera": camera},
+        files={"frame": ("floor.png", frame, "image/png")},
+        headers=actors.auth(role),
+    )
+
+
+class TestPreview:
+    def test_the_undistorted_image_and_the_floor_from_above(self, actors: Actors) -> None:
+        block, frame = fisheye_floor()
+        response = _preview(actors, block, frame)
+        assert response.status_code == 200, response.text
+        body = response.json()
+        undistorted = decode_gray(base64.b64decode(body["undistorted_png"]))
+        assert np.array_equal(
+            undistorted, undistort_image(FISHEYE, decode_gray(frame))
+        )  # K kept, not narrowed
+        view = body["birdseye"]
+        image = decode_gray(base64.b64decode(view["png"]))
+        assert image.shape == (view["height"], view["width"]) and max(image.shape) <= 400
+        rows, cols = np.nonzero(image > 145)  # the patch, half-way between floor and patch
+        floor_from_px = np.asarray(view["floor_from_px"])
+        far_left = floor_from_px @ [cols.min() - 0.5, rows.min() - 0.5, 1.0]
+        near_right = floor_from_px @ [cols.max() + 0.5, rows.max() + 0.5, 1.0]
+        (x0, x1), (y0, y1) = PATCH_M
+        assert np.allclose([far_left[:2], near_right[:2]], [[x1, y1], [x0, y0]], atol=PATCH_TOL_M)
+        assert len(view["footprint_px"]) == 4 and view["x_range_m"][0] < x0 < x1 < view["x_range_m"][1]
+
+    def test_without_a_lens_or_a_homography(self, actors: Actors) -> None:
+        frame = np.arange(64 * 48, dtype=np.uint8).reshape(48, 64)
+        response = _preview(
+            actors, {"width": 64, "height": 48, "ground_roi": [0, 0, 8, 8]}, encode_png(frame)
+        )
+        assert response.status_code == 200, response.text
+        body = response.json()
+        assert np.array_equal(decode_gray(base64.b64decode(body["undistorted_png"])), frame)
+        assert body["birdseye"] is None
+
+    def test_bad_input_is_422_naming_the_field(self, actors: Actors) -> None:
+        block, frame = fisheye_floor()
+        small = encode_png(np.zeros((240, 320), np.uint8))
+        above = {**block, "ground_roi": [160, 20, 320, 200]}  # the horizon is the row v = 82
+        cases: list[tuple[dict[str, Any] | str, bytes, str, str]] = [
+            (block, b"not an image at all", "frame", "not a PNG or JPEG"),
+            (block, small, "frame", "320x240"),
+            (above, frame, "camera.ground_roi", "horizon"),
+            (
+                {**block, "ground_homography": [[1, 0, 0], [1, 0, 0], [0, 0, 1]]},
+                frame,
+                "camera.ground_homography",
+                "singular",
+            ),
+            ({**block, "lens": {**block["lens"], "K": [[1, 0], [0, 1]]}}, frame, "camera.lens.K", "3x3"),
+            ({k: v for k, v in block.items() if k != "ground_roi"}, frame, "camera.ground_roi", "needed"),
+            ({**block, "width": "640"}, frame, "camera.width", "integer"),
+            ("{not json", frame, "camera", "invalid JSON"),
+        ]
+        for camera, data, field, words in cases:
+            body = _error(_preview(actors, camera, data))
+            assert body["field"] == field and words in body["detail"], (field, body)
+
+    def test_viewers_cannot_ask(self, actors: Actors) -> None:
+        frame = encode_png(np.zeros((48, 64), np.uint8))
+        assert _preview(actors, {"width": 64, "height": 48}, frame, role="viewer").status_code == 403
 
 
 class TestProfiles:

@@ -1,6 +1,7 @@
-"""The camera set-up page in the browser, as a surveyor: a floor frame uploaded, the ground region dragged, four
-floor marks clicked and measured, the ground fitted (the homography the frame was drawn with comes back), the
-camera saved as a profile and given to a vehicle; and collinear points refused with the server's reason, the
+"""The camera set-up page in the browser, as a surveyor: a floor frame uploaded, the ground region dragged, a lens
+pasted (the undistorted preview appears with the region on it), four floor marks clicked and measured, the ground
+fitted (the homography the frame was drawn with comes back, the bird's-eye preview appears), the camera saved as a
+profile and given to a vehicle; and collinear points refused with the server's reason, the
 form kept. Against a real ``driftmap serve`` over an empty data directory (no map is needed), with the
 ``browser`` and ``page`` fixtures of ``conftest.py``.
 
@@ -9,6 +10,8 @@ Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); 
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -41,6 +44,12 @@ CLICK_TOLERANCE_PX = 0.6  # a click's frame pixel, read back from the table (sho
 RESIDUAL_TOLERANCE_M = 0.01
 FLOOR_TOLERANCE_M = 0.02  # the fitted homography against the true one, over the region
 PROFILE = "rear-cam-320"
+# a lens without distortion: its undistorted image is the frame, so the floor points fit exactly as drawn
+LENS = {
+    "model": "pinhole",
+    "K": [[300.0, 0.0, 160.0], [0.0, 300.0, 120.0], [0.0, 0.0, 1.0]],
+    "distortion": [0.0] * 4,
+}
 
 
 def floor_of(u: float, v: float, h: np.ndarray = FLOOR_FROM_PIXEL) -> tuple[float, float]:
@@ -156,10 +165,29 @@ class TestCameraSetUp:
         assert roi[0] in (7, 8) and roi[1] in (99, 100)
         assert abs(roi[0] + roi[2] - u1) <= 1 and abs(roi[1] + roi[3] - v1) <= 1
 
+        # the lens, pasted: the undistorted preview shows the region where it lies
+        p.get_by_test_id("camera-lens-paste").check()
+        p.get_by_test_id("camera-lens-text").fill(json.dumps(LENS))
+        p.get_by_role("button", name="Use this lens").click()
+        expect(p.get_by_test_id("camera-lens-current")).to_contain_text("pinhole, f 300.0 px")
+        expect(p.get_by_test_id("camera-preview-undistorted")).to_be_visible()
+        expect(p.get_by_test_id("camera-preview-roi")).to_have_attribute("width", str(roi[2]))
+        expect(p.get_by_test_id("camera-preview-birdseye")).to_have_count(0)  # no fit yet
+
         click_points(p, MARKS_PX)
         p.get_by_test_id("camera-fit-button").click()
         expect(p.get_by_test_id("camera-k-x")).to_contain_text("m/px")
         expect(p.get_by_test_id("camera-k-y")).to_contain_text("m/px")
+        # the floor from above, at a millimetre-whole scale, the region's footprint outlined
+        expect(p.get_by_test_id("camera-preview-birdseye")).to_be_visible()
+        expect(p.get_by_test_id("camera-preview-birdseye-caption")).to_contain_text(
+            "the way the camera looks"
+        )
+        expect(p.get_by_test_id("camera-preview-footprint")).to_have_attribute(
+            "points", re.compile(r"^(\S+ ){3}\S+$")
+        )
+        shown = p.get_by_test_id("camera-preview-birdseye").locator("img")
+        assert shown.evaluate("img => img.complete && img.naturalWidth > 0 && img.naturalHeight > 0")
         for i in range(1, len(MARKS_PX) + 1):
             residual = p.get_by_test_id(f"camera-point-{i}-residual").inner_text()
             assert float(residual.removesuffix(" m")) < RESIDUAL_TOLERANCE_M, residual
@@ -186,7 +214,7 @@ class TestCameraSetUp:
         )
         assert block == profile["camera"]
         assert (block["width"], block["height"], block["ground_roi"]) == (WIDTH, HEIGHT, roi)
-        assert block["lens"] is None
+        assert block["lens"] == LENS
         assert f"{block['k_x']:.5f}" in p.get_by_test_id("camera-k-x").inner_text()
         fitted = np.array(block["ground_homography"])
         for u in np.linspace(roi[0], roi[0] + roi[2], 5):

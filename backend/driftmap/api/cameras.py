@@ -13,6 +13,13 @@ clicked floor points and answers each point's residual; duplicated or collinear 
 ``points`` and the points by number (from 1). Neither route stores anything: put the values into a camera
 block and store it on a vehicle (``PUT /api/vehicles/{id}/camera``) or as a profile.
 
+``POST /api/cameras/preview`` (multipart) takes one ``frame`` (PNG or JPEG, as recorded, at most
+``max_frame_bytes``) and ``camera``, the camera block in progress as JSON text (``width``, ``height``, optional
+``lens``, ``ground_roi``, ``ground_homography``), and answers the frame's undistorted image and, with a ground
+homography, the bird's-eye view of the floor around the ROI's footprint, both as base64 PNG. A file that is not
+an image or not ``width`` x ``height``: 422 naming ``frame``; a bad block or an ROI reaching above the
+horizon: 422 naming ``camera.<key>``.
+
 ``/api/camera-profiles``: stored, named camera blocks (global, not per site), checked as a drive import checks
 its ``camera`` block (422 naming ``camera.<key>``; nothing stored). ``PUT /api/vehicles/{id}/camera`` with
 ``{"profile": <id>}`` gives a vehicle a copy of a profile's block.
@@ -34,6 +41,8 @@ from driftmap.api.cameras_schemas import (
     GroundRequest,
     IntrinsicsRead,
     IntrinsicsView,
+    PreviewRead,
+    preview_read,
     profile_read,
 )
 from driftmap.api.deps import SURVEYOR, VIEWER, SessionDep, SettingsDep
@@ -48,11 +57,13 @@ from driftmap.formats.camera_setup import video_frames
 from driftmap.formats.drive_json import lens_to_json
 from driftmap.services import uploads
 from driftmap.services.cameras import calibration as cal
+from driftmap.services.cameras import preview as preview_service
 from driftmap.services.cameras import profiles as profile_service
 
 router = APIRouter(tags=["cameras"])
 MAX_BOARD_IMAGES = 500  # images of one intrinsics calibration
 MAX_SQUARE_M = 10.0  # largest chessboard square, metres
+MAX_BLOCK_CHARS = 20_000  # a camera block as JSON text
 
 
 @router.post("/cameras/intrinsics", dependencies=[Depends(SURVEYOR), Depends(check_content_length)])
@@ -123,6 +134,21 @@ def post_ground(body: GroundRequest) -> GroundRead:
     floor = np.array([[p.x_m, p.y_m] for p in body.points], dtype=np.float64).reshape(-1, 2)
     ground = cal.fit_ground_points(pixels, floor, body.width, body.height, body.ground_roi, lens)
     return GroundRead(**ground.block_values(), residuals_m=[float(r) for r in ground.fit.residuals_m])
+
+
+@router.post("/cameras/preview", dependencies=[Depends(SURVEYOR), Depends(check_content_length)])
+def post_preview(
+    settings: SettingsDep,
+    frame: Annotated[UploadFile, File(description="One frame as recorded, PNG or JPEG.")],
+    camera: Annotated[
+        str, Form(max_length=MAX_BLOCK_CHARS, description="The camera block in progress, JSON text.")
+    ],
+) -> PreviewRead:
+    """A frame's undistorted image and the bird's-eye view of its floor (with a ground homography), PNG."""
+    block = preview_service.parse_preview_camera(camera)
+    name = _name(frame, "frame")
+    data = read_limited(frame, settings.max_frame_bytes, name)
+    return preview_read(preview_service.make_preview(data, name, block, settings.max_frame_pixels))
 
 
 @router.get("/camera-profiles", dependencies=[Depends(VIEWER)])

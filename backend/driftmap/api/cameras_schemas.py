@@ -1,13 +1,15 @@
 """Request and response bodies of camera calibration (``/api/cameras``) and camera profiles
 (``/api/camera-profiles``).
 
-Pixels are of the calibrated frame (``width`` x ``height``); floor positions are metres in the vehicle frame
-at the camera's foot (x forward, y left). A ``camera`` block in a request is checked by the service as a drive
+Pixels are of the calibrated frame (``width`` x ``height``); floor positions are metres in the camera's look
+frame (origin on the floor under the camera, x the way the camera looks, y to its left; formats.md). A
+``camera`` block in a request is checked by the service as a drive
 import checks it (formats.md), so its errors name ``camera.<key>``.
 """
 
 from __future__ import annotations
 
+import base64
 from datetime import datetime
 from typing import Annotated, Any
 
@@ -17,6 +19,7 @@ from pydantic import BaseModel, WithJsonSchema
 from driftmap.api.input_types import CameraSide, Description, Finite, Name
 from driftmap.api.schemas_access import CameraLens, VehicleCamera
 from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
+from driftmap.services.cameras.preview import Preview
 
 MAX_GROUND_POINTS = 100  # more floor points than anyone clicks; the degeneracy check is cubic in them
 CameraBody = Annotated[
@@ -68,9 +71,10 @@ class GroundPoint(BaseModel):
     py: Finite
     """Pixel row of the mark in the recorded (raw) frame."""
     x_m: Finite
-    """Floor position forward of the camera's foot, metres."""
+    """Floor position along the way the camera looks from the floor under it, metres (look frame: for a camera
+    looking behind, marks behind the vehicle are positive)."""
     y_m: Finite
-    """Floor position to the left of the camera's foot, metres."""
+    """Floor position to the left of the camera's look, metres (look frame)."""
 
 
 class GroundRequest(BaseModel):
@@ -99,9 +103,46 @@ class GroundRead(BaseModel):
     y_h: float
     """Metres from the camera's foot to the floor point at the ROI centre."""
     ground_homography: list[list[float]]
-    """3x3 map from undistorted pixel (u, v, 1) to the floor point, metres."""
+    """3x3 map from undistorted pixel (u, v, 1) to the floor point (x, y, w), look frame, metres."""
     residuals_m: list[float]
     """Per point (in request order), metres between its measured and its fitted floor position."""
+
+
+class BirdsEyeRead(BaseModel):
+    """The floor around the ground ROI's footprint seen from above: x (the way the camera looks) up, y left."""
+
+    png: str
+    """The view, a grey PNG, base64; floor the camera does not see is black."""
+    width: int
+    """Pixels."""
+    height: int
+    """Pixels."""
+    res_m_per_px: float
+    """Floor metres per pixel (square pixels, a whole number of millimetres)."""
+    floor_from_px: list[list[float]]
+    """3x3 map from a view pixel (col, row, 1), pixel centres at integers, to the floor point (x, y, 1), look
+    frame, metres."""
+    x_range_m: list[float]
+    """[bottom, top]: floor x at the view's bottom and top edges, metres."""
+    y_range_m: list[float]
+    """[right, left]: floor y at the view's right and left edges, metres."""
+    footprint_px: list[list[float]]
+    """The ground ROI's corners (top-left, top-right, bottom-right, bottom-left of the ROI) in view pixels
+    (col, row)."""
+
+
+class PreviewRead(BaseModel):
+    """A frame's undistorted image and, when the camera block has a ground homography, its bird's-eye view."""
+
+    width: int
+    """Width of the frame and of its undistorted image, pixels."""
+    height: int
+    """Height, pixels."""
+    undistorted_png: str
+    """The ideal pinhole image of the same size and K (the frame itself without a lens), a grey PNG, base64;
+    the ground ROI and homography refer to its pixels."""
+    birdseye: BirdsEyeRead | None
+    """The bird's-eye view, or null without a ground homography."""
 
 
 class CameraProfileCreate(BaseModel):
@@ -140,4 +181,28 @@ def profile_read(profile: Any) -> CameraProfileRead:
         camera=VehicleCamera.model_validate({"ground_homography": None, "lens": None, **profile.camera}),
         created_at=profile.created_at,
         updated_at=profile.updated_at,
+    )
+
+
+def preview_read(preview: Preview) -> PreviewRead:
+    """The response body of a frame's previews (PNG bytes as base64)."""
+    birdseye = None
+    if preview.birdseye is not None and preview.birdseye_png is not None:
+        view = preview.birdseye
+        (x_lo, x_hi), (y_lo, y_hi) = view.ranges_m()
+        birdseye = BirdsEyeRead(
+            png=base64.b64encode(preview.birdseye_png).decode("ascii"),
+            width=int(view.image.shape[1]),
+            height=int(view.image.shape[0]),
+            res_m_per_px=view.res_m_per_px,
+            floor_from_px=view.floor_from_px.tolist(),
+            x_range_m=[x_lo, x_hi],
+            y_range_m=[y_lo, y_hi],
+            footprint_px=view.footprint_px.tolist(),
+        )
+    return PreviewRead(
+        width=preview.width_px,
+        height=preview.height_px,
+        undistorted_png=base64.b64encode(preview.undistorted_png).decode("ascii"),
+        birdseye=birdseye,
     )

@@ -1,6 +1,6 @@
-// The camera routes: a JSON PUT (profiles, a vehicle's camera) and a multipart POST (board images for the
-// intrinsics), through the client (the login token; a refusal throws an ApiError with the server's reason and a
-// 401 logs the user out, as every other call).
+// The camera routes: a JSON PUT (profiles, a vehicle's camera) and multipart POSTs (board images for the
+// intrinsics, a frame to preview), through the client (the login token; a refusal throws an ApiError with the
+// server's reason and a 401 logs the user out, as every other call).
 import { apiPostForm, apiPut, type Schemas } from "./client";
 
 /** ``POST /api/cameras/intrinsics`` with board images (``intrinsicsForm``). */
@@ -16,4 +16,9 @@ export function putProfile(id: number, body: Schemas["CameraProfileUpdate"]): Pr
 /** ``PUT /api/vehicles/{id}/camera {"profile": id}``: give the vehicle a copy of the profile's block. */
 export function assignProfile(vehicleId: number, profileId: number): Promise<Schemas["VehicleCamera"]> {
   return apiPut("/api/vehicles/{vehicle_id}/camera", { vehicle_id: vehicleId }, { profile: profileId });
+}
+
+/** ``POST /api/cameras/preview`` (``previewForm``): the frame's undistorted image and bird's-eye view. */
+export function postPreview(form: FormData): Promise<Schemas["PreviewRead"]> {
+  return apiPostForm("/api/cameras/preview", {}, form);
 }

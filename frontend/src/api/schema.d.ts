@@ -312,6 +312,26 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/cameras/preview": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Post Preview
+         * @description A frame's undistorted image and the bird's-eye view of its floor (with a ground homography), PNG.
+         */
+        post: operations["post_preview_api_cameras_preview_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/camera-profiles": {
         parameters: {
             query?: never;
@@ -1180,6 +1200,28 @@ export interface paths {
 export type webhooks = Record<string, never>;
 export interface components {
     schemas: {
+        /**
+         * BirdsEyeRead
+         * @description The floor around the ground ROI's footprint seen from above: x (the way the camera looks) up, y left.
+         */
+        BirdsEyeRead: {
+            /** Png */
+            png: string;
+            /** Width */
+            width: number;
+            /** Height */
+            height: number;
+            /** Res M Per Px */
+            res_m_per_px: number;
+            /** Floor From Px */
+            floor_from_px: number[][];
+            /** X Range M */
+            x_range_m: number[];
+            /** Y Range M */
+            y_range_m: number[];
+            /** Footprint Px */
+            footprint_px: number[][];
+        };
         /** Body_import_groundings_api_drives__drive_id__groundings_csv_put */
         Body_import_groundings_api_drives__drive_id__groundings_csv_put: {
             /** File */
@@ -1220,6 +1262,19 @@ export interface components {
              * @default 15
              */
             every: number;
+        };
+        /** Body_post_preview_api_cameras_preview_post */
+        Body_post_preview_api_cameras_preview_post: {
+            /**
+             * Frame
+             * @description One frame as recorded, PNG or JPEG.
+             */
+            frame: string;
+            /**
+             * Camera
+             * @description The camera block in progress, JSON text.
+             */
+            camera: string;
         };
         /** Body_upload_drive_video_api_sites__site_id__drives_video_post */
         Body_upload_drive_video_api_sites__site_id__drives_video_post: {
@@ -2075,6 +2130,19 @@ export interface components {
              * Format: date-time
              */
             received_at: string;
+        };
+        /**
+         * PreviewRead
+         * @description A frame's undistorted image and, when the camera block has a ground homography, its bird's-eye view.
+         */
+        PreviewRead: {
+            /** Width */
+            width: number;
+            /** Height */
+            height: number;
+            /** Undistorted Png */
+            undistorted_png: string;
+            birdseye: components["schemas"]["BirdsEyeRead"] | null;
         };
         /** QueueHealth */
         QueueHealth: {
@@ -3208,6 +3276,39 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["GroundRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    post_preview_api_cameras_preview_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "multipart/form-data": components["schemas"]["Body_post_preview_api_cameras_preview_post"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PreviewRead"];
                 };
             };
             /** @description Validation Error */

@@ -140,9 +140,9 @@ export function groundBody(
 
 /** The mounting facts the fit does not give: measured on the vehicle. */
 export interface Mount {
-  /** Metres from the rear axle to the camera. */
+  /** Metres from the rear axle to the camera, along the way the camera looks. */
   y_c: number;
-  /** 1 when image content moves down as the vehicle drives forward, else -1. */
+  /** 1 when the camera looks ahead (the floor moves down the image driving forward), -1 when it looks behind. */
   forward_sign: 1 | -1;
 }
 

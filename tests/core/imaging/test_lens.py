@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
-from driftmap.core.imaging.lens import Lens, LensMaps, distort_points, lens_maps, undistort_points
+from driftmap.core.imaging.lens import (
+    Lens,
+    LensMaps,
+    distort_points,
+    lens_maps,
+    undistort_image,
+    undistort_points,
+)
 from driftmap.errors import BadInputError
 from tests.core.imaging.boards import FISHEYE, PINHOLE, SIZE, board_poses, render_view
 
 POINT_TOL_PX = 1e-3  # distort then undistort returns the pixel
+OPENCV_MEAN_TOL = 0.05  # grey levels: whole-frame undistortion vs OpenCV's with the same K (fixed-point maps)
 REMAP_MEAN_TOL = (
     6.0  # grey levels: undistorted view vs the ideal pinhole view (edges differ by interpolation)
 )
@@ -75,3 +84,27 @@ class TestMaps:
 
     def test_tables_are_built_once(self) -> None:
         assert lens_maps(PINHOLE, SIZE, (0, 0, 64, 48)) is lens_maps(PINHOLE, SIZE, (0, 0, 64, 48))
+
+
+class TestUndistortImage:
+    @pytest.mark.parametrize("lens", [PINHOLE, FISHEYE], ids=["pinhole", "fisheye"])
+    def test_is_opencvs_undistortion_keeping_k(self, lens: Lens) -> None:
+        rng = np.random.default_rng(3)
+        noise = cv2.GaussianBlur(rng.normal(0.0, 1.0, SIZE[::-1]).astype(np.float32), (0, 0), 2.0)
+        frame = np.clip(128 + 60 * noise / noise.std(), 0, 255).astype(np.uint8)
+        k, d = lens.matrix(), lens.coeffs()
+        if lens.model == "fisheye":
+            truth = cv2.fisheye.undistortImage(frame, k, d, Knew=k)
+        else:
+            truth = cv2.undistort(frame, k, d, newCameraMatrix=k)
+        out = undistort_image(lens, frame)
+        uu, vv = np.meshgrid(np.arange(SIZE[0], dtype=np.float64), np.arange(SIZE[1], dtype=np.float64))
+        raw = distort_points(lens, np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(SIZE[1], SIZE[0], 2)
+        inside = np.all((raw >= 1) & (raw <= np.array(SIZE) - 2), axis=2)  # OpenCV fills the rest with 0
+        assert out.shape == frame.shape and out.dtype == np.uint8
+        assert inside.mean() > 0.8
+        assert np.abs(out.astype(float) - truth)[inside].mean() < OPENCV_MEAN_TOL
+
+    def test_takes_grey_frames_only(self) -> None:
+        with pytest.raises(BadInputError, match="frame"):
+            undistort_image(PINHOLE, np.zeros((48, 64, 3), np.uint8))

@@ -34,6 +34,7 @@ __all__ = [
     "distort_points",
     "lens_maps",
     "project_rays",
+    "undistort_image",
     "undistort_points",
 ]
 
@@ -198,3 +199,24 @@ class LensMaps:
 def lens_maps(lens: Lens, size: tuple[int, int], window: Rect) -> LensMaps:
     """The (cached) :class:`LensMaps` of a lens, frame size and window."""
     return LensMaps(lens, size, window)
+
+
+def undistort_image(lens: Lens, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """The undistorted image of a whole frame: the ideal pinhole image of the same size and the same ``K``.
+
+    The image the ground ROI and homography of a camera with a lens refer to (module docstring), not the
+    thumbnail view of :mod:`driftmap.core.imaging.views`, which narrows wide lenses. Bilinear; a pixel whose
+    ray lands outside the recorded frame takes the nearest edge pixel. The remap tables are those of
+    :func:`lens_maps` over the whole frame (cached per lens and size).
+
+    Args:
+        lens: the camera's lens.
+        frame: ``(H, W)`` uint8 grey frame as recorded.
+
+    Returns:
+        ``(H, W)`` uint8 undistorted frame.
+    """
+    if frame.ndim != 2:
+        raise BadInputError(f"must be a grey (H, W) frame, got shape {frame.shape}", field="frame")
+    height, width = frame.shape
+    return lens_maps(lens, (int(width), int(height)), (0, 0, int(width), int(height))).apply(frame)

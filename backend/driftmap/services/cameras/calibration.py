@@ -256,7 +256,8 @@ def fit_ground_points(
 
     Args:
         pixels_px: ``(N, 2)`` raw pixels ``(u, v)`` of the floor marks, N >= 4.
-        floor_m: ``(N, 2)`` their floor positions ``(x forward, y left)``, metres, at the camera's foot.
+        floor_m: ``(N, 2)`` their floor positions ``(x, y)``, metres, look frame (x the way the camera looks, y
+            to its left, origin on the floor under the camera).
         width: frame width, pixels.
         height: frame height, pixels.
         roi: ``(x, y, w, h)`` ground ROI of the undistorted image; None: the points' bounding box.

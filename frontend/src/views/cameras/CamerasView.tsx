@@ -1,6 +1,7 @@
 // The camera set-up page (surveyors and admins): floor frames, the ground region dragged on the frame, floor
-// points clicked and measured, an optional lens, the ground fit (POST /api/cameras/ground), and the result
-// saved as a camera profile and given to a vehicle. Everything stays in the page until saved.
+// points clicked and measured, an optional lens, the ground fit (POST /api/cameras/ground), previews of the
+// undistorted frame and of the floor from above beside the frame, and the result saved as a camera profile and
+// given to a vehicle. Everything stays in the page until saved.
 import { useEffect, useReducer, useRef, useState } from "react";
 import { apiPost } from "../../api/client";
 import {
@@ -20,6 +21,7 @@ import { FramePicker, type Frame } from "./FramePicker";
 import { GroundFit } from "./GroundFit";
 import { LensPanel } from "./LensPanel";
 import { PointsTable } from "./PointsTable";
+import { Previews } from "./Previews";
 import { ProfilesPanel } from "./ProfilesPanel";
 import "./cameras.css";
 
@@ -117,17 +119,22 @@ export function CamerasView() {
               </span>
               {roi && <button onClick={() => setRoi(null)}>Clear region</button>}
             </div>
-            <FrameCanvas
-              url={frame.url}
-              name={frame.name}
-              mode={mode}
-              roi={roi}
-              rows={points.rows}
-              size={size}
-              onSize={setSize}
-              onRoi={setRoi}
-              onPoint={(px, py) => dispatch({ type: "add", px, py })}
-            />
+            <div className="camrow">
+              <div className="cammain">
+                <FrameCanvas
+                  url={frame.url}
+                  name={frame.name}
+                  mode={mode}
+                  roi={roi}
+                  rows={points.rows}
+                  size={size}
+                  onSize={setSize}
+                  onRoi={setRoi}
+                  onPoint={(px, py) => dispatch({ type: "add", px, py })}
+                />
+              </div>
+              {size && <Previews frame={frame} size={size} lens={lens} ground={ground} roi={roi} />}
+            </div>
           </>
         )}
         <PointsTable rows={points.rows} dispatch={dispatch} />

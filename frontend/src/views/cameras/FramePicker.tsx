@@ -1,5 +1,6 @@
 // The floor frames of the session: upload PNG/JPEG files (or take a photo on a device with a camera) and pick
-// the one to show large. The files stay in the browser (object URLs); nothing is uploaded to the server.
+// the one to show large. The files stay in the browser (object URLs); only the previews send the picked one to
+// the server, which keeps nothing.
 export interface Frame {
   name: string;
   url: string;

@@ -1,4 +1,5 @@
-// Fit the ground: the mounting facts the fit cannot know (measured on the vehicle), the Fit button, and the
+// Fit the ground: the mounting facts the fit cannot know (measured on the vehicle: y_c, and whether the camera
+// looks ahead or behind, forward_sign +1 or -1), the Fit button, and the
 // fitted values (k_x, k_y, y_h, the ROI) or the server's refusal, shown beside the button; the form is kept.
 import type { GroundRead, Mount } from "../../lib/cameraSetup";
 
@@ -19,7 +20,7 @@ export function GroundFit({ mount, onMount, blocked, busy, onFit, fit, error }: 
     <section data-testid="camera-fit">
       <h3>Ground</h3>
       <div className="row">
-        <label title="Metres from the rear axle to the camera">
+        <label title="Metres from the rear axle to the camera, along the way the camera looks">
           y_c m{" "}
           <input
             className="small"
@@ -30,14 +31,15 @@ export function GroundFit({ mount, onMount, blocked, busy, onFit, fit, error }: 
             data-testid="camera-y-c"
           />
         </label>
-        <label title="Which way the floor moves in the image as the vehicle drives forward">
-          floor moves{" "}
+        <label title="Which way along the vehicle the camera looks: ahead (the floor moves down the image as the vehicle drives forward) or behind (it moves up)">
+          camera looks{" "}
           <select
             value={mount.forward_sign}
             onChange={(e) => onMount({ ...mount, forward_sign: Number(e.target.value) === -1 ? -1 : 1 })}
+            data-testid="camera-looks"
           >
-            <option value={1}>down</option>
-            <option value={-1}>up</option>
+            <option value={1}>ahead (forward_sign +1)</option>
+            <option value={-1}>behind (forward_sign −1)</option>
           </select>
         </label>
       </div>
