@@ -40,7 +40,7 @@ from driftmap.live.event_watch import record_frame_events
 from driftmap.live.events import DEFAULT_EVENTS, EventParams, FrameFacts, Watch, frame_conditions
 from driftmap.services.events import EventChange
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
-from driftmap.services.vehicles import vehicle_camera
+from driftmap.services.vehicles import check_frame_size, vehicle_camera
 from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosition
 from driftmap.store.blobs import BlobStore
 from driftmap.store.db import Database
@@ -288,7 +288,7 @@ def _localise_once(
         vehicle = session.get(Vehicle, vehicle_id)
         if vehicle is None:
             raise NotFoundError(f"no vehicle with id {vehicle_id}")
-        _check_camera_size(vehicle, frame)
+        check_frame_size(vehicle, frame)
         version = require_map_version(session, vehicle.site_id)
         state = live_state_row(session, vehicle_id)
         state.skipped += unsaved_counts[0]
@@ -383,23 +383,6 @@ def _localise_once(
             events=changes,
         )
     return outcome, slot
-
-
-def _check_camera_size(vehicle: Vehicle, frame: NDArray[np.uint8]) -> None:
-    """A vehicle with a camera block takes only frames of its camera's width and height (pixels).
-
-    Raises:
-        BadInputError: another size, naming the request body.
-    """
-    if vehicle.camera is None:
-        return
-    width_px, height_px = int(vehicle.camera["width"]), int(vehicle.camera["height"])
-    if (frame.shape[1], frame.shape[0]) != (width_px, height_px):
-        raise BadInputError(
-            f"frame is {frame.shape[1]}x{frame.shape[0]} pixels but vehicle {vehicle.id}'s camera says "
-            f"{width_px}x{height_px}",
-            field="body",
-        )
 
 
 def add_counts(db: Database, vehicle_id: int, skipped: int, out_of_order: int) -> tuple[int | None, int]:
