@@ -441,7 +441,8 @@ class TestWatch:
     def test_a_silent_vehicle_turns_stale_and_keeps_its_last_position(
         self, built: Path, frames: list[RecordedFrame]
     ) -> None:
-        actors = make_actors(Settings(data_dir=built, stale_after_s=0.0, live_processes=1), site_name="tiny")
+        settings = Settings(data_dir=built, stale_after_s=0.0, live_processes=1, event_check_every_s=0.0)
+        actors = make_actors(settings, site_name="tiny")  # (no stale events in the way of the stale message)
         with actors.client:
             answer = post(actors, frames[0])
             latest = actors.client.get("/api/positions/latest", headers=actors.auth("viewer")).json()
