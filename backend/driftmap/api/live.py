@@ -21,11 +21,12 @@ the models of :mod:`driftmap.api.schemas_live`, in the OpenAPI components as ``L
 with ``?since=SEQ`` then every ``{"type": "position", ...}`` after SEQ up to the snapshot (to resume after a
 reconnect); then live ``position`` messages, ``{"type": "stale", "vehicle_id", "received_at"}`` when a
 vehicle stops reporting for ``stale_after_s``, and ``{"type": "event", "change", ...}`` when an event of the
-log (:mod:`driftmap.api.events`) opens, closes or is acknowledged, by whoever and on whichever API process. The
-snapshot carries the events nobody acknowledged yet (``events``); a watcher that fell behind gets the events
-changed meanwhile again with the positions it missed. A watcher gets each position once and each vehicle's positions
-in order; positions of different vehicles may arrive out of ``seq`` order (they are localised by different
-processes), so a client resuming with ``?since=`` should pass the smallest of its vehicles' last ``seq``.
+log (:mod:`driftmap.api.events`) opens, closes or is acknowledged, by whoever and on whichever API process.
+The snapshot carries the events nobody acknowledged yet (``events``); a watcher that fell behind gets the
+events changed meanwhile again with the positions it missed. A watcher gets each position once and each
+vehicle's positions in order; positions of different vehicles may arrive out of ``seq`` order (they are
+localised by different processes), so a client resuming with ``?since=`` should pass the smallest of its
+vehicles' last ``seq``.
 """
 
 from __future__ import annotations
