@@ -122,6 +122,18 @@ class TestList:
         assert response.status_code == 422 and response.json()["field"] == "until"
 
 
+class TestChangedSince:
+    def test_a_watcher_that_fell_behind_gets_each_change_as_it_now_stands(
+        self, users: ApiUsers, log: Log
+    ) -> None:
+        with users.storage.db.session() as session:
+            changes = event_service.changed_since(session, T0 + timedelta(minutes=2), 10)
+        assert [(c.change, c.event.id) for c in changes] == [
+            ("acknowledged", log.events["obscured"]),  # opened at 08:05, acknowledged at 08:06
+            ("opened", log.events["stale"]),
+        ]
+
+
 class TestCsv:
     def test_the_export_holds_the_filtered_events_oldest_first(self, users: ApiUsers, log: Log) -> None:
         response = users.client.get("/api/events.csv", params={"open": "true"}, headers=users.auth("viewer"))
