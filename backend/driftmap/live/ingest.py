@@ -31,6 +31,7 @@ from driftmap.config import Settings
 from driftmap.formats.bounds import check_t_s
 from driftmap.formats.frame_images import check_complete, check_frame_pixels
 from driftmap.live.event_watch import SilenceWatch
+from driftmap.live.events import EventParams
 from driftmap.live.hub import InMemoryHub, LiveHub, Message
 from driftmap.live.latest_frames import LatestFrames, MemoryFrames
 from driftmap.live.localise import FrameOutcome, FrameStatus
@@ -135,6 +136,7 @@ class LiveService:
         self.workers = LocaliserWorkers(settings, processes)
         self.frames: LatestFrames = frames if frames is not None else MemoryFrames()
         self._lanes: dict[int, _Lane] = {}
+        EventParams.of(settings)  # a bad setting fails here, not in every localiser process
         self.silence = SilenceWatch(
             storage.db, self.publish_event, settings.stale_after_s, settings.event_check_every_s
         )

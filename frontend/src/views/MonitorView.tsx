@@ -160,6 +160,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
           </div>
         )}
         <EventsPanel
+          key={siteId}
           siteId={siteId}
           log={events}
           vehicles={vehicles}
