@@ -25,7 +25,11 @@ class Settings(BaseSettings):
     token_ttl_s: float = 12 * 3600.0
     """Lifetime of a login token, seconds."""
     stale_after_s: float = 10.0
-    """A vehicle with no position for this long is shown as stale, seconds."""
+    """A vehicle with no position for this long is shown as stale (and gets a ``stale`` event), seconds."""
+    event_low_confidence_s: float = 10.0
+    """A vehicle whose positions stay unmatched this long (its clock) gets a ``low_confidence`` event, seconds."""
+    event_check_every_s: float = 1.0
+    """How often each API process looks for vehicles gone silent (``stale`` events), seconds."""
     max_upload_bytes: int = 4 * 1024**3
     """Largest accepted upload (drive zip, video, DXF), bytes."""
     max_frame_bytes: int = 8 * 1024**2

@@ -21,7 +21,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from driftmap.api import live as live_api
 from driftmap.api.app import create_app
-from driftmap.api.schemas_live import position_message
+from driftmap.api.schemas_live import event_message, position_message
 from driftmap.config import Settings
 from driftmap.errors import ConflictError
 from driftmap.formats.frame_images import decode_gray, encode_png
@@ -239,7 +239,14 @@ class TestOverload:
                 session, "burst", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, position_message=position_message, queue_depth=1, processes=1)
+        live = LiveService(
+            settings,
+            storage,
+            position_message=position_message,
+            event_message=event_message,
+            queue_depth=1,
+            processes=1,
+        )
         burst = [(f.t, f.data) for f in frames[:12]]
 
         async def run() -> list:  # type: ignore[type-arg]
@@ -275,7 +282,14 @@ class TestOverload:
                 session, "shuffled", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, position_message=position_message, queue_depth=1, processes=1)
+        live = LiveService(
+            settings,
+            storage,
+            position_message=position_message,
+            event_message=event_message,
+            queue_depth=1,
+            processes=1,
+        )
         order = [3, 1, 2, 0, 5, 4]
 
         async def run() -> list:  # type: ignore[type-arg]
@@ -303,7 +317,9 @@ class TestWorkerProcesses:
                 session, "crash", site_service.get_site(session, "tiny").id
             )
             vid, site_id = vehicle.id, vehicle.site_id
-        live = LiveService(settings, storage, position_message=position_message, processes=1)
+        live = LiveService(
+            settings, storage, position_message=position_message, event_message=event_message, processes=1
+        )
 
         async def run() -> list[str]:
             first = await live.submit(vid, "crash", site_id, frames[0].t, frames[0].data)
@@ -425,7 +441,8 @@ class TestWatch:
     def test_a_silent_vehicle_turns_stale_and_keeps_its_last_position(
         self, built: Path, frames: list[RecordedFrame]
     ) -> None:
-        actors = make_actors(Settings(data_dir=built, stale_after_s=0.0, live_processes=1), site_name="tiny")
+        settings = Settings(data_dir=built, stale_after_s=0.0, live_processes=1, event_check_every_s=0.0)
+        actors = make_actors(settings, site_name="tiny")  # (no stale events in the way of the stale message)
         with actors.client:
             answer = post(actors, frames[0])
             latest = actors.client.get("/api/positions/latest", headers=actors.auth("viewer")).json()

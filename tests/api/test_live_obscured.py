@@ -78,6 +78,11 @@ class TestObscuredLive:
         latest = actors.client.get("/api/positions/latest", headers=viewer).json()
         mine = next(v for v in latest if v["vehicle_id"] == actors.vehicle_id)
         assert mine["position"]["obscured"] is True
+        # the event log: the camera obscured since the first obscured frame, where the vehicle was then
+        query = {"vehicle": actors.vehicle_id, "kind": "obscured"}
+        (event,) = actors.client.get("/api/events", params=query, headers=viewer).json()["items"]
+        assert (event["ended_at"], event["detail"]) == (None, "dust")
+        assert (event["x"], event["y"]) == (answers[first]["x"], answers[first]["y"])
         latest_frame = actors.client.get(f"/api/vehicles/{actors.vehicle_id}/frames/latest", headers=viewer)
         assert latest_frame.status_code == 200 and latest_frame.content == frames[-1].data
         assert latest_frame.headers["content-type"] == "image/png"

@@ -25,7 +25,7 @@ import pytest
 import redis
 import websockets
 
-from driftmap.api.schemas_live import position_message
+from driftmap.api.schemas_live import event_message, position_message
 from driftmap.config import Settings
 from driftmap.live.hub import RedisHub, Subscription
 from driftmap.live.ingest import LiveService
@@ -87,7 +87,10 @@ class TestTwoServicesOnOneDatabase:
         storage = Storage.open(settings)
         (shared, site_id), (alone, _site) = _vehicles(storage, "shared", "alone")
         first, second, single = (
-            LiveService(settings, storage, position_message=position_message, processes=1) for _ in range(3)
+            LiveService(
+                settings, storage, position_message=position_message, event_message=event_message, processes=1
+            )
+            for _ in range(3)
         )
 
         async def run() -> tuple[list[FrameOutcome], list[FrameOutcome]]:
@@ -121,7 +124,10 @@ class TestTwoServicesOnOneDatabase:
         storage = Storage.open(settings)
         [(vid, site_id)] = _vehicles(storage, "raced")
         first, second = (
-            LiveService(settings, storage, position_message=position_message, processes=1) for _ in range(2)
+            LiveService(
+                settings, storage, position_message=position_message, event_message=event_message, processes=1
+            )
+            for _ in range(2)
         )
 
         async def run() -> list[FrameOutcome]:

@@ -76,6 +76,18 @@ class TestKnownStart:
         answer = _post(actors, there)
         assert answer["status"] == "processed" and answer["processed"] == processed + 1
         assert np.hypot(answer["x"] - there.x, answer["y"] - there.y) <= NEAR_START_M
+        # logged as an instant event, acknowledged by whoever set it
+        events = actors.client.get(
+            "/api/events", params={"kind": "start_known"}, headers=actors.auth("viewer")
+        )
+        (event,) = events.json()["items"]
+        assert (event["vehicle_id"], event["x"], event["y"], event["detail"]) == (
+            actors.vehicle_id,
+            there.x,
+            there.y,
+            "radius 5 m",
+        )
+        assert event["ended_at"] == event["started_at"] and event["acknowledged_by"] == "surveyor"
 
     def test_the_radius_defaults_to_ten_metres_and_admins_may_seed(
         self, actors: Actors, frames: list[RecordedFrame]

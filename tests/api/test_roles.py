@@ -3,7 +3,7 @@
 Each HTTP route's rule comes from its dependencies (``require_roles`` marks its allowed roles, the vehicle
 dependency marks vehicle-only routes), so routes added later are covered without touching this file. A
 route with no rule that is not in ``OPEN_PATHS`` fails the test. The rules of the product are checked on
-top: viewers only read, surveyors only write survey work, users management is admin-only.
+top: viewers only read (and acknowledge events), surveyors only write survey work, users management is admin-only.
 """
 
 from __future__ import annotations
@@ -37,6 +37,8 @@ WEBSOCKET_RULES = {"/vehicles/{vehicle_id}/stream": "vehicle", "/live": "user"}
 """WebSocket routes (their own auth, closing with 4401/4403) and who may open them."""
 OWN_ACCOUNT_WRITES = frozenset({"/api/auth/password"})
 """Writes every user may make to their own account."""
+CONTROL_ROOM_WRITES = frozenset({"/api/events/{event_id}/ack"})
+"""Writes every user may make: the control room (viewers) acknowledges events."""
 REVOKING = frozenset({"/api/auth/logout"})
 """Open routes that revoke the caller's tokens: called without credentials only (the rest still need them)."""
 
@@ -162,7 +164,10 @@ class TestRouteMatrix:
                     broken.append(f"{route.method} {route.path}: vehicles read nothing")
                 continue
             assert allowed is not None
-            writes = route.method not in ("GET", "HEAD") and route.path not in OWN_ACCOUNT_WRITES
+            writes = (
+                route.method not in ("GET", "HEAD")
+                and route.path not in OWN_ACCOUNT_WRITES | CONTROL_ROOM_WRITES
+            )
             if writes and "viewer" in allowed:
                 broken.append(f"{route.method} {route.path}: viewers only read")
             if writes and "surveyor" in allowed and not SURVEYOR_WRITES.search(route.path):

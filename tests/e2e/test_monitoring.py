@@ -1,6 +1,7 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
 the camera-obscured status and alert and the vehicle's latest frame, placing a vehicle's known start on the
-plan and its trail along the tunnels, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+plan and its trail along the tunnels, an event acknowledged on one user's screen showing so on another's,
+against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
@@ -17,12 +18,21 @@ from typing import Any
 
 import numpy as np
 import pytest
-from playwright.sync_api import Page, Request, expect
+from playwright.sync_api import Browser, Locator, Page, Request, expect
 
 from driftmap.formats.frame_images import decode_gray, encode_png
 from driftmap.sim.obscurants import LEVELS, apply_level
 from tests.api.access_helpers import localisation_drive, recorded_frames
-from tests.e2e.conftest import ADMIN_PASSWORD, PageWithLog, Server, screenshot
+from tests.e2e.conftest import (
+    ADMIN_PASSWORD,
+    STALE_AFTER_S,
+    VIEWPORT_H,
+    VIEWPORT_W,
+    PageWithLog,
+    Server,
+    add_user,
+    screenshot,
+)
 from tests.e2e.map_helpers import distance_to_lines, inside_walls, layer_lines, pixel_of, plain_map_at
 
 pytestmark = pytest.mark.slow  # a real server and a browser
@@ -37,12 +47,12 @@ CENTRELINE_TOLERANCE_M = (
 )
 
 
-def log_in(page: Page, server: Server) -> None:
+def log_in(page: Page, server: Server, username: str = "admin", password: str = ADMIN_PASSWORD) -> None:
     page.goto(f"{server.base}/")
-    page.fill("#username", "admin")
-    page.fill("#password", ADMIN_PASSWORD)
+    page.fill("#username", username)
+    page.fill("#password", password)
     page.click("button[type=submit]")
-    expect(page.get_by_test_id("whoami")).to_contain_text("admin")
+    expect(page.get_by_test_id("whoami")).to_contain_text(username)
 
 
 class Vehicle:
@@ -355,3 +365,44 @@ class TestKnownStart:
         screenshot(p, "ui_known_start")
         # the browser logs the refused start's answer (422), and nothing else
         assert [e for e in page.errors if not re.match(r"Failed to load resource: .* 422 ", e)] == []
+
+
+class TestEvents:
+    def test_an_event_acknowledged_by_one_user_shows_acknowledged_to_another(
+        self, server: Server, page: PageWithLog, browser: Browser, tiny_site_dir: Path
+    ) -> None:
+        add_user(server.env, "watcher", "viewer", "e2e-watcher-password")
+        admin = page.page
+        log_in(admin, server)
+        context = browser.new_context(viewport={"width": VIEWPORT_W, "height": VIEWPORT_H})
+        watcher = context.new_page()
+        log_in(watcher, server, "watcher", "e2e-watcher-password")
+        for screen in (admin, watcher):
+            screen.get_by_test_id("nav-monitor").click()
+            expect(screen.get_by_test_id("live-connection")).to_have_text("live")
+
+        def event_of(screen: Page, listing: str) -> Locator:
+            return screen.get_by_test_id(listing).locator('[data-vehicle="silent-1"][data-kind="stale"]')
+
+        # one position, then silence: the server opens a stale event and both screens show it, unacknowledged
+        (frame,) = recorded_frames(localisation_drive(tiny_site_dir), 1)
+        assert Vehicle(server, "silent-1").post(2000.0, frame.data)["status"] == "processed"
+        wait_ms = (STALE_AFTER_S + DEADLINE_S) * 1000
+        for screen in (admin, watcher):
+            expect(event_of(screen, "events-pending")).to_have_attribute("data-open", "true", timeout=wait_ms)
+            expect(event_of(screen, "events-pending")).to_contain_text(
+                re.compile(r"\b\d\d:\d\d:\d\d silent-1 stale")
+            )
+
+        # the control room's viewer acknowledges it; the admin's screen shows who did, without a reload
+        event_of(watcher, "events-pending").get_by_test_id("event-ack").click()
+        for screen in (watcher, admin):
+            done = event_of(screen, "events-acknowledged")
+            expect(done).to_have_attribute("data-acknowledged", "true")
+            expect(done.get_by_test_id("event-acknowledged-by")).to_contain_text("watcher")
+            expect(event_of(screen, "events-pending")).to_have_count(0)
+        screenshot(admin, "ui_events")
+        stored = server.api("GET", "/api/events", params={"kind": "stale", "unacknowledged": "false"}).json()
+        assert [e["acknowledged_by"] for e in stored["items"] if e["vehicle"] == "silent-1"] == ["watcher"]
+        context.close()
+        assert page.errors == []

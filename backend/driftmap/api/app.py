@@ -21,7 +21,7 @@ from driftmap.api.deps import PrincipalCache
 from driftmap.api.error_handlers import driftmap_error_handler, validation_error_handler
 from driftmap.api.request_ids import RequestIds
 from driftmap.api.routes import ROUTERS
-from driftmap.api.schemas_live import add_to_openapi, position_message
+from driftmap.api.schemas_live import add_to_openapi, event_message, position_message
 from driftmap.config import Settings, get_settings
 from driftmap.errors import DriftmapError
 from driftmap.live.hub import InMemoryHub, LiveHub, RedisHub
@@ -43,7 +43,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     if settings.redis_url:  # several API processes: watchers and latest frames shared through Redis
         hub, frames = RedisHub(settings.redis_url), RedisFrames(settings.redis_url)
     live = LiveService(
-        settings, storage, hub, frames, position_message=position_message, processes=settings.live_processes
+        settings,
+        storage,
+        hub,
+        frames,
+        position_message=position_message,
+        event_message=event_message,
+        processes=settings.live_processes,
     )
 
     @asynccontextmanager

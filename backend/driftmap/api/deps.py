@@ -6,7 +6,7 @@ set headers on WebSockets; see :mod:`driftmap.api.ws_auth`). Tokens never travel
 a user's login token or a vehicle token (``dmv_...``). A login token is accepted only while its user is
 active and its token generation is the user's current one (:mod:`driftmap.services.security`).
 
-Roles: ``viewer`` reads (GET); ``surveyor`` also edits groundings, imports drives and builds maps; ``admin``
+Roles: ``viewer`` reads (GET) and acknowledges the control room's events; ``surveyor`` also edits groundings, imports drives and builds maps; ``admin``
 may do everything (users, vehicles, sites). A vehicle token may only post frames for its own vehicle.
 No credentials give 401, the wrong role or a vehicle token elsewhere 403.
 
@@ -207,7 +207,7 @@ def require_roles(*roles: Role) -> Callable[[Principal], Awaitable[Principal]]:
 
 
 VIEWER = require_roles(Role.viewer, Role.surveyor)
-"""Read access: every logged-in user."""
+"""Read access, and acknowledging events in the control room: every logged-in user."""
 SURVEYOR = require_roles(Role.surveyor)
 """Survey work: groundings, drive imports, map builds (and admins)."""
 ADMIN = require_roles()

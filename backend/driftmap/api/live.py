@@ -19,10 +19,14 @@ server answers each frame with one JSON text message, a FrameEstimate, or ``{"st
 the models of :mod:`driftmap.api.schemas_live`, in the OpenAPI components as ``LiveMessage``): first
 ``{"type": "snapshot", "seq", "stale_after_s", "vehicles": [...]}``, every vehicle with its last position;
 with ``?since=SEQ`` then every ``{"type": "position", ...}`` after SEQ up to the snapshot (to resume after a
-reconnect); then live ``position`` messages, and ``{"type": "stale", "vehicle_id", "received_at"}`` when a
-vehicle stops reporting for ``stale_after_s``. A watcher gets each position once and each vehicle's positions
-in order; positions of different vehicles may arrive out of ``seq`` order (they are localised by different
-processes), so a client resuming with ``?since=`` should pass the smallest of its vehicles' last ``seq``.
+reconnect); then live ``position`` messages, ``{"type": "stale", "vehicle_id", "received_at"}`` when a
+vehicle stops reporting for ``stale_after_s``, and ``{"type": "event", "change", ...}`` when an event of the
+log (:mod:`driftmap.api.events`) opens, closes or is acknowledged, by whoever and on whichever API process.
+The snapshot carries the events nobody acknowledged yet (``events``); a watcher that fell behind gets the
+events changed meanwhile again with the positions it missed. A watcher gets each position once and each
+vehicle's positions in order; positions of different vehicles may arrive out of ``seq`` order (they are
+localised by different processes), so a client resuming with ``?since=`` should pass the smallest of its
+vehicles' last ``seq``.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import asyncio
 import contextlib
 import struct
 import time
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Request, Response, WebSocket, WebSocketDisconnect
@@ -41,18 +45,24 @@ from driftmap.api.deps import VIEWER, WS_CLOSE_FORBIDDEN, WS_CLOSE_UNAUTHORIZED,
 from driftmap.api.error_handlers import error_body, status_of
 from driftmap.api.input_types import Count, Id, Seconds
 from driftmap.api.schemas_access import FrameEstimate, VehicleLatestRead
-from driftmap.api.schemas_live import LiveSnapshot, LiveStale, position_message
+from driftmap.api.schemas_events import EventRead
+from driftmap.api.schemas_live import LiveSnapshot, LiveStale, event_message, position_message
 from driftmap.api.ws_auth import TOKEN_RECHECK_S, WebSocketAuthError, still_valid, websocket_principal
 from driftmap.errors import BadRequestError, DriftmapError, NotFoundError, PayloadTooLargeError
 from driftmap.live.ingest import LiveService
+from driftmap.services import events as event_service
 from driftmap.services import positions as position_service
 from driftmap.services import vehicles as vehicle_service
+from driftmap.services.events import EventFilter
 from driftmap.services.positions import as_utc
 from driftmap.store.models import utc_now
 
 router = APIRouter(tags=["live"])
 IMAGE_TYPES = ("image/jpeg", "image/png")
 _IMAGE_BODY = {"schema": {"type": "string", "format": "binary"}}
+SNAPSHOT_EVENTS = 500  # unacknowledged events in a snapshot, newest first
+RESYNC_MARGIN_S = 5.0  # a watcher that fell behind gets the events changed since then less this, seconds
+RESYNC_EVENTS = 1000  # at most this many events resent to a watcher that fell behind
 
 
 def _live(app_state: Any) -> LiveService:
@@ -215,14 +225,27 @@ def _snapshot(websocket: WebSocket) -> LiveSnapshot:
     with storage.db.session() as session:
         seq = position_service.last_seq(session)
         vehicles = position_service.latest(session, stale_after_s)
+        events, _total = event_service.list_events(
+            session, EventFilter(unacknowledged=True), 0, SNAPSHOT_EVENTS
+        )
     rows = [VehicleLatestRead.model_validate(v) for v in vehicles]
-    return LiveSnapshot(seq=seq, stale_after_s=stale_after_s, vehicles=rows)
+    unacknowledged = [EventRead.model_validate(e) for e in events]
+    return LiveSnapshot(seq=seq, stale_after_s=stale_after_s, vehicles=rows, events=unacknowledged)
 
 
 def _since(websocket: WebSocket, seq: int, upto: int | None = None) -> list[dict[str, Any]]:
     with websocket.app.state.storage.db.session() as session:
         views = position_service.since(session, seq)
     return [position_message(v) for v in views if upto is None or v.seq <= upto]
+
+
+def _events_since(websocket: WebSocket, moment: datetime) -> list[dict[str, Any]]:
+    """The event messages of the events changed since ``moment`` less ``RESYNC_MARGIN_S`` (other processes'
+    clocks may lag a little)."""
+    since = moment - timedelta(seconds=RESYNC_MARGIN_S)
+    with websocket.app.state.storage.db.session() as session:
+        changes = event_service.changed_since(session, since, RESYNC_EVENTS)
+    return [event_message(c) for c in changes]
 
 
 @router.websocket("/live")
@@ -233,6 +256,7 @@ async def live_updates(websocket: WebSocket, since: Count | None = None) -> None
     live = _live(websocket.app.state)
     stale_after_s = float(websocket.app.state.settings.stale_after_s)
     subscription = live.hub.subscribe()
+    synced_at = utc_now()  # every event change from here on is queued (or the watcher overflows)
     receiver = asyncio.create_task(_until_disconnect(websocket))
     try:
         snapshot = await asyncio.to_thread(_snapshot, websocket)
@@ -254,15 +278,21 @@ async def live_updates(websocket: WebSocket, since: Count | None = None) -> None
                 if not await still_valid(websocket):
                     await websocket.close(WS_CLOSE_UNAUTHORIZED, "the token was revoked or expired")
                     break
-            if subscription.overflowed:
+            if not subscription.overflowed:
+                synced_at = utc_now()  # nothing was dropped up to here
+            else:
                 subscription.drain()
                 active = [seq for vehicle_id, seq in sent.items() if vehicle_id not in stale]
                 resync_from = min(active) if active else max(sent.values(), default=floor)
                 backlog = await asyncio.to_thread(_since, websocket, resync_from)
+                backlog += await asyncio.to_thread(_events_since, websocket, synced_at)
             if not backlog:
                 with contextlib.suppress(TimeoutError):
                     backlog.append(await asyncio.wait_for(subscription.queue.get(), 1.0))
             for message in backlog:
+                if message["type"] == "event":
+                    await websocket.send_json(message)
+                    continue
                 if message["type"] != "position" or message["seq"] <= sent.get(message["vehicle_id"], floor):
                     continue
                 await websocket.send_json(message)

@@ -7,6 +7,7 @@ components; the browser's types (``frontend/src/api/schema.d.ts``) are generated
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
@@ -17,7 +18,9 @@ from pydantic import BaseModel, Field, RootModel
 from pydantic.json_schema import models_json_schema
 
 from driftmap.api.schemas_access import PositionRead, VehicleLatestRead
+from driftmap.api.schemas_events import EventChangeKind, EventRead
 from driftmap.live.hub import Message
+from driftmap.services.events import EventChange
 from driftmap.services.positions import PositionView
 
 
@@ -30,6 +33,8 @@ class LiveSnapshot(BaseModel):
     stale_after_s: float
     """A vehicle without a position for this long, seconds, is stale."""
     vehicles: list[VehicleLatestRead]
+    events: list[EventRead] = Field(default_factory=list)
+    """The events nobody acknowledged yet, newest first (at most 500)."""
 
 
 class LivePosition(PositionRead):
@@ -47,13 +52,27 @@ class LiveStale(BaseModel):
     """When its last position arrived."""
 
 
-class LiveMessage(RootModel[Annotated[LiveSnapshot | LivePosition | LiveStale, Field(discriminator="type")]]):
+class LiveEvent(EventRead):
+    """An event opened, closed (its condition ended) or acknowledged: the event as it now is."""
+
+    type: Literal["event"] = "event"
+    change: EventChangeKind
+
+
+class LiveMessage(
+    RootModel[Annotated[LiveSnapshot | LivePosition | LiveStale | LiveEvent, Field(discriminator="type")]]
+):
     """One message of the ``/api/live`` WebSocket, told apart by ``type``."""
 
 
 def position_message(view: PositionView) -> Message:
     """The ``/api/live`` message of one position (a :class:`LivePosition`)."""
     return LivePosition.model_validate(view).model_dump(mode="json")
+
+
+def event_message(change: EventChange) -> Message:
+    """The ``/api/live`` message of an event's change (a :class:`LiveEvent`)."""
+    return LiveEvent.model_validate({**asdict(change.event), "change": change.change}).model_dump(mode="json")
 
 
 def add_to_openapi(app: FastAPI) -> None:

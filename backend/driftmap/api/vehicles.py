@@ -10,16 +10,26 @@ live localisation at its next frame.
 ``POST /api/vehicles/{id}/start`` seeds the vehicle's live belief at a known position, as ``driftmap localise
 --start`` does: 422 naming ``x``, ``y`` or ``radius_m`` for a value that is not finite, a radius outside 0-200
 m, or a start more than 50 m from every node of the map; 409 when the site has no map yet. Nothing changes on
-an error.
+an error. A start set is logged as a ``start_known`` event acknowledged by its setter, and pushed to the live
+watchers.
 """
 
 from __future__ import annotations
 
+import asyncio
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, Request, status
 
-from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, StorageDep, forget_principals
+from driftmap.api.deps import (
+    ADMIN,
+    SURVEYOR,
+    VIEWER,
+    Principal,
+    SessionDep,
+    SurveyorDep,
+    forget_principals,
+)
 from driftmap.api.input_types import Id
 from driftmap.api.schemas_access import (
     StartRead,
@@ -31,8 +41,13 @@ from driftmap.api.schemas_access import (
 )
 from driftmap.errors import NotFoundError
 from driftmap.live import start as live_start
+from driftmap.live.ingest import LiveService
+from driftmap.services import events as event_service
 from driftmap.services import vehicles as vehicle_service
 from driftmap.services.cameras import profiles as profile_service
+from driftmap.services.events import EventChange
+from driftmap.store.models import utc_now
+from driftmap.store.storage import Storage
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 _CAMERA_BODY = {
@@ -129,11 +144,18 @@ def delete_camera(vehicle_id: Id, session: SessionDep) -> None:
     vehicle_service.delete_camera(session, vehicle_service.get_vehicle(session, vehicle_id))
 
 
-@router.post("/{vehicle_id}/start", dependencies=[Depends(SURVEYOR)])
-def post_start(vehicle_id: Id, body: StartRequest, session: SessionDep, storage: StorageDep) -> StartRead:
-    """Seed the vehicle's live localisation at a known position on its site's latest map."""
-    seeded = live_start.seed_known_start(session, storage.blobs, vehicle_id, body.x, body.y, body.radius_m)
-    return StartRead(
+def _seed_start(
+    storage: Storage, vehicle_id: int, body: StartRequest, user: Principal
+) -> tuple[StartRead, EventChange]:
+    with storage.db.session() as session:
+        seeded = live_start.seed_known_start(
+            session, storage.blobs, vehicle_id, body.x, body.y, body.radius_m
+        )
+        vehicle = vehicle_service.get_vehicle(session, vehicle_id)
+        change = event_service.record_known_start(
+            session, vehicle, seeded.x, seeded.y, seeded.radius_m, user.id, user.name, utc_now()
+        )
+    read = StartRead(
         vehicle_id=seeded.vehicle_id,
         x=seeded.x,
         y=seeded.y,
@@ -141,3 +163,13 @@ def post_start(vehicle_id: Id, body: StartRequest, session: SessionDep, storage:
         node=seeded.node,
         map_version=seeded.map_version,
     )
+    return read, change
+
+
+@router.post("/{vehicle_id}/start")
+async def post_start(vehicle_id: Id, body: StartRequest, request: Request, user: SurveyorDep) -> StartRead:
+    """Seed the vehicle's live localisation at a known position on its site's latest map."""
+    read, change = await asyncio.to_thread(_seed_start, request.app.state.storage, vehicle_id, body, user)
+    live: LiveService = request.app.state.live
+    await live.publish_event(change)
+    return read

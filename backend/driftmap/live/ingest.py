@@ -14,7 +14,9 @@ Several API processes may share one database (and one Redis): a vehicle's locali
 :class:`~driftmap.store.access_models.VehicleLiveState` (see :mod:`driftmap.live.localise`), so frames of
 one vehicle posted to different processes are still localised once each and in order. A processed frame is
 published to the hub and kept as the vehicle's latest frame *before* its caller gets the answer, so a
-vehicle that posts its next frame after the answer (to any process) cannot overtake it on the hub.
+vehicle that posts its next frame after the answer (to any process) cannot overtake it on the hub. The
+events a frame opened or ended are published right after its position; the process also watches for vehicles
+gone silent (:class:`~driftmap.live.event_watch.SilenceWatch`) and publishes their ``stale`` events.
 """
 
 from __future__ import annotations
@@ -28,11 +30,14 @@ from dataclasses import dataclass, field, replace
 from driftmap.config import Settings
 from driftmap.formats.bounds import check_t_s
 from driftmap.formats.frame_images import check_complete, check_frame_pixels
+from driftmap.live.event_watch import SilenceWatch
+from driftmap.live.events import EventParams
 from driftmap.live.hub import InMemoryHub, LiveHub, Message
 from driftmap.live.latest_frames import LatestFrames, MemoryFrames
 from driftmap.live.localise import FrameOutcome, FrameStatus
 from driftmap.live.metrics import count_frame
 from driftmap.live.workers import LocaliserWorkers
+from driftmap.services.events import EventChange
 from driftmap.services.positions import PositionView
 from driftmap.store.storage import Storage
 
@@ -104,6 +109,8 @@ class LiveService:
         frames: where the latest frame of each vehicle is kept (this process's memory when None).
         position_message: the hub message of a processed frame's position (the API's
             :func:`~driftmap.api.schemas_live.position_message`).
+        event_message: the hub message of an event's change (the API's
+            :func:`~driftmap.api.schemas_live.event_message`).
         queue_depth: frames of one vehicle that may wait behind the one being localised.
         processes: localiser worker processes (about one per core).
     """
@@ -116,30 +123,38 @@ class LiveService:
         frames: LatestFrames | None = None,
         *,
         position_message: Callable[[PositionView], Message],
+        event_message: Callable[[EventChange], Message],
         queue_depth: int = 1,
         processes: int = 2,
     ) -> None:
         self.settings = settings
         self.position_message = position_message
+        self.event_message = event_message
         self.storage = storage
         self.hub: LiveHub = hub if hub is not None else InMemoryHub()
         self.queue_depth = max(1, queue_depth)
         self.workers = LocaliserWorkers(settings, processes)
         self.frames: LatestFrames = frames if frames is not None else MemoryFrames()
         self._lanes: dict[int, _Lane] = {}
+        EventParams.of(settings)  # a bad setting fails here, not in every localiser process
+        self.silence = SilenceWatch(
+            storage.db, self.publish_event, settings.stale_after_s, settings.event_check_every_s
+        )
 
     async def latest_frame(self, vehicle_id: int) -> tuple[float, bytes] | None:
         """``(t, bytes)`` of the vehicle's newest localised frame (as posted), or None."""
         return await self.frames.get(vehicle_id)
 
     async def start(self) -> None:
-        """Start the localiser worker processes and connect the hub and the frame store."""
+        """Start the localiser worker processes, connect the hub and the frame store, watch for silence."""
         await self.workers.start()
         await self.hub.start()
         await self.frames.start()
+        self.silence.start()
 
     async def stop(self) -> None:
-        """Disconnect the hub and the frame store, then stop the worker processes."""
+        """Stop watching, disconnect the hub and the frame store, then stop the worker processes."""
+        await self.silence.stop()
         await self.hub.close()
         await self.frames.close()
         self.close()
@@ -147,6 +162,13 @@ class LiveService:
     def close(self) -> None:
         """Stop the worker processes (after the frames being localised)."""
         self.workers.close()
+
+    async def publish_event(self, change: EventChange) -> None:
+        """Send an event's change to every watcher (a failure is logged: watchers read the log on reconnect)."""
+        try:
+            await self.hub.publish(self.event_message(change))
+        except Exception:
+            log.warning("could not publish event %s (%s)", change.event.id, change.change, exc_info=True)
 
     async def submit(self, vehicle_id: int, name: str, site_id: int, t: float, data: bytes) -> FrameOutcome:
         """Localise a frame (PNG or JPEG bytes) of a vehicle in its turn; returns its outcome.
@@ -232,6 +254,8 @@ class LiveService:
             await self.hub.publish(self.position_message(_view(outcome)))
         except Exception:
             log.warning("could not publish position %s of vehicle %s", outcome.seq, vehicle_id, exc_info=True)
+        for change in outcome.events:
+            await self.publish_event(change)
 
     async def _drain(self, lane: _Lane) -> None:
         try:

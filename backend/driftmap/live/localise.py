@@ -7,7 +7,9 @@ localiser's belief in the vehicle's :class:`~driftmap.store.access_models.Vehicl
 counter makes two processes that advance the same vehicle fail instead of double-processing a frame.
 A frame whose ``t`` is not after the last processed one is refused and counted, never processed.
 Each processed frame is also judged for an obscured camera (:mod:`driftmap.core.localisation.camera_check`); that judgement's
-memory of the recent frames is kept in the same stored state (``obscured_*`` arrays of the ``.npz``).
+memory of the recent frames is kept in the same stored state (``obscured_*`` arrays of the ``.npz``). The
+frame's conditions then open and end the vehicle's events (:mod:`driftmap.live.events`) in the same
+transaction, without ever failing the frame (:func:`driftmap.live.event_watch.record_frame_events`).
 
 A vehicle with a calibrated camera (:func:`driftmap.services.vehicles.vehicle_camera`) is localised with its
 ground-plane odometry; without one by appearance alone, and every estimate says ``odometry=False``. Reported
@@ -34,8 +36,11 @@ from driftmap.core.localisation.camera_check import ObscuredState, frame_measure
 from driftmap.core.localisation.localiser import Estimate, Localiser, LocaliserState
 from driftmap.core.localisation.map import LocaliserMap
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
+from driftmap.live.event_watch import record_frame_events
+from driftmap.live.events import DEFAULT_EVENTS, EventParams, FrameFacts, Watch, frame_conditions
+from driftmap.services.events import EventChange
 from driftmap.services.localisation import load_version_localiser_map, make_localiser
-from driftmap.services.vehicles import vehicle_camera
+from driftmap.services.vehicles import check_frame_size, vehicle_camera
 from driftmap.store.access_models import Vehicle, VehicleLiveState, VehiclePosition
 from driftmap.store.blobs import BlobStore
 from driftmap.store.db import Database
@@ -126,6 +131,8 @@ class FrameOutcome:
     """Smoothed fraction of isolated outlier pixels (dust), 0-1."""
     flat_area: float | None = None
     """Fraction of the image persistently without detail (water drop), 0-1."""
+    events: tuple[EventChange, ...] = ()
+    """The events this frame opened and ended."""
 
 
 def decode_state(data: bytes) -> tuple[LocaliserState, ObscuredState]:
@@ -233,6 +240,7 @@ def localise_live_frame(
     frame: NDArray[np.uint8],
     unsaved_counts: tuple[int, int],
     slot: LiveSlot | None,
+    events: EventParams = DEFAULT_EVENTS,
 ) -> tuple[FrameOutcome, LiveSlot | None]:
     """Localise one frame of a vehicle and store the estimate and the new state (one transaction).
 
@@ -246,6 +254,7 @@ def localise_live_frame(
         unsaved_counts: frames of this vehicle skipped under overload and refused as out of order since
             the last stored frame (added to its counts).
         slot: this process's localiser of the vehicle from the previous frame, or None.
+        events: how the frame's conditions become events.
 
     Returns:
         The outcome and the slot to pass with the vehicle's next frame.
@@ -256,7 +265,7 @@ def localise_live_frame(
         _ensure_live_state(db, vehicle_id)
     for _attempt in range(STALE_RETRIES):
         try:
-            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, unsaved_counts, slot)
+            return _localise_once(db, blobs, maps, vehicle_id, t_s, frame, unsaved_counts, slot, events)
         except StaleDataError:
             slot = None  # another process advanced the vehicle: start again from the stored state
     raise ConflictError(
@@ -273,12 +282,13 @@ def _localise_once(
     frame: NDArray[np.uint8],
     unsaved_counts: tuple[int, int],
     slot: LiveSlot | None,
+    events: EventParams,
 ) -> tuple[FrameOutcome, LiveSlot | None]:
     with db.session() as session:
         vehicle = session.get(Vehicle, vehicle_id)
         if vehicle is None:
             raise NotFoundError(f"no vehicle with id {vehicle_id}")
-        _check_camera_size(vehicle, frame)
+        check_frame_size(vehicle, frame)
         version = require_map_version(session, vehicle.site_id)
         state = live_state_row(session, vehicle_id)
         state.skipped += unsaved_counts[0]
@@ -306,6 +316,9 @@ def _localise_once(
         motion = Motion.of(estimate, slot.has_camera)
         slot.obscured, camera = judge_obscured(slot.obscured, measures, t_s)
         received_at = utc_now()
+        facts = FrameFacts(t_s, bool(estimate.lost), bool(estimate.matched), bool(camera.obscured))
+        active, watch = frame_conditions(Watch(state.low_confidence_since_s), facts, events)
+        state.low_confidence_since_s, state.reported_at = watch.low_since_s, received_at
         state.map_version_id = version.id
         state.last_t_s = t_s
         state.state_npz = encode_state(slot.localiser.state(), slot.obscured)
@@ -335,6 +348,9 @@ def _localise_once(
         session.add(position)
         session.flush()
         slot.revision = state.revision
+        changes = record_frame_events(
+            session, vehicle, active, received_at, estimate.x_m, estimate.y_m, {"obscured": camera.reason}
+        )
         outcome = FrameOutcome(
             vehicle.id,
             vehicle.name,
@@ -364,25 +380,9 @@ def _localise_once(
             sharpness=camera.sharpness,
             speckle=camera.speckle,
             flat_area=camera.flat_area,
+            events=changes,
         )
     return outcome, slot
-
-
-def _check_camera_size(vehicle: Vehicle, frame: NDArray[np.uint8]) -> None:
-    """A vehicle with a camera block takes only frames of its camera's width and height (pixels).
-
-    Raises:
-        BadInputError: another size, naming the request body.
-    """
-    if vehicle.camera is None:
-        return
-    width_px, height_px = int(vehicle.camera["width"]), int(vehicle.camera["height"])
-    if (frame.shape[1], frame.shape[0]) != (width_px, height_px):
-        raise BadInputError(
-            f"frame is {frame.shape[1]}x{frame.shape[0]} pixels but vehicle {vehicle.id}'s camera says "
-            f"{width_px}x{height_px}",
-            field="body",
-        )
 
 
 def add_counts(db: Database, vehicle_id: int, skipped: int, out_of_order: int) -> tuple[int | None, int]:

@@ -31,6 +31,7 @@ from driftmap.config import Settings
 from driftmap.errors import ConflictError
 from driftmap.formats.frame_images import decode_gray
 from driftmap.live import localise
+from driftmap.live.events import DEFAULT_EVENTS, EventParams
 from driftmap.live.localise import FrameOutcome, LiveMaps, LiveSlot
 from driftmap.store.storage import Storage
 
@@ -40,11 +41,14 @@ R = TypeVar("R")
 _storage: Storage | None = None
 _maps = LiveMaps()
 _slots: dict[int, LiveSlot] = {}
+_events: EventParams = DEFAULT_EVENTS
 
 
 def _start_worker(settings_json: str) -> None:
-    global _storage
-    _storage = Storage.open(Settings.model_validate_json(settings_json), upgrade=False)
+    global _storage, _events
+    settings = Settings.model_validate_json(settings_json)
+    _storage = Storage.open(settings, upgrade=False)
+    _events = EventParams.of(settings)
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
 
 
@@ -90,7 +94,7 @@ def _localise(vehicle_id: int, t_s: float, data: bytes, counts: tuple[int, int])
     frame = decode_gray(data, "frame")
     slot = _slots.pop(vehicle_id, None)
     outcome, slot = localise.localise_live_frame(
-        storage.db, storage.blobs, _maps, vehicle_id, t_s, frame, counts, slot
+        storage.db, storage.blobs, _maps, vehicle_id, t_s, frame, counts, slot, _events
     )
     if slot is not None:
         _slots[vehicle_id] = slot

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -109,3 +111,20 @@ def _drop_live_state(session: Session, vehicle_id: int) -> None:
     if state is not None:
         state.state_npz = None
         state.updated_at = utc_now()  # an update even when there was no state: the revision moves on
+
+
+def check_frame_size(vehicle: Vehicle, frame: NDArray[np.uint8]) -> None:
+    """A vehicle with a camera block takes only frames of its camera's width and height (pixels).
+
+    Raises:
+        BadInputError: another size, naming the request body.
+    """
+    if vehicle.camera is None:
+        return
+    width_px, height_px = int(vehicle.camera["width"]), int(vehicle.camera["height"])
+    if (frame.shape[1], frame.shape[0]) != (width_px, height_px):
+        raise BadInputError(
+            f"frame is {frame.shape[1]}x{frame.shape[0]} pixels but vehicle {vehicle.id}'s camera says "
+            f"{width_px}x{height_px}",
+            field="body",
+        )

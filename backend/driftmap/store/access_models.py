@@ -134,5 +134,9 @@ class VehicleLiveState(Base):
     """Frames refused because their ``t`` was not after ``last_t_s``."""
     revision: Mapped[int] = mapped_column(Integer, default=0)
     updated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, onupdate=utc_now)
+    reported_at: Mapped[datetime | None] = mapped_column(UtcDateTime(), nullable=True)
+    """When the server received the vehicle's last position (None before its first); silence is read here."""
+    low_confidence_since_s: Mapped[float | None] = mapped_column(Float, nullable=True)
+    """``t`` of the first frame of the vehicle's current run of unmatched positions, seconds (None: matched)."""
 
     __mapper_args__ = {"version_id_col": revision}  # noqa: RUF012 (SQLAlchemy reads it as a class attribute)

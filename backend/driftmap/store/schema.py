@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from driftmap.store import (
     access_models,  # noqa: F401 (registers users, vehicles, positions, live states)
+    event_models,  # noqa: F401 (registers the events table)
     job_models,  # noqa: F401 (registers the jobs table)
     models,
     worker_models,  # noqa: F401 (registers the workers table)

@@ -505,6 +505,66 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/events": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * List Events
+         * @description The events that pass the filters, newest first, a page at a time.
+         */
+        get: operations["list_events_api_events_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/events.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Export Events
+         * @description The events that pass the filters as a CSV file (docs/formats.md, Events), oldest first.
+         */
+        get: operations["export_events_api_events_csv_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/events/{event_id}/ack": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Acknowledge Event
+         * @description Acknowledge an event as the calling user (again: the first acknowledgement stays); 404 when unknown.
+         */
+        post: operations["acknowledge_event_api_events__event_id__ack_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/sites": {
         parameters: {
             query?: never;
@@ -1498,6 +1558,47 @@ export interface components {
             name?: string | null;
         };
         /**
+         * EventRead
+         * @description One event of a vehicle: a condition from ``started_at`` to ``ended_at`` (null while it lasts).
+         */
+        EventRead: {
+            /** Id */
+            id: number;
+            /** Site Id */
+            site_id: number;
+            /** Vehicle Id */
+            vehicle_id: number;
+            /** Vehicle */
+            vehicle: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "lost" | "obscured" | "low_confidence" | "stale" | "start_known";
+            /** Detail */
+            detail: string | null;
+            /**
+             * Started At
+             * Format: date-time
+             */
+            started_at: string;
+            /** Ended At */
+            ended_at: string | null;
+            /** X */
+            x: number | null;
+            /** Y */
+            y: number | null;
+            /** Acknowledged By */
+            acknowledged_by: string | null;
+            /** Acknowledged At */
+            acknowledged_at: string | null;
+            /**
+             * Updated At
+             * Format: date-time
+             */
+            updated_at: string;
+        };
+        /**
          * FrameArrays
          * @description A page of a drive's frames as parallel arrays (compact for long drives).
          */
@@ -1993,6 +2094,17 @@ export interface components {
         Page_DriveRead_: {
             /** Items */
             items: components["schemas"]["DriveRead"][];
+            /** Total */
+            total: number;
+            /** Offset */
+            offset: number;
+            /** Limit */
+            limit: number;
+        };
+        /** Page[EventRead] */
+        Page_EventRead_: {
+            /** Items */
+            items: components["schemas"]["EventRead"][];
             /** Total */
             total: number;
             /** Offset */
@@ -2530,10 +2642,61 @@ export interface components {
             token: string;
         };
         /**
+         * LiveEvent
+         * @description An event opened, closed (its condition ended) or acknowledged: the event as it now is.
+         */
+        LiveEvent: {
+            /** Id */
+            id: number;
+            /** Site Id */
+            site_id: number;
+            /** Vehicle Id */
+            vehicle_id: number;
+            /** Vehicle */
+            vehicle: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "lost" | "obscured" | "low_confidence" | "stale" | "start_known";
+            /** Detail */
+            detail: string | null;
+            /**
+             * Started At
+             * Format: date-time
+             */
+            started_at: string;
+            /** Ended At */
+            ended_at: string | null;
+            /** X */
+            x: number | null;
+            /** Y */
+            y: number | null;
+            /** Acknowledged By */
+            acknowledged_by: string | null;
+            /** Acknowledged At */
+            acknowledged_at: string | null;
+            /**
+             * Updated At
+             * Format: date-time
+             */
+            updated_at: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "event";
+            /**
+             * Change
+             * @enum {string}
+             */
+            change: "opened" | "closed" | "acknowledged";
+        };
+        /**
          * LiveMessage
          * @description One message of the ``/api/live`` WebSocket, told apart by ``type``.
          */
-        LiveMessage: components["schemas"]["LiveSnapshot"] | components["schemas"]["LivePosition"] | components["schemas"]["LiveStale"];
+        LiveMessage: components["schemas"]["LiveSnapshot"] | components["schemas"]["LivePosition"] | components["schemas"]["LiveStale"] | components["schemas"]["LiveEvent"];
         /**
          * LivePosition
          * @description A vehicle's new position.
@@ -2613,6 +2776,8 @@ export interface components {
             stale_after_s: number;
             /** Vehicles */
             vehicles: components["schemas"]["VehicleLatestRead"][];
+            /** Events */
+            events?: components["schemas"]["EventRead"][];
         };
         /**
          * LiveStale
@@ -3672,6 +3837,127 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["PositionRead"][];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    list_events_api_events_get: {
+        parameters: {
+            query?: {
+                offset?: number;
+                limit?: number;
+                /** @description Only events of this site (its id). */
+                site?: number | null;
+                /** @description Only events of this vehicle (its id). */
+                vehicle?: number | null;
+                /** @description Only events of this kind. */
+                kind?: ("lost" | "obscured" | "low_confidence" | "stale" | "start_known") | null;
+                /** @description true: only events still on; false: only ended ones. */
+                open?: boolean | null;
+                /** @description true: only events nobody acknowledged; false: only acknowledged ones. */
+                unacknowledged?: boolean | null;
+                /** @description Only events still on at or after this time (ISO 8601). */
+                since?: string | null;
+                /** @description Only events started at or before this time. */
+                until?: string | null;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Page_EventRead_"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    export_events_api_events_csv_get: {
+        parameters: {
+            query?: {
+                /** @description Only events of this site (its id). */
+                site?: number | null;
+                /** @description Only events of this vehicle (its id). */
+                vehicle?: number | null;
+                /** @description Only events of this kind. */
+                kind?: ("lost" | "obscured" | "low_confidence" | "stale" | "start_known") | null;
+                /** @description true: only events still on; false: only ended ones. */
+                open?: boolean | null;
+                /** @description true: only events nobody acknowledged; false: only acknowledged ones. */
+                unacknowledged?: boolean | null;
+                /** @description Only events still on at or after this time (ISO 8601). */
+                since?: string | null;
+                /** @description Only events started at or before this time. */
+                until?: string | null;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description The events, oldest first. */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": unknown;
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    acknowledge_event_api_events__event_id__ack_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                event_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["EventRead"];
                 };
             };
             /** @description Validation Error */

@@ -1,5 +1,6 @@
 // Live monitoring: REST snapshot, then the /api/live WebSocket (auto-reconnect with resume); vehicles on the
-// plan and in a list in confidence bands (with a legend); alerts for lost vehicles and obscured cameras; click
+// plan and in a list in confidence bands (with a legend); alerts for lost vehicles and obscured cameras; the
+// server's event log to acknowledge (EventsPanel, a beep on new events when turned on); click
 // one for its details (VehicleDetails), place its known start (SetStart, surveyors and admins), replay any
 // time range of it (ReplayPanel, ReplayLayer) and export position history (PositionsExport).
 import { useEffect, useMemo, useState } from "react";
@@ -17,6 +18,10 @@ import { SetStartPanel, useSetStart } from "./SetStart";
 import { BandDot, VehicleList } from "./VehicleList";
 import { PositionsExport } from "./PositionsExport";
 import { useSiteCoordinates } from "../map/siteCrs";
+import { EventLog, type EventRow } from "../lib/eventLog";
+import { beep } from "../lib/beep";
+import { useLatest } from "../lib/useLatest";
+import { EventsPanel, useEventSound } from "./EventsPanel";
 
 function liveUrl(since: number | null): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
@@ -52,6 +57,9 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
   const [connection, setConnection] = useState<ConnectionState>("connecting");
   const [selectedId, setSelectedId] = useState<number | null>(null);
   const [replay, setReplay] = useState<ReplaySession | null>(null);
+  const [events] = useState(() => new EventLog());
+  const [sound, setSound] = useEventSound();
+  const alarm = useLatest({ sound, siteId }); // read by the socket's handler, set up once
 
   useEffect(() => {
     let cancelled = false;
@@ -69,6 +77,10 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
       authMessage,
       lastSeq: () => state.resumeSeq(),
       onMessage: (m) => {
+        if (m.type === "snapshot") events.reset(m.events ?? []);
+        else if (m.type === "event" && events.apply(m)) {
+          if (alarm.current.sound && m.site_id === alarm.current.siteId) beep();
+        }
         state.apply(m);
         bump();
       },
@@ -90,7 +102,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
       cancelled = true;
       socket.stop();
     };
-  }, [state]);
+  }, [state, events, alarm]);
 
   const vehicles = useMemo(
     () => state.sorted().filter((v) => v.siteId === siteId),
@@ -103,6 +115,10 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
   const alerts = alertsOf(vehicles);
   const setStart = useSetStart(editable ? (selected?.id ?? null) : null);
   const placedStart = setStart.result?.state === "accepted" ? setStart.result.start : null;
+  const acknowledged = (event: EventRow) => {
+    events.apply(event);
+    setVersion((v) => v + 1);
+  };
 
   return (
     <>
@@ -143,6 +159,15 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
             Camera obscured: {alerts.obscured.map((o) => `${o.name} (${o.reason})`).join(", ")}
           </div>
         )}
+        <EventsPanel
+          key={siteId}
+          siteId={siteId}
+          log={events}
+          vehicles={vehicles}
+          sound={sound}
+          onSound={setSound}
+          onAcknowledged={acknowledged}
+        />
         <VehicleList vehicles={vehicles} selectedId={selectedId} onSelect={setSelectedId} />
         <PositionsExport
           siteId={siteId}
