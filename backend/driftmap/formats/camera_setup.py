@@ -4,7 +4,7 @@
 being set up the block may be partial (only ``width``, ``height`` and ``lens`` after ``driftmap camera
 intrinsics``); :func:`complete_camera` validates it once every key of the format is present. The floor
 points file is a CSV ``u,v,x,y``: pixel of a floor mark in a recorded frame and its measured floor position
-(metres, x forward, y left, vehicle frame at the camera's foot); points are numbered 1, 2, ... in file order.
+(metres, look frame at the camera's foot: x the way the camera looks, y left); points are numbered 1, 2, ... in file order.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """The calibrated camera of one drive, as the ground-plane odometry needs it.
 
 The fields mirror the ``camera`` block of ``drive.json`` (``docs/formats.md``). The vehicle frame
-used by ``ground_homography`` has x forward, y left, origin on the floor under the camera, metres. A camera
+used by ``ground_homography`` is the camera's look frame: x the way the camera looks (forward for ``forward_sign``
++1, backward for -1), y to its left, origin on the floor under the camera, metres. A camera
 with a ``lens`` has its ROI, ``k_x``, ``k_y``, ``y_h`` and homography defined on the undistorted image
 (:mod:`driftmap.core.imaging.lens`); odometry undistorts the region it needs before matching.
 """
@@ -31,7 +32,7 @@ class CameraModel:
         y_h_m: metres from the camera to the floor point at the ROI centre (eq. 1).
         forward_sign: +1 when image content moves down (+v) as the vehicle drives forward, else -1.
         ground_homography: optional (3, 3) map from pixel (u, v, 1) to the floor point
-            (x forward, y left, w) in metres in the vehicle frame at the camera's foot.
+            (x, y, w) in metres in the look frame at the camera's foot.
         lens: optional lens model; None for an ideal pinhole (frames used as recorded).
     """
 

@@ -1,7 +1,7 @@
 """The ground plane of a camera from floor points seen in a frame ([SSLAM] III-A1: a known homography).
 
 A technician clicks N >= 4 floor marks in one frame (pixels ``(u, v)`` of the recorded frame) and measures
-their floor coordinates ``(x, y)`` in metres in the vehicle frame at the camera's foot (x forward, y left,
+their floor coordinates ``(x, y)`` in metres in the camera's look frame at its foot (x the way it looks, y left,
 :class:`~driftmap.core.odometry.camera.CameraModel`). :func:`fit_ground` fits the pixel-to-floor homography
 by least squares over all points (on the undistorted image when the camera has a lens) and derives the
 camera block's ``k_x``, ``k_y`` and ``y_h`` at the ROI centre as :func:`~driftmap.core.odometry.drive.
@@ -82,7 +82,7 @@ def fit_ground(pixels_px: NDArray, floor_m: NDArray, roi: Rect, lens: Lens | Non
 
     Args:
         pixels_px: ``(N, 2)`` pixels ``(u, v)`` of the floor marks in the recorded frame, N >= 4.
-        floor_m: ``(N, 2)`` measured floor coordinates ``(x forward, y left)``, metres, vehicle frame at
+        floor_m: ``(N, 2)`` measured floor coordinates ``(x, y)``, metres, look frame (x the way the camera looks) at
             the camera's foot.
         roi: ``(x, y, w, h)`` ground ROI of the undistorted image; the scales are taken at its centre.
         lens: the camera's lens, or None for an ideal pinhole.
@@ -132,8 +132,8 @@ def board_floor_points(
 ) -> NDArray[np.float64]:
     """Floor positions of the inner corners of a chessboard lying flat on the floor.
 
-    The board's centre lies at ``centre_m`` (x forward, y left, metres, vehicle frame at the camera's foot)
-    and its rows (the ``cols`` direction) point at ``yaw_rad`` counter-clockwise from x forward. A detector
+    The board's centre lies at ``centre_m`` (x the way the camera looks, y left, metres, at the camera's foot)
+    and its rows (the ``cols`` direction) point at ``yaw_rad`` counter-clockwise from x. A detector
     may number the corners from either end, so of the four numberings (turned half a turn, mirrored) the one
     is kept that an upright camera looking at the floor can see: image content higher up is farther away,
     and the image is not mirrored (pixel-to-floor Jacobian with a negative determinant).

@@ -229,7 +229,7 @@ def horizon_floor(
     """Track the horizon of a drive and map every step's matched pixels to the floor with its own offset.
 
     Args:
-        hom: ``(3, 3)`` the drive's pixel -> floor (x forward, y left, metres) ground homography.
+        hom: ``(3, 3)`` the drive's pixel -> floor (look frame, metres) ground homography.
         pairs: per step, its matched pixel pairs ``(previous (2,), current (2,))``, the ROI-centre match
             first (empty for a step without matches).
         estimates_px: ``(N,)`` float64 per-step horizon offset estimates, NaN where none.

@@ -35,7 +35,7 @@ def direct_turn(
     """Heading change (radians, counter-clockwise) from the near- and far-slice floor matches.
 
     Args:
-        near: ``(2,)`` floor points (x forward, y left, metres) of the near match in the previous and the
+        near: ``(2,)`` floor points (look frame, metres) of the near match in the previous and the
             current frame.
         far: the same for the far match.
     """
@@ -55,7 +55,7 @@ def fit_rotation_centre(
     """The rotation-centre lever ``y_c`` that best explains the directly measured turns, if well determined.
 
     Args:
-        prev_m: ``(N, 2)`` float64 floor points (x forward, y left, metres) of the ROI-centre match in the
+        prev_m: ``(N, 2)`` float64 floor points (look frame, metres) of the ROI-centre match in the
             previous frame of each usable step.
         curr_m: ``(N, 2)`` the same points in the current frame.
         turn_rad: ``(N,)`` float64 direct heading changes (:func:`direct_turn`), radians.

@@ -228,7 +228,7 @@ def _match_birdseye(
     centre = centres[0]
 
     def motion(shift_px: tuple[float, float]) -> NDArray[np.float64]:
-        """Floor motion of content (x forward, y left) for a grid shift (columns right, rows back)."""
+        """Floor motion of content (look frame) for a grid shift (columns right, rows back)."""
         return -res * np.array([shift_px[1], shift_px[0]])
 
     def rot_w(g: NDArray, theta_w: float) -> NDArray[np.float64]:
