@@ -1,6 +1,6 @@
 """The calibrated camera of one drive, as the ground-plane odometry needs it.
 
-The fields mirror the ``camera`` block of ``drive.json`` (``docs/formats.md``). The vehicle frame
+The fields mirror the ``camera`` block of ``drive.json`` (``docs/formats.md``). The frame
 used by ``ground_homography`` is the camera's look frame: x the way the camera looks (forward for ``forward_sign``
 +1, backward for -1), y to its left, origin on the floor under the camera, metres. A camera
 with a ``lens`` has its ROI, ``k_x``, ``k_y``, ``y_h`` and homography defined on the undistorted image
