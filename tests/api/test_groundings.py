@@ -129,3 +129,83 @@ class TestCsv:
             assert (body["file"], body["line"], body["field"]) == ("marks.csv", line, field), body
         assert users.get(f"/api/sites/{site_id}/groundings", params={"drive_id": drive["id"]}) == before
         assert _put_csv(users, drive["id"], "frame,x,y\n", role="viewer").status_code == 403
+
+
+def _put_site_csv(users: ApiUsers, site_id: int, text: str, role: str = "surveyor") -> httpx.Response:
+    return users.client.put(
+        f"/api/sites/{site_id}/groundings.csv",
+        files={"file": ("control.csv", text.encode(), "text/csv")},
+        headers=users.auth(role),
+    )
+
+
+class TestSurveyControl:
+    def test_patch_enabled_and_station(self, users: ApiUsers, site_id: int) -> None:
+        mark = users.get(f"/api/sites/{site_id}/groundings")["items"][0]
+        assert (mark["enabled"], mark["station"]) == (True, None)
+        url = f"/api/groundings/{mark['id']}"
+        assert (
+            users.client.patch(url, json={"enabled": False}, headers=users.auth("viewer")).status_code == 403
+        )
+        patched = users.client.patch(
+            url, json={"enabled": False, "station": "STN-104"}, headers=users.auth("surveyor")
+        )
+        assert patched.status_code == 200, patched.text
+        assert (patched.json()["enabled"], patched.json()["station"], patched.json()["x_m"]) == (
+            False,
+            "STN-104",
+            mark["x_m"],
+        )
+        kept = users.client.patch(url, json={"y": 1.0}, headers=users.auth("surveyor")).json()
+        assert (kept["enabled"], kept["station"]) == (False, "STN-104")
+        cleared = users.client.patch(url, json={"station": None}, headers=users.auth("surveyor")).json()
+        assert cleared["station"] is None
+        bad = users.client.patch(url, json={"station": "S" * 65}, headers=users.auth("surveyor"))
+        assert bad.status_code == 422 and "station" in bad.text
+
+    def test_site_control_file_round_trip_roles_and_bad_row(self, users: ApiUsers, site_id: int) -> None:
+        url = f"/api/sites/{site_id}/groundings.csv"
+        exported = users.client.get(url, headers=users.auth("viewer"))
+        assert exported.status_code == 200 and exported.headers["content-type"].startswith("text/csv")
+        assert exported.text.splitlines()[0] == "drive,frame,station,x,y,enabled"
+        drive = _drives(users, site_id, "mapping")[0]["name"]
+        text = f"drive,frame,station,x,y,enabled\n{drive},5,STN-9,1.0,2.0,false\n"
+        assert _put_site_csv(users, site_id, text, role="viewer").status_code == 403
+        replaced = _put_site_csv(users, site_id, text)
+        assert replaced.status_code == 200 and replaced.json() == {"site_id": site_id, "imported": 1}
+        assert users.client.get(url, headers=users.auth("viewer")).text == text
+        bad = _put_site_csv(users, site_id, text + f"{drive},6,,1.0,2.0,sometimes\n")
+        assert bad.status_code == 422
+        assert (bad.json()["file"], bad.json()["line"], bad.json()["field"]) == ("control.csv", 3, "enabled")
+        assert users.client.get(url, headers=users.auth("viewer")).text == text
+        assert _put_site_csv(users, site_id, exported.text).json()["imported"] == 2
+
+    def test_a_build_uses_enabled_groundings_and_summarises_them(self, users: ApiUsers, site_id: int) -> None:
+        drive = _drives(users, site_id, "mapping")[0]
+        far = users.client.post(
+            f"/api/drives/{drive['id']}/groundings",
+            json={"frame": 50, "x": 5000.0, "y": 5000.0, "station": "STN-X", "enabled": False},
+            headers=users.auth("surveyor"),
+        )
+        assert far.status_code == 201 and far.json()["enabled"] is False
+        response = users.client.post(
+            f"/api/sites/{site_id}/maps", json={"preset": "fast"}, headers=users.auth("surveyor")
+        )
+        assert users.job(response.json()["id"])["status"] == "succeeded"
+        residuals = users.get(f"/api/sites/{site_id}/maps/1/residuals")
+        assert len(residuals) == 2 and far.json()["id"] not in {r["grounding_id"] for r in residuals}
+        assert all(r["enabled"] is True and r["distance_m"] < 2.0 for r in residuals)
+        summary = users.get(f"/api/sites/{site_id}/maps/1/residuals/summary")
+        distances = [r["distance_m"] for r in residuals]
+        overall = summary["overall"]
+        assert (summary["version"], overall["count"]) == (1, 2)
+        assert overall["max_m"] == max(distances)
+        assert abs(overall["mean_m"] - sum(distances) / 2) < 1e-9
+        assert overall["mean_m"] <= overall["rms_m"] <= overall["max_m"]
+        assert sum(d["stats"]["count"] for d in summary["drives"]) == 2
+        csv_text = users.client.get(
+            f"/api/sites/{site_id}/maps/1/residuals.csv", headers=users.auth("viewer")
+        ).text
+        lines = csv_text.splitlines()
+        assert lines[0] == "drive,frame,station,x,y,residual_m,enabled" and len(lines) == 3
+        assert all(line.endswith(",true") for line in lines[1:])

@@ -1,5 +1,6 @@
-"""Groundings: create from a drive's frame and a surveyed point, move, delete, list with the residuals of
-the latest map, and import/export a drive's ``groundings.csv``."""
+"""Groundings: create from a drive's frame and a surveyed point, move, enable or disable, name the station,
+delete, list with the residuals of the latest map, and import/export a drive's ``groundings.csv`` or a
+site's control file."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from driftmap.api.schemas_data import (
     GroundingRead,
     GroundingUpdate,
     Page,
+    SiteGroundingImportRead,
 )
 from driftmap.api.sites import site_by_id
 from driftmap.api.upload_limits import read_limited
@@ -65,7 +67,9 @@ def create_grounding(
 ) -> GroundingRead:
     """Ground a frame of a mapping drive at a surveyed point (x east, y north, metres)."""
     drive = drive_by_id(session, drive_id)
-    grounding = grounding_service.create_grounding(session, drive, body.frame, body.x, body.y, user.name)
+    grounding = grounding_service.create_grounding(
+        session, drive, body.frame, body.x, body.y, user.name, station=body.station, enabled=body.enabled
+    )
     return _view(session, drive.site_id, grounding.id)
 
 
@@ -73,9 +77,12 @@ def create_grounding(
 def update_grounding(
     grounding_id: Id, body: GroundingUpdate, session: SessionDep, _user: SurveyorDep
 ) -> GroundingRead:
-    """Move a grounding's surveyed point."""
+    """Move a grounding's surveyed point, enable or disable it for map builds, or set its survey station."""
     grounding = grounding_service.get_grounding(session, grounding_id)
-    grounding_service.update_grounding(session, grounding, x_m=body.x, y_m=body.y)
+    station = (body.station or "") if "station" in body.model_fields_set else None
+    grounding_service.update_grounding(
+        session, grounding, x_m=body.x, y_m=body.y, enabled=body.enabled, station=station
+    )
     return _view(session, drive_by_id(session, grounding.drive_id).site_id, grounding.id)
 
 
@@ -111,3 +118,31 @@ def import_groundings(
     data = read_limited(file, CSV_MAX_BYTES, filename)
     count = grounding_service.import_csv(session, drive, data, filename, user.name)
     return GroundingImportRead(drive_id=drive.id, imported=count)
+
+
+@router.get(
+    "/sites/{site_id}/groundings.csv",
+    dependencies=[Depends(VIEWER)],
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}},
+)
+def export_site_groundings(site_id: Id, session: SessionDep) -> Response:
+    """The site's survey control file: every grounding as ``drive,frame,station,x,y,enabled``."""
+    site = site_by_id(session, site_id)
+    return Response(
+        grounding_service.export_site_csv(session, site.id),
+        media_type="text/csv",
+        headers={"Content-Disposition": attachment(f"{site.name}-groundings.csv")},
+    )
+
+
+@router.put("/sites/{site_id}/groundings.csv")
+def import_site_groundings(
+    site_id: Id, file: UploadFile, session: SessionDep, user: SurveyorDep
+) -> SiteGroundingImportRead:
+    """Replace all the site's groundings with a control file (multipart ``file``); errors name line and field."""
+    site = site_by_id(session, site_id)
+    filename = file.filename or "groundings.csv"
+    data = read_limited(file, CSV_MAX_BYTES, filename)
+    count = grounding_service.import_site_csv(session, site.id, data, filename, user.name)
+    return SiteGroundingImportRead(site_id=site.id, imported=count)

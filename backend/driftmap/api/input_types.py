@@ -13,6 +13,7 @@ from annotated_types import Ge, Le
 from pydantic import AllowInfNan, StringConstraints
 
 from driftmap.formats.bounds import INT64_MAX, INT64_MIN, MAX_ABS_T_S, MAX_CAMERA_SIDE_PX
+from driftmap.formats.records import STATION_MAX_CHARS
 from driftmap.services.users import MAX_PASSWORD_LENGTH
 
 NAME_MAX_CHARS = 200
@@ -36,6 +37,8 @@ Name = Annotated[
     str, StringConstraints(min_length=1, max_length=NAME_MAX_CHARS, pattern=r"^[^\x00-\x1f\x7f]+$")
 ]
 """A non-empty name of at most ``NAME_MAX_CHARS`` characters, without control characters (line breaks)."""
+Station = Annotated[str, StringConstraints(max_length=STATION_MAX_CHARS, pattern=r"^[^\x00-\x1f\x7f]*$")]
+"""A survey station id of at most ``STATION_MAX_CHARS`` characters, without control characters."""
 Description = Annotated[str, StringConstraints(max_length=DESCRIPTION_MAX_CHARS)]
 """A free-text description of at most ``DESCRIPTION_MAX_CHARS`` characters."""
 Password = Annotated[str, StringConstraints(max_length=MAX_PASSWORD_LENGTH)]

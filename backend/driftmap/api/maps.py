@@ -8,6 +8,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query, Request, Response, status
 
 from driftmap.api.deps import ADMIN, VIEWER, SessionDep, StorageDep, SurveyorDep
+from driftmap.api.groundings import attachment
 from driftmap.api.input_types import Count, Id
 from driftmap.api.jobs import QueueDep, accepted
 from driftmap.api.schemas_data import JobRead, Page
@@ -20,9 +21,10 @@ from driftmap.api.schemas_maps import (
     NodeArrays,
     PoseArrays,
     ResidualRead,
+    ResidualSummaryRead,
 )
 from driftmap.api.sites import site_by_id
-from driftmap.services import deletion, map_views
+from driftmap.services import deletion, map_views, residuals
 from driftmap.services import jobs as job_service
 from driftmap.services import maps as map_service
 from driftmap.store.models import MapVersion
@@ -118,9 +120,33 @@ def get_nodes(site_id: Id, version: Id, session: SessionDep, storage: StorageDep
 
 @router.get("/sites/{site_id}/maps/{version}/residuals", dependencies=[Depends(VIEWER)])
 def get_residuals(site_id: Id, version: Id, session: SessionDep) -> list[ResidualRead]:
-    """Grounding residuals (optimised minus surveyed), largest first."""
+    """Grounding residuals (optimised minus surveyed) of the groundings the build used, largest first."""
     rows = map_service.residual_rows(session, _version(session, site_id, version))
     return [ResidualRead(**vars(r)) for r in rows]
+
+
+@router.get("/sites/{site_id}/maps/{version}/residuals/summary", dependencies=[Depends(VIEWER)])
+def get_residual_summary(site_id: Id, version: Id, session: SessionDep) -> ResidualSummaryRead:
+    """RMS, mean and max grounding residual (metres) per drive and overall, over the groundings used."""
+    summary = residuals.residual_summary(session, _version(session, site_id, version))
+    return ResidualSummaryRead.model_validate(summary)
+
+
+@router.get(
+    "/sites/{site_id}/maps/{version}/residuals.csv",
+    dependencies=[Depends(VIEWER)],
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}},
+)
+def get_residuals_csv(site_id: Id, version: Id, session: SessionDep) -> Response:
+    """The residuals as CSV: ``drive,frame,station,x,y,residual_m,enabled``."""
+    record = _version(session, site_id, version)
+    site = site_by_id(session, site_id)
+    return Response(
+        residuals.residuals_csv(session, record),
+        media_type="text/csv",
+        headers={"Content-Disposition": attachment(f"{site.name}-map-{record.version}-residuals.csv")},
+    )
 
 
 @router.delete(

@@ -13,7 +13,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from annotated_types import Ge, Le, Len
 from pydantic import BaseModel, ConfigDict, Field, computed_field
 
-from driftmap.api.input_types import CameraSide, Count, Description, Finite, Id, Name
+from driftmap.api.input_types import CameraSide, Count, Description, Finite, Id, Name, Station
 from driftmap.formats.bounds import MAX_CAMERA_SIDE_PX
 from driftmap.formats.site_crs import SiteCrs
 
@@ -203,11 +203,15 @@ class GroundingCreate(BaseModel):
     frame: Count = Field(description="Frame number of the drive.")
     x: Finite = Field(description="Surveyed x (east), metres.")
     y: Finite = Field(description="Surveyed y (north), metres.")
+    station: Station | None = Field(default=None, description="Survey station id, e.g. STN-104.")
+    enabled: bool = Field(default=True, description="Whether map builds use the grounding.")
 
 
 class GroundingUpdate(BaseModel):
     x: Finite | None = None
     y: Finite | None = None
+    station: Station | None = Field(default=None, description="Survey station id; null or empty clears it.")
+    enabled: bool | None = Field(default=None, description="Whether map builds use the grounding.")
 
 
 class GroundingRead(BaseModel):
@@ -219,6 +223,8 @@ class GroundingRead(BaseModel):
     frame: int
     x_m: float
     y_m: float
+    station: str | None
+    enabled: bool
     created_by: str
     residual_m: float | None
     map_version: int | None
@@ -226,6 +232,11 @@ class GroundingRead(BaseModel):
 
 class GroundingImportRead(BaseModel):
     drive_id: int
+    imported: int
+
+
+class SiteGroundingImportRead(BaseModel):
+    site_id: int
     imported: int
 
 

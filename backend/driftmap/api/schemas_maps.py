@@ -8,7 +8,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 
 class MapBuildCreate(BaseModel):
@@ -79,6 +79,33 @@ class ResidualRead(BaseModel):
     dx_m: float
     dy_m: float
     distance_m: float
+    grounding_id: int | None = Field(default=None, description="The grounding; null when deleted since.")
+    station: str | None = None
+    enabled: bool | None = Field(default=None, description="Whether the grounding is enabled now.")
+
+
+class ResidualStatsRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    count: int
+    rms_m: float = Field(description="Root mean square residual, metres.")
+    mean_m: float
+    max_m: float
+
+
+class DriveResidualStatsRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    drive: str
+    stats: ResidualStatsRead
+
+
+class ResidualSummaryRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    version: int
+    overall: ResidualStatsRead
+    drives: list[DriveResidualStatsRead]
 
 
 class DriveDisplacement(BaseModel):

@@ -9,7 +9,19 @@ from typing import Annotated
 import typer
 from pydantic import ValidationError
 
-from driftmap.cli import backup, camera, data, exports, localise, maps, replay, server, vpr, worker
+from driftmap.cli import (
+    backup,
+    camera,
+    data,
+    exports,
+    groundings,
+    localise,
+    maps,
+    replay,
+    server,
+    vpr,
+    worker,
+)
 from driftmap.cli.common import err_console
 from driftmap.config import get_settings
 from driftmap.logs import TEXT_FORMAT, JsonFormatter, RequestIdFilter
@@ -23,6 +35,7 @@ app.add_typer(data.db_app, name="db")
 maps.map_app.command("export")(exports.map_export)
 app.add_typer(maps.map_app, name="map")
 app.add_typer(exports.positions_app, name="positions")
+app.add_typer(groundings.groundings_app, name="groundings")
 maps.report_app.command("localisation")(localise.report_localisation)
 app.add_typer(maps.report_app, name="report")
 app.add_typer(vpr.vpr_app, name="vpr")

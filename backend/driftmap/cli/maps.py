@@ -23,6 +23,7 @@ from driftmap.formats.frame_images import decode_gray
 from driftmap.reports.mapping_report import run_mapping_report
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
+from driftmap.services.residuals import ResidualSummary, summarise
 
 map_app = typer.Typer(help="Map versions: build, show, export.", no_args_is_help=True)
 report_app = typer.Typer(help="Evaluation reports against ground truth.", no_args_is_help=True)
@@ -108,7 +109,8 @@ def map_show(
     site: Annotated[str, typer.Argument(help="Site name.")],
     version: Annotated[int | None, typer.Option(help="Map version (default: latest).")] = None,
 ) -> None:
-    """Summarise a map version: build figures and the grounding residuals (largest first)."""
+    """Summarise a map version: build figures, the grounding residuals (largest first) and their RMS, mean
+    and max per drive and overall, metres."""
     storage = open_storage()
     with user_errors(), storage.db.session() as session:
         record = map_service.get_map_version(session, site_service.get_site(session, site), version)
@@ -116,11 +118,13 @@ def map_show(
             f"map version {record.version} of {site!r}, built {record.created_at:%Y-%m-%d %H:%M} by {record.created_by}"
         )
         console.print(_stats_line(record.stats))
-        table = Table("drive", "frame", "surveyed x", "surveyed y", "dx m", "dy m", "distance m")
-        for row in map_service.residual_rows(session, record):
+        rows = map_service.residual_rows(session, record)
+        table = Table("drive", "frame", "station", "surveyed x", "surveyed y", "dx m", "dy m", "distance m")
+        for row in rows:
             table.add_row(
                 row.drive,
                 str(row.frame),
+                row.station or "",
                 f"{row.surveyed_x_m:.2f}",
                 f"{row.surveyed_y_m:.2f}",
                 f"{row.dx_m:+.2f}",
@@ -128,6 +132,19 @@ def map_show(
                 f"{row.distance_m:.2f}",
             )
     console.print(table)
+    console.print(_summary_table(summarise(record.version, rows)))
+
+
+def _summary_table(summary: ResidualSummary) -> Table:
+    table = Table(
+        "drive", "groundings", "RMS m", "mean m", "max m", title="residuals over the groundings used"
+    )
+    lines = [(d.drive, d.stats) for d in summary.drives] + [("all", summary.overall)]
+    for name, stats in lines:
+        table.add_row(
+            name, str(stats.count), f"{stats.rms_m:.2f}", f"{stats.mean_m:.2f}", f"{stats.max_m:.2f}"
+        )
+    return table
 
 
 @report_app.command("mapping")

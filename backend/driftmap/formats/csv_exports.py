@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from driftmap.errors import BadInputError
+from driftmap.formats.control_csv import format_enabled, parse_enabled, parse_station
 from driftmap.formats.records import GroundingRow
 from driftmap.formats.tables import (
     decode_text,
@@ -28,16 +29,45 @@ from driftmap.formats.tables import (
 )
 
 GROUNDINGS_HEADER: tuple[str, ...] = ("frame", "x", "y")
+GROUNDINGS_CONTROL_HEADER: tuple[str, ...] = ("frame", "x", "y", "station", "enabled")
+GROUNDINGS_HEADERS: tuple[tuple[str, ...], ...] = (
+    GROUNDINGS_HEADER,
+    GROUNDINGS_CONTROL_HEADER,
+    ("frame", "x", "y", "station"),
+    ("frame", "x", "y", "enabled"),
+)
 
 
 # ---------------------------------------------------------------------------------------------- groundings
 
 
 def groundings_text(rows: Iterable[GroundingRow]) -> str:
-    """``groundings.csv`` text: header ``frame,x,y``, positions in metres (survey frame)."""
+    """``groundings.csv`` text, positions in metres (survey frame).
+
+    The header is ``frame,x,y`` when no row names a station or is disabled, else
+    ``frame,x,y,station,enabled``.
+    """
+    rows = list(rows)
+    if all(r.station is None and r.enabled for r in rows):
+        return table_text(
+            GROUNDINGS_HEADER,
+            (
+                [str(int(r.frame)), format_float(r.x_m, field="x"), format_float(r.y_m, field="y")]
+                for r in rows
+            ),
+        )
     return table_text(
-        GROUNDINGS_HEADER,
-        ([str(int(r.frame)), format_float(r.x_m, field="x"), format_float(r.y_m, field="y")] for r in rows),
+        GROUNDINGS_CONTROL_HEADER,
+        (
+            [
+                str(int(r.frame)),
+                format_float(r.x_m, field="x"),
+                format_float(r.y_m, field="y"),
+                r.station or "",
+                format_enabled(r.enabled),
+            ]
+            for r in rows
+        ),
     )
 
 
@@ -47,7 +77,8 @@ def write_groundings_csv(path: Path, rows: Iterable[GroundingRow]) -> None:
 
 
 def parse_groundings_csv(text: str, file: str | Path) -> list[GroundingRow]:
-    """Parse ``groundings.csv`` text; a frame may be grounded only once.
+    """Parse ``groundings.csv`` text (``frame,x,y`` with optional ``station`` and ``enabled`` columns); a
+    frame may be grounded only once.
 
     Raises:
         BadInputError: wrong header, bad cells, a non-finite number, a duplicate frame.
@@ -57,7 +88,7 @@ def parse_groundings_csv(text: str, file: str | Path) -> list[GroundingRow]:
 
 def parse_groundings_rows(text: str, file: str | Path) -> list[tuple[int, GroundingRow]]:
     """:func:`parse_groundings_csv`, each row paired with its 1-based line number."""
-    _, rows = read_table(text, file, [GROUNDINGS_HEADER])
+    _, rows = read_table(text, file, GROUNDINGS_HEADERS)
     out: list[tuple[int, GroundingRow]] = []
     seen: dict[int, int] = {}
     for row in rows:
@@ -72,7 +103,9 @@ def parse_groundings_rows(text: str, file: str | Path) -> list[tuple[int, Ground
         seen[frame] = row.line
         x = parse_float(row.cells["x"], file=file, line=row.line, field="x")
         y = parse_float(row.cells["y"], file=file, line=row.line, field="y")
-        out.append((row.line, GroundingRow(frame=frame, x_m=x, y_m=y)))
+        station = parse_station(row.cells.get("station", ""), file=file, line=row.line)
+        enabled = parse_enabled(row.cells.get("enabled", ""), file=file, line=row.line)
+        out.append((row.line, GroundingRow(frame=frame, x_m=x, y_m=y, station=station, enabled=enabled)))
     return out
 
 

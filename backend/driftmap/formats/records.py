@@ -18,6 +18,10 @@ DriveKind = Literal["mapping", "localisation"]
 DRIVE_KINDS: tuple[str, ...] = ("mapping", "localisation")
 
 
+STATION_MAX_CHARS = 64
+"""The longest survey station id stored, characters."""
+
+
 @dataclass(frozen=True)
 class DriveMeta:
     """The contents of ``drive.json``."""
@@ -54,3 +58,20 @@ class GroundingRow:
     frame: int
     x_m: float
     y_m: float
+    station: str | None = None
+    """The survey station's id (e.g. ``STN-104``), when the point is one."""
+    enabled: bool = True
+    """Whether map builds use the grounding."""
+
+
+@dataclass(frozen=True)
+class SiteGroundingRow:
+    """One row of a site's survey control file: a mapping drive's frame grounded at a surveyed point."""
+
+    drive: str
+    frame: int
+    station: str | None
+    x_m: float
+    y_m: float
+    """Surveyed position, metres (survey frame: x east, y north)."""
+    enabled: bool

@@ -206,6 +206,8 @@ def _store_drive(
                     "frame_id": ids[g.frame],
                     "x_m": g.x_m,
                     "y_m": g.y_m,
+                    "station": g.station,
+                    "enabled": g.enabled,
                     "created_by": "import",
                 }
                 for g in groundings
@@ -230,12 +232,15 @@ def frame_rows(session: Session, drive: Drive) -> list[Frame]:
 def grounding_rows(session: Session, drive: Drive) -> list[GroundingRow]:
     """The groundings of ``drive`` as formats.md rows, in frame order."""
     query = (
-        select(Frame.index, Grounding.x_m, Grounding.y_m)
+        select(Frame.index, Grounding.x_m, Grounding.y_m, Grounding.station, Grounding.enabled)
         .join(Frame, Grounding.frame_id == Frame.id)
         .where(Grounding.drive_id == drive.id)
         .order_by(Frame.index)
     )
-    return [GroundingRow(frame=i, x_m=x, y_m=y) for i, x, y in session.execute(query).all()]
+    return [
+        GroundingRow(frame=i, x_m=x, y_m=y, station=st, enabled=on)
+        for i, x, y, st, on in session.execute(query).all()
+    ]
 
 
 def export_drive(session: Session, blobs: BlobStore, site: Site, name: str, out_dir: Path) -> Drive:

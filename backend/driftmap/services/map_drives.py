@@ -66,11 +66,15 @@ class LoadedDrive:
 
 
 def load_mapping_drive(session: Session, blobs: BlobStore, drive: Drive) -> LoadedDrive:
-    """``drive`` with its groundings as the pipeline takes it, frames streamed from the blob store."""
+    """``drive`` with its enabled groundings as the pipeline takes it, frames streamed from the blob store."""
     frames = frame_rows(session, drive)
     position = {f.id: k for k, f in enumerate(frames)}
     marks = list(
-        session.scalars(select(Grounding).where(Grounding.drive_id == drive.id).order_by(Grounding.id))
+        session.scalars(
+            select(Grounding)
+            .where(Grounding.drive_id == drive.id, Grounding.enabled.is_(True))
+            .order_by(Grounding.id)
+        )
     )
     has_truth = all(
         f.true_x_m is not None and f.true_y_m is not None and f.true_yaw_rad is not None for f in frames

@@ -260,7 +260,7 @@ def pose_rows(session: Session, version: MapVersion) -> list[PoseRow]:
 
 def ensure_buildable(session: Session, site: Site) -> None:
     """Refuse a build for a site with a mapping drive without frames (nothing to map: name it and delete it
-    or post its frames), or with no grounded mapping drive (the map could not be placed).
+    or post its frames), or with no enabled grounding on a mapping drive (the map could not be placed).
 
     Raises:
         ConflictError: either case, naming the empty drives.
@@ -283,17 +283,22 @@ def ensure_buildable(session: Session, site: Site) -> None:
         select(func.count())
         .select_from(Grounding)
         .join(Drive)
-        .where(Drive.site_id == site.id, Drive.kind == "mapping")
+        .where(Drive.site_id == site.id, Drive.kind == "mapping", Grounding.enabled.is_(True))
     )
     if not grounded:
         raise ConflictError(
-            f"site {site.name!r} has no grounding on any mapping drive; ground at least two frames first"
+            f"site {site.name!r} has no grounding on any mapping drive that is enabled; "
+            "ground (or enable) at least two frames first"
         )
 
 
 @dataclass(frozen=True)
 class ResidualRow:
-    """A grounding residual of a map version, with its drive and frame named."""
+    """A grounding residual of a map version (optimised minus surveyed, metres), drive and frame named.
+
+    ``grounding_id``, ``station`` and ``enabled`` are the grounding's as it is now (None when it has been
+    deleted since the build); the surveyed point is the one the build used.
+    """
 
     drive: str
     frame: int
@@ -302,10 +307,13 @@ class ResidualRow:
     dx_m: float
     dy_m: float
     distance_m: float
+    grounding_id: int | None = None
+    station: str | None = None
+    enabled: bool | None = None
 
 
 def residual_rows(session: Session, version: MapVersion) -> list[ResidualRow]:
-    """The grounding residuals of ``version``, largest distance first."""
+    """The grounding residuals of ``version`` (the enabled groundings it was built with), largest first."""
     query = (
         select(
             Drive.name,
@@ -315,10 +323,14 @@ def residual_rows(session: Session, version: MapVersion) -> list[ResidualRow]:
             MapGroundingResidual.dx_m,
             MapGroundingResidual.dy_m,
             MapGroundingResidual.distance_m,
+            MapGroundingResidual.grounding_id,
+            Grounding.station,
+            Grounding.enabled,
         )
         .join(Frame, MapGroundingResidual.frame_id == Frame.id)
         .join(Drive, Frame.drive_id == Drive.id)
+        .outerjoin(Grounding, MapGroundingResidual.grounding_id == Grounding.id)
         .where(MapGroundingResidual.map_version_id == version.id)
-        .order_by(MapGroundingResidual.distance_m.desc())
+        .order_by(MapGroundingResidual.distance_m.desc(), Drive.id, Frame.index)
     )
-    return [ResidualRow(*row) for row in session.execute(query).all()]
+    return [ResidualRow(*tuple(row)) for row in session.execute(query).all()]

@@ -20,10 +20,13 @@ from sqlalchemy import (
     String,
     Text,
     UniqueConstraint,
+    true,
 )
 from sqlalchemy.engine import Dialect
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 from sqlalchemy.types import TypeDecorator
+
+from driftmap.formats.records import STATION_MAX_CHARS
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -183,7 +186,11 @@ class Frame(Base):
 
 
 class Grounding(Base):
-    """A surveyor's statement: this frame was taken at this surveyed point."""
+    """A surveyor's statement: this frame was taken at this surveyed point.
+
+    ``station`` names the survey station (e.g. ``STN-104``) when the point is one; a grounding that is not
+    ``enabled`` is kept but map builds leave it out.
+    """
 
     __tablename__ = "groundings"
     __table_args__ = (UniqueConstraint("frame_id", name="uq_groundings_frame_id"),)
@@ -193,6 +200,8 @@ class Grounding(Base):
     frame_id: Mapped[int] = mapped_column(ForeignKey("frames.id", ondelete="CASCADE"))
     x_m: Mapped[float] = mapped_column(Float)
     y_m: Mapped[float] = mapped_column(Float)
+    station: Mapped[str | None] = mapped_column(String(STATION_MAX_CHARS), nullable=True)
+    enabled: Mapped[bool] = mapped_column(default=True, server_default=true())
     created_by: Mapped[str] = mapped_column(String(200), default="import")
     created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
     updated_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now, onupdate=utc_now)

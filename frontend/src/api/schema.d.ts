@@ -939,7 +939,7 @@ export interface paths {
         head?: never;
         /**
          * Update Grounding
-         * @description Move a grounding's surveyed point.
+         * @description Move a grounding's surveyed point, enable or disable it for map builds, or set its survey station.
          */
         patch: operations["update_grounding_api_groundings__grounding_id__patch"];
         trace?: never;
@@ -961,6 +961,30 @@ export interface paths {
          * @description Replace the drive's groundings with a ``groundings.csv`` (multipart ``file``); errors name the line.
          */
         put: operations["import_groundings_api_drives__drive_id__groundings_csv_put"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/sites/{site_id}/groundings.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Export Site Groundings
+         * @description The site's survey control file: every grounding as ``drive,frame,station,x,y,enabled``.
+         */
+        get: operations["export_site_groundings_api_sites__site_id__groundings_csv_get"];
+        /**
+         * Import Site Groundings
+         * @description Replace all the site's groundings with a control file (multipart ``file``); errors name line and field.
+         */
+        put: operations["import_site_groundings_api_sites__site_id__groundings_csv_put"];
         post?: never;
         delete?: never;
         options?: never;
@@ -1105,9 +1129,49 @@ export interface paths {
         };
         /**
          * Get Residuals
-         * @description Grounding residuals (optimised minus surveyed), largest first.
+         * @description Grounding residuals (optimised minus surveyed) of the groundings the build used, largest first.
          */
         get: operations["get_residuals_api_sites__site_id__maps__version__residuals_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/sites/{site_id}/maps/{version}/residuals/summary": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Residual Summary
+         * @description RMS, mean and max grounding residual (metres) per drive and overall, over the groundings used.
+         */
+        get: operations["get_residual_summary_api_sites__site_id__maps__version__residuals_summary_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/sites/{site_id}/maps/{version}/residuals.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Residuals Csv
+         * @description The residuals as CSV: ``drive,frame,station,x,y,residual_m,enabled``.
+         */
+        get: operations["get_residuals_csv_api_sites__site_id__maps__version__residuals_csv_get"];
         put?: never;
         post?: never;
         delete?: never;
@@ -1284,6 +1348,11 @@ export interface components {
         };
         /** Body_import_groundings_api_drives__drive_id__groundings_csv_put */
         Body_import_groundings_api_drives__drive_id__groundings_csv_put: {
+            /** File */
+            file: string;
+        };
+        /** Body_import_site_groundings_api_sites__site_id__groundings_csv_put */
+        Body_import_site_groundings_api_sites__site_id__groundings_csv_put: {
             /** File */
             file: string;
         };
@@ -1552,6 +1621,12 @@ export interface components {
              */
             created_at: string;
         };
+        /** DriveResidualStatsRead */
+        DriveResidualStatsRead: {
+            /** Drive */
+            drive: string;
+            stats: components["schemas"]["ResidualStatsRead"];
+        };
         /** DriveUpdate */
         DriveUpdate: {
             /** Name */
@@ -1766,6 +1841,17 @@ export interface components {
              * @description Surveyed y (north), metres.
              */
             y: number;
+            /**
+             * Station
+             * @description Survey station id, e.g. STN-104.
+             */
+            station?: string | null;
+            /**
+             * Enabled
+             * @description Whether map builds use the grounding.
+             * @default true
+             */
+            enabled: boolean;
         };
         /** GroundingImportRead */
         GroundingImportRead: {
@@ -1788,6 +1874,10 @@ export interface components {
             x_m: number;
             /** Y M */
             y_m: number;
+            /** Station */
+            station: string | null;
+            /** Enabled */
+            enabled: boolean;
             /** Created By */
             created_by: string;
             /** Residual M */
@@ -1801,6 +1891,16 @@ export interface components {
             x?: number | null;
             /** Y */
             y?: number | null;
+            /**
+             * Station
+             * @description Survey station id; null or empty clears it.
+             */
+            station?: string | null;
+            /**
+             * Enabled
+             * @description Whether map builds use the grounding.
+             */
+            enabled?: boolean | null;
         };
         /** HTTPValidationError */
         HTTPValidationError: {
@@ -2283,6 +2383,40 @@ export interface components {
             dy_m: number;
             /** Distance M */
             distance_m: number;
+            /**
+             * Grounding Id
+             * @description The grounding; null when deleted since.
+             */
+            grounding_id?: number | null;
+            /** Station */
+            station?: string | null;
+            /**
+             * Enabled
+             * @description Whether the grounding is enabled now.
+             */
+            enabled?: boolean | null;
+        };
+        /** ResidualStatsRead */
+        ResidualStatsRead: {
+            /** Count */
+            count: number;
+            /**
+             * Rms M
+             * @description Root mean square residual, metres.
+             */
+            rms_m: number;
+            /** Mean M */
+            mean_m: number;
+            /** Max M */
+            max_m: number;
+        };
+        /** ResidualSummaryRead */
+        ResidualSummaryRead: {
+            /** Version */
+            version: number;
+            overall: components["schemas"]["ResidualStatsRead"];
+            /** Drives */
+            drives: components["schemas"]["DriveResidualStatsRead"][];
         };
         /**
          * Role
@@ -2360,6 +2494,13 @@ export interface components {
              * @description The ``epsg`` system as a PROJ string (proj4js reads it); None without one.
              */
             readonly proj4: string | null;
+        };
+        /** SiteGroundingImportRead */
+        SiteGroundingImportRead: {
+            /** Site Id */
+            site_id: number;
+            /** Imported */
+            imported: number;
         };
         /** SiteRead */
         SiteRead: {
@@ -4915,6 +5056,72 @@ export interface operations {
             };
         };
     };
+    export_site_groundings_api_sites__site_id__groundings_csv_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                site_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": unknown;
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    import_site_groundings_api_sites__site_id__groundings_csv_put: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                site_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "multipart/form-data": components["schemas"]["Body_import_site_groundings_api_sites__site_id__groundings_csv_put"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["SiteGroundingImportRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
     list_versions_api_sites__site_id__maps_get: {
         parameters: {
             query?: {
@@ -5200,6 +5407,70 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["ResidualRead"][];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    get_residual_summary_api_sites__site_id__maps__version__residuals_summary_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                site_id: number;
+                version: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ResidualSummaryRead"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    get_residuals_csv_api_sites__site_id__maps__version__residuals_csv_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                site_id: number;
+                version: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": unknown;
                 };
             };
             /** @description Validation Error */

@@ -31,7 +31,11 @@ export function useGroundingEdits({ groundings, reload, say }: Options) {
   const apply = async (edit: GroundingEdit): Promise<void> => {
     if (edit.kind === "create") {
       const { driveId, frame, at } = edit;
-      await apiPost("/api/drives/{drive_id}/groundings", { drive_id: driveId }, { frame, x: at.x, y: at.y });
+      await apiPost(
+        "/api/drives/{drive_id}/groundings",
+        { drive_id: driveId },
+        { frame, x: at.x, y: at.y, enabled: true },
+      );
     } else if (edit.kind === "delete") {
       await apiDelete("/api/groundings/{grounding_id}", { grounding_id: find(edit.driveId, edit.frame).id });
     } else {
