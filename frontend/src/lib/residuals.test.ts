@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { joinResiduals, sortRows } from "./residuals";
+import { filterByDrive, joinResiduals, sortRows } from "./residuals";
 
 const groundings = [
   { id: 1, drive_id: 1, drive: "east", frame: 10, x_m: 1, y_m: 2 },
@@ -36,5 +36,17 @@ describe("residual table", () => {
     const before = rows.map((r) => r.id);
     sortRows(rows, "distance", "desc");
     expect(rows.map((r) => r.id)).toEqual(before);
+  });
+
+  it("carries station and enabled, defaulting to none and enabled", () => {
+    const first = { id: 1, drive_id: 1, drive: "east", frame: 10, x_m: 1, y_m: 2 };
+    const marked = joinResiduals([{ ...first, station: "STN-1", enabled: false }], residuals);
+    expect(marked[0]).toMatchObject({ station: "STN-1", enabled: false });
+    expect(rows[1]).toMatchObject({ station: null, enabled: true });
+  });
+
+  it("filters by drive", () => {
+    expect(filterByDrive(rows, 2).map((r) => r.id)).toEqual([3, 4]);
+    expect(filterByDrive(rows, null)).toHaveLength(4);
   });
 });

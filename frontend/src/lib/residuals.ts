@@ -10,6 +10,9 @@ export interface GroundingRow {
   dx: number | null;
   dy: number | null;
   distance: number | null;
+  station: string | null;
+  /** Whether map builds use the grounding. */
+  enabled: boolean;
 }
 
 export type SortKey = "drive" | "frame" | "dx" | "dy" | "distance";
@@ -22,6 +25,8 @@ interface GroundingLike {
   frame: number;
   x_m: number;
   y_m: number;
+  station?: string | null;
+  enabled?: boolean;
 }
 
 interface ResidualLike {
@@ -46,6 +51,8 @@ export function joinResiduals(groundings: GroundingLike[], residuals: ResidualLi
       dx: r ? r.dx_m : null,
       dy: r ? r.dy_m : null,
       distance: r ? r.distance_m : null,
+      station: g.station ?? null,
+      enabled: g.enabled ?? true,
     };
   });
 }
@@ -80,4 +87,9 @@ export function sortRows(rows: GroundingRow[], key: SortKey, dir: SortDir): Grou
     const c = typeof va === "string" ? va.localeCompare(vb as string) : va - (vb as number);
     return c !== 0 ? sign * c : tie(a, b);
   });
+}
+
+/** Rows of one drive (by id), or all rows when ``driveId`` is null. */
+export function filterByDrive(rows: GroundingRow[], driveId: number | null): GroundingRow[] {
+  return driveId === null ? rows : rows.filter((r) => r.driveId === driveId);
 }

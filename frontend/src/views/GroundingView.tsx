@@ -6,11 +6,11 @@
 // version's export (MapExport), and two map versions compared as an overlay.
 import { useCallback, useEffect, useMemo, useRef, useState } from "react";
 import { unByKey } from "ol/Observable";
-import { apiGet, type Schemas } from "../api/client";
+import { apiGet, apiPatch, type Schemas } from "../api/client";
 import { MineMap, type MapCtx } from "../map/MineMap";
 import { TrajectoryLayer, poseIndex, type Closure, type Poses } from "../map/TrajectoryLayer";
 import { GroundingMarkers } from "../map/GroundingMarkers";
-import { joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
+import { filterByDrive, joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
 import { snapPoint } from "../lib/snap";
 import { BuildMap } from "./BuildMap";
 import { CompareVersions } from "./CompareVersions";
@@ -21,6 +21,7 @@ import { KeyframeStrip } from "./KeyframeStrip";
 import { useGroundingEdits } from "./useGroundingEdits";
 import { usePlacement, type PlacementTarget } from "./usePlacement";
 import { PlacingPanel } from "./PlacingPanel";
+import { ResidualSummary } from "./ResidualSummary";
 
 type Drive = Schemas["DriveRead"];
 
@@ -38,6 +39,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const [showClosures, setShowClosures] = useState(true);
   const [groundings, setGroundings] = useState<Schemas["GroundingRead"][]>([]);
   const [residuals, setResiduals] = useState<Schemas["ResidualRead"][]>([]);
+  const [summary, setSummary] = useState<Schemas["ResidualSummaryRead"] | null>(null);
+  const [tableDrive, setTableDrive] = useState<number | null>(null);
   const [driveId, setDriveId] = useState<number | null>(null);
   const [frame, setFrame] = useState<number | null>(null);
   const [page, setPage] = useState(0);
@@ -62,18 +65,21 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
       setPoses(null);
       setClosures([]);
       setResiduals([]);
+      setSummary(null);
       setVersions([]);
       return;
     }
     const p = { site_id: siteId, version: latest };
-    const [ps, cs, rs] = await Promise.all([
+    const [ps, cs, rs, sm] = await Promise.all([
       apiGet("/api/sites/{site_id}/maps/{version}/poses", p, { limit: 1000000 }),
       apiGet("/api/sites/{site_id}/maps/{version}/closures", p),
       apiGet("/api/sites/{site_id}/maps/{version}/residuals", p),
+      apiGet("/api/sites/{site_id}/maps/{version}/residuals/summary", p),
     ]);
     setPoses(ps);
     setClosures(cs);
     setResiduals(rs);
+    setSummary(sm);
     setVersions(all);
   }, [siteId]);
 
@@ -105,7 +111,19 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const stripFrames = keyframes.slice(page * STRIP_PAGE, (page + 1) * STRIP_PAGE);
 
   const joined = useMemo(() => joinResiduals(groundings, residuals), [groundings, residuals]);
-  const rows = useMemo(() => sortRows(joined, sort.key, sort.dir), [joined, sort]);
+  const rows = useMemo(
+    () => sortRows(filterByDrive(joined, tableDrive), sort.key, sort.dir),
+    [joined, tableDrive, sort],
+  );
+  const setEnabled = async (id: number, enabled: boolean): Promise<void> => {
+    try {
+      await apiPatch("/api/groundings/{grounding_id}", { grounding_id: id }, { enabled });
+      setMessage(enabled ? "grounding enabled for the next build" : "grounding left out of the next build");
+    } catch (err) {
+      setMessage(err instanceof Error ? err.message : String(err));
+    }
+    await loadGroundings();
+  };
   const poseAt = useMemo(() => (poses ? poseIndex(poses) : new Map<string, [number, number]>()), [poses]);
   const groundedFrames = useMemo(
     () => new Set(groundings.filter((g) => g.drive_id === driveId).map((g) => g.frame)),
@@ -348,6 +366,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
             </button>
           )}
         </div>
+        <ResidualSummary summary={summary} drives={drives} driveId={tableDrive} onDrive={setTableDrive} />
         <GroundingsTable
           rows={rows}
           sort={sort}
@@ -356,6 +375,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           selectedId={selectedGrounding?.id ?? null}
           onFly={flyTo}
           onDelete={(id) => void edits.remove(id)}
+          onEnable={(id, enabled) => void setEnabled(id, enabled)}
         />
         <p className="muted">
           Press{" "}

@@ -1,5 +1,5 @@
-// The grounding workstation's table (residuals of the latest build, sortable, colour-coded) and its
-// keyboard-shortcut help.
+// The grounding workstation's table (residuals of the latest build, sortable, colour-coded; each grounding's
+// station and whether builds use it) and its keyboard-shortcut help.
 import type { Dispatch, SetStateAction } from "react";
 import { residualClass } from "../lib/colours";
 import type { GroundingRow, SortDir, SortKey } from "../lib/residuals";
@@ -15,9 +15,11 @@ interface Props {
   selectedId: number | null;
   onFly: (x: number, y: number) => void;
   onDelete: (id: number) => void;
+  /** Enable or disable a grounding for map builds. */
+  onEnable: (id: number, enabled: boolean) => void;
 }
 
-export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFly, onDelete }: Props) {
+export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFly, onDelete, onEnable }: Props) {
   const header = (key: SortKey, label: string, num = true) => (
     <th
       className={`sortable ${num ? "num" : ""}`}
@@ -34,9 +36,11 @@ export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFl
         <tr>
           {header("drive", "Drive", false)}
           {header("frame", "Frame")}
+          <th>Station</th>
           {header("dx", "dx m")}
           {header("dy", "dy m")}
           {header("distance", "dist m")}
+          <th title="Used by map builds">Use</th>
           {editable && <th />}
         </tr>
       </thead>
@@ -44,7 +48,7 @@ export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFl
         {rows.map((r) => (
           <tr
             key={r.id}
-            className={r.id === selectedId ? "selected" : ""}
+            className={`${r.id === selectedId ? "selected" : ""} ${r.enabled ? "" : "muted"}`}
             data-testid={`grounding-row-${r.id}`}
             data-frame={r.frame}
             data-drive={r.drive}
@@ -53,10 +57,21 @@ export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFl
           >
             <td>{r.drive}</td>
             <td className="num">{r.frame}</td>
+            <td>{r.station ?? ""}</td>
             <td className="num">{r.dx === null ? "–" : r.dx.toFixed(2)}</td>
             <td className="num">{r.dy === null ? "–" : r.dy.toFixed(2)}</td>
             <td className={`num res-${residualClass(r.distance)}`}>
               {r.distance === null ? "new" : r.distance.toFixed(2)}
+            </td>
+            <td onClick={(e) => e.stopPropagation()}>
+              <input
+                type="checkbox"
+                data-testid={`enable-grounding-${r.id}`}
+                checked={r.enabled}
+                disabled={!editable}
+                title={r.enabled ? "Used by map builds" : "Left out of map builds"}
+                onChange={(e) => onEnable(r.id, e.target.checked)}
+              />
             </td>
             {editable && (
               <td>
