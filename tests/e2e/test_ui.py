@@ -477,6 +477,29 @@ class TestGrounding:
         assert stored(grounding_id) == (gx, gy)
         assert page.errors == []
 
+    def test_disable_a_grounding_filter_by_drive_and_read_the_summary(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        expect(p.get_by_test_id("residual-summary-all")).to_be_visible()
+        first = groundings(server)[0]
+        box = p.get_by_test_id(f"enable-grounding-{first['id']}")
+        expect(box).to_be_checked()
+        box.click()
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("left out of the next build")
+        expect(box).not_to_be_checked()
+        assert next(g for g in groundings(server) if g["id"] == first["id"])["enabled"] is False
+        box.click()
+        expect(box).to_be_checked()
+        assert all(g["enabled"] for g in groundings(server))
+        p.get_by_test_id("grounding-drive-filter").select_option(str(first["drive_id"]))
+        rows = p.get_by_test_id("groundings-table").locator("tbody tr")
+        expect(rows).to_have_count(sum(g["drive_id"] == first["drive_id"] for g in groundings(server)))
+        expect(p.get_by_test_id(f"residual-summary-{first['drive']}")).to_be_visible()
+        assert page.errors == []
+
     def test_build_a_new_version_and_compare_it_with_the_old_as_an_overlay(
         self, server: Server, page: PageWithLog, worker: object
     ) -> None:
