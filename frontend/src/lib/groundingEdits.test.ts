@@ -17,6 +17,11 @@ group("grounding edits", () => {
     for (const e of [created, moved, inverse(created)]) expect(inverse(inverse(e))).toEqual(e);
   });
 
+  it("undoing a delete re-creates the grounding with its station and enabled flag", () => {
+    const deleted: GroundingEdit = { ...created, kind: "delete", station: "STN-104", enabled: false };
+    expect(inverse(deleted)).toEqual({ ...created, station: "STN-104", enabled: false });
+  });
+
   it("undoes the newest edit first, redoes it, and a new edit clears redo", () => {
     let h = recorded(recorded(EMPTY_HISTORY, created), moved);
     const u1 = step(h, "undo")!;

@@ -9,9 +9,15 @@ export interface GridPoint {
   y: number;
 }
 
+/** A deleted grounding's survey station and whether builds used it, so that undoing the delete restores them. */
+export interface ControlMarks {
+  station?: string | null;
+  enabled?: boolean;
+}
+
 export type GroundingEdit =
-  | { kind: "create"; driveId: number; frame: number; at: GridPoint }
-  | { kind: "delete"; driveId: number; frame: number; at: GridPoint }
+  | ({ kind: "create"; driveId: number; frame: number; at: GridPoint } & ControlMarks)
+  | ({ kind: "delete"; driveId: number; frame: number; at: GridPoint } & ControlMarks)
   | { kind: "move"; driveId: number; frame: number; from: GridPoint; to: GridPoint };
 
 /** The edit that takes the groundings back to where they were before ``edit``. */

@@ -34,7 +34,7 @@ export function useGroundingEdits({ groundings, reload, say }: Options) {
       await apiPost(
         "/api/drives/{drive_id}/groundings",
         { drive_id: driveId },
-        { frame, x: at.x, y: at.y, enabled: true },
+        { frame, x: at.x, y: at.y, station: edit.station ?? null, enabled: edit.enabled ?? true },
       );
     } else if (edit.kind === "delete") {
       await apiDelete("/api/groundings/{grounding_id}", { grounding_id: find(edit.driveId, edit.frame).id });
@@ -92,7 +92,8 @@ export function useGroundingEdits({ groundings, reload, say }: Options) {
   const remove = (id: number) => {
     const g = current.current.find((r) => r.id === id);
     if (!g) return Promise.resolve(false);
-    return perform({ kind: "delete", driveId: g.drive_id, frame: g.frame, at: { x: g.x_m, y: g.y_m } });
+    const marks = { station: g.station, enabled: g.enabled };
+    return perform({ kind: "delete", driveId: g.drive_id, frame: g.frame, at: { x: g.x_m, y: g.y_m }, ...marks });
   };
   const move = (id: number, x: number, y: number) => {
     const g = current.current.find((r) => r.id === id);
