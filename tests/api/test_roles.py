@@ -29,6 +29,7 @@ USER_ROLES = ("viewer", "surveyor", "admin")
 MISSING_ID = "999999"  # path parameters of user routes point at nothing, so no call changes stored data
 SURVEYOR_WRITES = re.compile(
     r"/(groundings|drives|maps|map-versions|builds|jobs)(/|$)"
+    r"|/sites/\{site_id\}/groundings\.csv$"  # the site's survey control file
     r"|/vehicles/\{vehicle_id\}/(camera|start)$"  # a vehicle's camera calibration and its known start
     r"|/sites/\{site_id\}/crs$"  # the site's survey coordinates
     r"|/(cameras|camera-profiles)(/|$)"  # camera calibration and stored camera profiles
