@@ -119,12 +119,15 @@ def map_show(
         )
         console.print(_stats_line(record.stats))
         rows = map_service.residual_rows(session, record)
-        table = Table("drive", "frame", "station", "surveyed x", "surveyed y", "dx m", "dy m", "distance m")
+        stations = any(row.station for row in rows)  # the column only when a grounding names its station
+        table = Table("drive", "frame", *(["station"] if stations else []), "surveyed x", "surveyed y")
+        for header in ("dx m", "dy m", "distance m"):
+            table.add_column(header)
         for row in rows:
             table.add_row(
                 row.drive,
                 str(row.frame),
-                row.station or "",
+                *([row.station or ""] if stations else []),
                 f"{row.surveyed_x_m:.2f}",
                 f"{row.surveyed_y_m:.2f}",
                 f"{row.dx_m:+.2f}",
