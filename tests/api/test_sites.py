@@ -35,13 +35,12 @@ class TestSiteCrud:
     def test_moments_are_answered_with_their_zone(self, users: ApiUsers) -> None:
         """Stored moments read back timezone-aware on SQLite too, as the OpenAPI date-time format says."""
         created = users.client.post("/api/sites", json={"name": "zoned"}, headers=users.auth("admin")).json()
-        job = users.client.post(
-            "/api/sites/simulate",
-            json={"name": "zoned-sim", "seed": 1, "size": "tiny"},
-            headers=users.auth("admin"),
+        vehicle = users.client.post(
+            "/api/vehicles", json={"name": "zoned-1", "site_id": created["id"]}, headers=users.auth("admin")
         ).json()
-        users_page = users.get("/api/users", role="admin")
-        for moment in (created["created_at"], users_page[0]["created_at"], job["created_at"]):
+        listed = users.get("/api/users", role="admin")
+        moments = (created["created_at"], listed[0]["created_at"], vehicle["token_rotated_at"])
+        for moment in moments:
             assert datetime.fromisoformat(moment).utcoffset() == timedelta(0), moment
 
     def test_duplicate_names_conflict_and_only_admins_write(self, users: ApiUsers) -> None:
