@@ -29,7 +29,6 @@ import numpy as np
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.rig import CameraRig
-from driftmap.sim.world import World
 
 __all__ = ["FLOOR_BOARD", "HAND_BOARD", "board_image", "write_calibration_set"]
 
@@ -167,9 +166,11 @@ def _floor_pose(rig: CameraRig) -> tuple[FloatArray, FloatArray]:
     return np.asarray(c_R_l @ l_R_b), np.asarray(c_R_l @ (first_l - cam_l))
 
 
-def write_calibration_set(out_dir: Path, rig: CameraRig, world: World, seed: int) -> None:
-    """Write the calibration images, ``boards.json`` and ``truth.json`` of ``rig`` to ``out_dir``."""
-    del world  # the boards are shown in a calibration bay, not in the mine
+def write_calibration_set(out_dir: Path, rig: CameraRig, seed: int) -> None:
+    """Write the calibration images, ``boards.json`` and ``truth.json`` of ``rig`` to ``out_dir``.
+
+    The boards are shown in a calibration bay (a grey backdrop), not in the mine.
+    """
     (out_dir / "intrinsics").mkdir(parents=True, exist_ok=True)
     names = []
     for k, (c_R_b, c_t_b) in enumerate(_hand_poses(rig, seed)):

@@ -216,7 +216,7 @@ def simulate_site(
             )
     if rig.lens is not None:
         report("rendering calibration boards", 0.99)
-        write_calibration_set(out_dir / "calibration", rig, world, seed)
+        write_calibration_set(out_dir / "calibration", rig, seed)
     write_site_json(out_dir, seed, size, camera, layout, rig.camera_model, vp.fps, summaries)
     report("done", 1.0)
     return SimulationSummary(
