@@ -17,6 +17,7 @@ from driftmap.sim import SitePlan, simulate_site
 from driftmap.sim.obscurants import water_diameter_px
 from driftmap.sim.rig import CameraRig
 from tests.sim.conftest import SEED, WRITTEN_FRAMES, WrittenSite
+from tests.sim.truth_warp import ncc_predicted
 
 NCC_MATCH = 0.5  # normalised cross-correlation of the ROI predicted through truth + homography
 NCC_MARGIN = 0.25  # ... and by how much it beats a pose 0.25 m off
@@ -70,45 +71,14 @@ class TestOutputLayout:
 class TestTruthAgreesWithPixels:
     def test_consecutive_frames_are_related_by_truth_and_homography(self, tiny_site: WrittenSite) -> None:
         folder = _drive(tiny_site, "map-01")
-        cam = folder.meta.camera
-        H = cam.homography()
-        assert H is not None
         xy = np.array([[r.x_m, r.y_m] for r in folder.frames], dtype=float)
         step = np.hypot(*np.diff(xy, axis=0).T)
         moving = [int(i) for i in np.flatnonzero((step > 0.15) & (step < 0.5))[::10][:5]]
         assert moving
         for k in moving:
-            good = _ncc_predicted(folder, k, H, 0.0)
-            wrong = _ncc_predicted(folder, k, H, 0.25)
+            good = ncc_predicted(folder, k, 0.0, lambda i: _gray(folder, i).astype(np.float32))
+            wrong = ncc_predicted(folder, k, 0.25, lambda i: _gray(folder, i).astype(np.float32))
             assert good > NCC_MATCH and good > wrong + NCC_MARGIN, (k, good, wrong)
-
-
-def _ncc_predicted(folder: DriveFolder, k: int, H: NDArray[np.float64], error_m: float) -> float:
-    """NCC between frame k+1's ROI and frame k warped to it through the recorded poses (the later
-    pose moved ``error_m`` sideways) and the ground homography, after removing local means."""
-    cam = folder.meta.camera
-    x, y, w, h = cam.ground_roi_px
-    uu, vv = np.meshgrid(np.arange(x, x + w, dtype=float), np.arange(y, y + h, dtype=float))
-    q = np.stack([uu, vv, np.ones_like(uu)], axis=-1) @ H.T
-    floor1 = q[..., :2] / q[..., 2:]
-    r0, r1 = folder.frames[k], folder.frames[k + 1]
-    assert r0.yaw_rad is not None and r1.yaw_rad is not None
-    c1, s1 = math.cos(r1.yaw_rad), math.sin(r1.yaw_rad)
-    p1 = np.array([r1.x_m, r1.y_m], dtype=float) + error_m * np.array([-s1, c1])
-    world = p1 + floor1 @ np.array([[c1, s1], [-s1, c1]])
-    c0, s0 = math.cos(r0.yaw_rad), math.sin(r0.yaw_rad)
-    floor0 = (world - np.array([r0.x_m, r0.y_m], dtype=float)) @ np.array([[c0, -s0], [s0, c0]])
-    p = np.concatenate([floor0, np.ones((*floor0.shape[:-1], 1))], axis=-1) @ np.linalg.inv(H).T
-    mx, my = (p[..., 0] / p[..., 2]).astype(np.float32), (p[..., 1] / p[..., 2]).astype(np.float32)
-
-    def flat(img: NDArray[np.float32]) -> NDArray[np.float32]:
-        return np.asarray(img - cv2.GaussianBlur(img, (0, 0), 4.0), dtype=np.float32)
-
-    prev = flat(_gray(folder, k).astype(np.float32))
-    predicted = cv2.remap(prev, mx, my, cv2.INTER_LINEAR)
-    actual = flat(_gray(folder, k + 1).astype(np.float32))[y : y + h, x : x + w]
-    a, b = predicted - predicted.mean(), actual - actual.mean()
-    return float((a * b).sum() / math.sqrt((a * a).sum() * (b * b).sum()))
 
 
 class TestObscuredCopies:

@@ -8,7 +8,6 @@ the truth kept apart; consecutive frames agree with the recorded poses through t
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import cv2
@@ -19,11 +18,12 @@ from numpy.typing import NDArray
 from driftmap.core.imaging.calibration import Board, calibrate_lens, find_board
 from driftmap.core.imaging.lens import distort_points, lens_maps
 from driftmap.core.odometry.ground_setup import board_floor_points, fit_ground
-from driftmap.formats.drive_folder import DriveFolder, read_drive_folder
+from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.sim import simulate_site
 from driftmap.sim.params import RIG_WIDE180
 from driftmap.sim.ride import RIDE_NONE
 from driftmap.sim.rig import CameraRig
+from tests.sim.truth_warp import ncc_predicted
 
 FOCAL_TOL_FRAC = 0.01  # issue target: focal length within 1 %
 PRINCIPAL_TOL_PX = 2.0  # principal point within 2 px
@@ -136,40 +136,13 @@ def test_frames_agree_with_truth_through_the_lens(site: Path) -> None:
     step = np.hypot(*np.diff(xy, axis=0).T)
     moving = [int(i) for i in np.flatnonzero((step > 0.1) & (step < 0.6))[::6][:4]]
     assert moving
-    for k in moving:
-        good, wrong = _ncc_predicted(folder, k, 0.0), _ncc_predicted(folder, k, 0.25)
-        assert good > NCC_MATCH and good > wrong + NCC_MARGIN, (k, good, wrong)
-
-
-def _ncc_predicted(folder: DriveFolder, k: int, error_m: float) -> float:
-    """NCC of frame k+1's ROI with frame k warped onto it through the truth (the later pose moved ``error_m``
-    sideways), on the undistorted images; the rear camera's look frame is the vehicle's turned half a turn."""
     cam = folder.meta.camera
     assert cam.lens is not None and cam.forward_sign == -1
-    hom = cam.homography()
-    assert hom is not None
-    x, y, w, h = cam.ground_roi_px
     maps = lens_maps(cam.lens, (cam.width_px, cam.height_px), (0, 0, cam.width_px, cam.height_px))
 
     def undistorted(i: int) -> NDArray[np.float32]:
-        img = cv2.imread(str(folder.frame_files[i]), cv2.IMREAD_GRAYSCALE)
-        flat = maps.apply(img).astype(np.float32)
-        return np.asarray(flat - cv2.GaussianBlur(flat, (0, 0), 4.0), dtype=np.float32)
+        return maps.apply(cv2.imread(str(folder.frame_files[i]), cv2.IMREAD_GRAYSCALE)).astype(np.float32)
 
-    uu, vv = np.meshgrid(np.arange(x, x + w, dtype=float), np.arange(y, y + h, dtype=float))
-    q = np.stack([uu, vv, np.ones_like(uu)], axis=-1) @ hom.T
-    look1 = q[..., :2] / q[..., 2:]
-    r0, r1 = folder.frames[k], folder.frames[k + 1]
-    assert r0.yaw_rad is not None and r1.yaw_rad is not None
-    yaw0, yaw1 = r0.yaw_rad + math.pi, r1.yaw_rad + math.pi  # the look frames
-    c1, s1 = math.cos(yaw1), math.sin(yaw1)
-    p1 = np.array([r1.x_m, r1.y_m], dtype=float) + error_m * np.array([-s1, c1])
-    world = p1 + look1 @ np.array([[c1, s1], [-s1, c1]])
-    c0, s0 = math.cos(yaw0), math.sin(yaw0)
-    look0 = (world - np.array([r0.x_m, r0.y_m], dtype=float)) @ np.array([[c0, -s0], [s0, c0]])
-    p = np.concatenate([look0, np.ones((*look0.shape[:-1], 1))], axis=-1) @ np.linalg.inv(hom).T
-    mx, my = (p[..., 0] / p[..., 2]).astype(np.float32), (p[..., 1] / p[..., 2]).astype(np.float32)
-    predicted = cv2.remap(undistorted(k), mx, my, cv2.INTER_LINEAR)
-    actual = undistorted(k + 1)[y : y + h, x : x + w]
-    a, b = predicted - predicted.mean(), actual - actual.mean()
-    return float((a * b).sum() / math.sqrt((a * a).sum() * (b * b).sum()))
+    for k in moving:
+        good, wrong = ncc_predicted(folder, k, 0.0, undistorted), ncc_predicted(folder, k, 0.25, undistorted)
+        assert good > NCC_MATCH and good > wrong + NCC_MARGIN, (k, good, wrong)

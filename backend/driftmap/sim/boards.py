@@ -26,6 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from driftmap.core.imaging.lens import project_rays
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.rig import CameraRig
@@ -97,10 +98,7 @@ def _visible(rig: CameraRig, pts_c: FloatArray, margin_px: float) -> bool:
     lens = rig.lens
     if lens is None or np.any(pts_c[:, 2] <= 0.05):
         return False
-    uv, _ = cv2.fisheye.projectPoints(
-        pts_c.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), lens.matrix(), lens.coeffs()
-    )
-    uv = uv.reshape(-1, 2)
+    uv = project_rays(lens, pts_c)
     w, h = rig.size_px
     angle = np.arccos(pts_c[:, 2] / np.linalg.norm(pts_c, axis=1))
     return bool(

@@ -134,7 +134,8 @@ class Renderer:
         lo, hi = look.min() - 1e-6, look.max() + 1e-6
         self.bin_psi = np.linspace(lo, hi, bins) + self.mount_yaw
         self.bin_of_px = np.rint((look - lo) / (hi - lo) * (bins - 1)).astype(np.int32)
-        self.seen = rig.image_circle.reshape(-1).astype(np.float32)
+        # A fisheye's sensor is dark outside its image circle (None: a pinhole sees with every pixel).
+        self.seen = None if rig.lens is None else rig.image_circle.reshape(-1).astype(np.float32)
         cam_h = rig.params.height_m
         self.pix_rad = 1.0 / rig.params.focal_px
         self.floor = _plane(d, np.flatnonzero(d[:, 2] < -1e-4), -cam_h, self.pix_rad)
@@ -295,6 +296,7 @@ class Renderer:
                 np.float32(pr.read_noise**2) + np.float32(pr.shot_noise**2) * np.maximum(sig, 0.0)
             )
             sig += sigma * rng.standard_normal(sig.size, dtype=np.float32)
-        sig *= self.seen  # a fisheye's sensor is dark outside the image circle
+        if self.seen is not None:
+            sig *= self.seen
         code = (np.clip(sig, 0.0, 1.0) * np.float32(_LUT_SIZE - 1) + np.float32(0.5)).astype(np.int32)
         return np.asarray(self.gamma_lut[code].reshape(self.shape))

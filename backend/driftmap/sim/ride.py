@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from driftmap.core.imaging.lens import project_rays
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.rig import CameraRig
 
@@ -105,22 +106,21 @@ def _rotation(rig: CameraRig, pitch_rad: float, roll_rad: float, yaw_rad: float)
 def _turn_fisheye(img: np.ndarray, rig: CameraRig, c_R_nominal: FloatArray) -> np.ndarray:
     """The fisheye frame of the turned camera: each pixel samples the nominal frame where its ray fell.
 
-    A recorded pixel with ray ``r`` (camera frame) saw the nominal camera's ray ``R^T r``; that ray is
-    projected through the lens (``theta_d = theta (1 + k1 theta^2 + ...)``, any ``theta`` up to pi) and
-    sampled bilinearly. Pixels outside the image circle stay black.
+    A recorded pixel with ray ``r`` (camera frame) saw the nominal camera's ray ``R^T r``, projected through
+    the lens (:func:`~driftmap.core.imaging.lens.project_rays`) and sampled bilinearly. A ray turned behind
+    the lens plane (the rim of a 180-degree view) and pixels outside the image circle are black.
     """
     lens = rig.lens
     assert lens is not None
-    k, coeffs = lens.matrix(), lens.distortion
-    src = (rig.rays_c @ c_R_nominal).astype(np.float32)
-    rho = np.hypot(src[..., 0], src[..., 1])
-    theta = np.arctan2(rho, src[..., 2])
-    t2 = theta * theta
-    theta_d = theta * (1 + t2 * (coeffs[0] + t2 * (coeffs[1] + t2 * (coeffs[2] + t2 * coeffs[3]))))
-    scale = np.where(rho > 1e-9, theta_d / np.maximum(rho, 1e-9), 1.0)
-    map_u = (k[0, 0] * src[..., 0] * scale + k[0, 2]).astype(np.float32)
-    map_v = (k[1, 1] * src[..., 1] * scale + k[1, 2]).astype(np.float32)
-    out = cv2.remap(img, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    h, w = img.shape[:2]
+    src = (rig.rays_c @ c_R_nominal).reshape(-1, 3)
+    ahead = src[:, 2] > 1e-6
+    raw = np.full((len(src), 2), -1.0)
+    raw[ahead] = project_rays(lens, src[ahead])
+    maps = raw.reshape(h, w, 2).astype(np.float32)
+    out = cv2.remap(
+        img, maps[..., 0], maps[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+    )
     return np.asarray(np.where(rig.image_circle, out, 0).astype(img.dtype))
 
 
