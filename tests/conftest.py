@@ -25,6 +25,7 @@ from argon2 import PasswordHasher
 from driftmap.config import Settings, get_settings
 from driftmap.services import security
 from driftmap.store.storage import Storage
+from tests.made_once import made_once
 from tests.postgres_server import PostgresServer, active_server, postgres_bin_dir, set_active_server
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -184,7 +185,7 @@ def tiny_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The tiny simulated site, written once per test session (read-only for tests)."""
     from tests.sim_site import make_tiny_site
 
-    return make_tiny_site(tmp_path_factory.mktemp("tiny-site") / "site")
+    return made_once(tmp_path_factory, "tiny-site", make_tiny_site)
 
 
 @pytest.fixture(scope="session")
@@ -193,9 +194,9 @@ def small_site_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     mapping drives, whose frames do not depend on them."""
     from driftmap.sim import simulate_site
 
-    out = tmp_path_factory.mktemp("small-site") / "site"
-    simulate_site(out, seed=7, size="small", obscurants=False)
-    return out
+    return made_once(
+        tmp_path_factory, "small-site", lambda out: simulate_site(out, seed=7, size="small", obscurants=False)
+    )
 
 
 @pytest.fixture(scope="session")

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from driftmap.sim import simulate_site
+from tests.made_once import made_once
 
 MINI_FRAMES = 100
 MINI_SEED = 3
@@ -22,9 +23,13 @@ _made: dict[str, Path] = {}
 def mini_site_dir(factory: pytest.TempPathFactory) -> Path:
     """The mini site, simulated once per test process (read-only for tests)."""
     if "site" not in _made:
-        out = factory.mktemp("mini-site") / "site"
-        simulate_site(out, seed=MINI_SEED, size="tiny", obscurants=False, max_frames_per_drive=MINI_FRAMES)
-        _made["site"] = out
+        _made["site"] = made_once(
+            factory,
+            "mini-site",
+            lambda out: simulate_site(
+                out, seed=MINI_SEED, size="tiny", obscurants=False, max_frames_per_drive=MINI_FRAMES
+            ),
+        )
     return _made["site"]
 
 
