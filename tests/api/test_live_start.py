@@ -124,7 +124,9 @@ class TestKnownStart:
             headers={**actors.auth("surveyor"), "Content-Type": "application/json"},
         )
         assert response.status_code == 422, response.text
-        assert response.json()["field"] == field  # NaN and Infinity refused with the JSON body, the rest by the service
+        assert (
+            response.json()["field"] == field
+        )  # NaN and Infinity refused with the JSON body, the rest by the service
         storage: Storage = actors.app.state.storage
         with storage.db.session() as session:
             assert session.get(VehicleLiveState, actors.vehicle_id) is None

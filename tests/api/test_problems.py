@@ -52,7 +52,11 @@ class TestTheDocument:
             for code, response in responses.items():
                 if int(code) < 400 or (path, method, code) in NOT_PROBLEMS:
                     continue
-                assert response["content"] == {PROBLEM_MEDIA_TYPE: {"schema": PROBLEM_REF}}, (path, method, code)
+                assert response["content"] == {PROBLEM_MEDIA_TYPE: {"schema": PROBLEM_REF}}, (
+                    path,
+                    method,
+                    code,
+                )
 
     def test_no_route_keeps_fastapis_validation_schema(self, document: dict[str, Any]) -> None:
         assert "HTTPValidationError" not in document["components"]["schemas"]

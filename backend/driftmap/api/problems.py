@@ -82,8 +82,8 @@ def problem(
     return body
 
 
-def _where(loc: Sequence[object]) -> str:
-    parts = [str(p) for p in loc]
+def _where(loc: object) -> str:
+    parts = [str(p) for p in loc] if isinstance(loc, list | tuple) else []
     return ".".join(parts[1:] if parts and parts[0] in _LOCATION_KINDS else parts)
 
 
