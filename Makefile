@@ -68,8 +68,8 @@ demo: $(VENV)/.installed-run frontend
 		--serve --url http://127.0.0.1:$(DEMO_PORT) --user admin --password-stdin --show-login
 
 lint: $(VENV)/.installed-dev
-	$(BIN)/ruff check backend tests bench migrations
-	$(BIN)/ruff format --check backend tests bench migrations
+	$(BIN)/ruff check backend tests bench
+	$(BIN)/ruff format --check backend tests bench
 
 typecheck: $(VENV)/.installed-dev
 	$(BIN)/mypy

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from importlib import resources
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -38,7 +39,12 @@ from driftmap.services.login_guard import LoginGuard
 from driftmap.services.security import secret_key
 from driftmap.store.storage import Storage
 
-FRONTEND_DIST = Path(__file__).resolve().parents[3] / "frontend" / "dist"
+
+def ui_dir() -> Path | None:
+    """The built browser UI, package data ``driftmap/ui`` (a wheel carries it; in a checkout it links to
+    ``frontend/dist``), or None when it has not been built."""
+    found = resources.files("driftmap") / "ui"
+    return Path(str(found)).resolve() if found.is_dir() and (found / "index.html").is_file() else None
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -93,6 +99,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(metrics.router)
     add_to_openapi(app)  # the /api/live messages (FastAPI documents no WebSocket)
     problems.add_to_openapi(app)
-    if FRONTEND_DIST.is_dir():
-        app.mount("/", StaticFiles(directory=FRONTEND_DIST, html=True), name="ui")
+    ui = ui_dir()
+    if ui is not None:
+        app.mount("/", StaticFiles(directory=ui, html=True), name="ui")
     return app
