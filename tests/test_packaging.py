@@ -71,6 +71,19 @@ class TestDependencies:
         )
 
 
+class TestLock:
+    def test_every_dependency_is_pinned_and_the_image_uses_the_lock(self) -> None:
+        pins = {}
+        for line in (ROOT / "requirements.lock").read_text().splitlines():
+            if line and not line.startswith("#"):
+                name, _, version = line.partition("==")
+                pins[_normalised(name)] = version
+        assert all(pins.values()), "every line of requirements.lock is name==version"
+        assert declared_distributions() <= set(pins), declared_distributions() - set(pins)
+        dockerfile = (ROOT / "Dockerfile").read_text()
+        assert "-c requirements.lock" in dockerfile and "FROM node:22-" in dockerfile
+
+
 class TestPackageData:
     def test_migrations_are_inside_the_package(self) -> None:
         assert MIGRATIONS_DIR.is_relative_to(PACKAGE) and (MIGRATIONS_DIR / "env.py").is_file()
