@@ -56,6 +56,13 @@ class ProblemResponse(JSONResponse):
     media_type = PROBLEM_MEDIA_TYPE
 
 
+def _phrase(status: int) -> str:
+    try:
+        return HTTPStatus(status).phrase
+    except ValueError:
+        return "Error"
+
+
 def problem(
     status: int,
     detail: str,
@@ -69,7 +76,7 @@ def problem(
     """The :class:`Problem` body (plain JSON) of an error answer."""
     body: dict[str, Any] = {
         "type": "about:blank",
-        "title": HTTPStatus(status).phrase if status in HTTPStatus._value2member_map_ else "Error",
+        "title": _phrase(status),
         "status": status,
         "detail": detail,
         "instance": instance,
