@@ -72,6 +72,7 @@ class TestJsonOutput:
     def test_users_and_an_empty_store(self, empty_env: None) -> None:
         assert _json("site", "list", "--json") == []
         assert _json("user", "list", "--json") == []
+        assert _json("camera", "profiles", "--json") == []
 
     def test_a_refused_build_prints_no_document(self, empty_env: None, tmp_path: Path) -> None:
         result = _refused("map", "build", "nowhere", "--json")

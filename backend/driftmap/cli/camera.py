@@ -18,7 +18,7 @@ import typer
 from numpy.typing import NDArray
 from rich.table import Table
 
-from driftmap.cli.common import console, err_console, open_storage, user_errors
+from driftmap.cli.common import JsonOption, console, err_console, open_storage, print_json, user_errors
 from driftmap.core.imaging.lens import Lens
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
@@ -217,10 +217,16 @@ def save(
 
 
 @camera_app.command("profiles")
-def profiles() -> None:
-    """List the stored camera profiles."""
+def profiles(as_json: JsonOption = False) -> None:
+    """List the stored camera profiles (``--json``: each with its full camera block)."""
     storage = open_storage()
     with user_errors(), storage.db.session() as session:
+        if as_json:
+            rows = profile_service.list_profiles(session)
+            print_json(
+                [{"id": p.id, "name": p.name, "description": p.description, "camera": p.camera} for p in rows]
+            )
+            return
         table = Table("id", "name", "size", "lens", "description")
         for p in profile_service.list_profiles(session):
             lens = p.camera.get("lens") or {}
