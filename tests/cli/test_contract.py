@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any, get_args
 
 import pytest
@@ -15,6 +16,7 @@ from driftmap.cli import app, camera, data, maps
 from driftmap.config import Settings, get_settings
 from driftmap.core.imaging.lens import LENS_MODELS
 from driftmap.core.mapping.pipeline import MAP_PRESETS
+from driftmap.services import maps as map_service
 from driftmap.services.users import ROLES
 from driftmap.sim.params import RIGS, SIZES
 from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
@@ -68,6 +70,21 @@ class TestJsonOutput:
         assert shown["version"] >= 1 and shown["stats"]["nodes"] > 0
         assert shown["summary"]["overall"]["count"] == len(shown["residuals"])
         assert {"drive", "frame", "dx_m", "dy_m", "distance_m"} <= set(shown["residuals"][0])
+
+    def test_build_prints_the_new_version(self, built_env: None, monkeypatch: pytest.MonkeyPatch) -> None:
+        """The build itself is the mapping tests' (stood in for here): --json prints its version and figures."""
+        built = (
+            SimpleNamespace(version=7),
+            SimpleNamespace(stats={"frames": 12, "nodes": 5, "odometry_s": 1.5}),
+        )
+        monkeypatch.setattr(map_service, "build_site_map", lambda *_a, **_k: built)
+        monkeypatch.setattr(map_service, "ensure_buildable", lambda *_a: None)
+        document = _json("map", "build", "tiny", "--preset", "fast", "--json")
+        assert document == {
+            "site": "tiny",
+            "version": 7,
+            "stats": {"frames": 12, "nodes": 5, "odometry_s": 1.5},
+        }
 
     def test_users_and_an_empty_store(self, empty_env: None) -> None:
         assert _json("site", "list", "--json") == []
