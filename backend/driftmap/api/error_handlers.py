@@ -57,15 +57,11 @@ def error_body(error: DriftmapError) -> dict[str, object]:
 
 def error_problem(error: DriftmapError, instance: str | None) -> dict[str, object]:
     """The problem body of a driftmap error."""
-    body = error_body(error)
-    return problem(
-        status_of(error),
-        str(body["detail"]),
-        instance,
-        file=error.file if isinstance(error, BadInputError) else None,
-        line=error.line if isinstance(error, BadInputError) else None,
-        field=error.field if isinstance(error, BadInputError) else None,
-    )
+    if isinstance(error, BadInputError):
+        return problem(
+            status_of(error), str(error), instance, file=error.file, line=error.line, field=error.field
+        )
+    return problem(status_of(error), str(error), instance)
 
 
 async def driftmap_error_handler(request: Request, exc: Exception) -> ProblemResponse:
