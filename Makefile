@@ -7,21 +7,28 @@ DEMO_DIR ?= data/demo
 DEMO_SEED ?= 7
 DEMO_PORT ?= 8000
 
-.PHONY: demo test lint typecheck imports pytest bench clean frontend frontend-test frontend-lint frontend-api system-packages
+.PHONY: lock demo test lint typecheck imports pytest bench clean frontend frontend-test frontend-lint frontend-api system-packages
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-# Runtime install: re-run whenever pyproject.toml changes.
-$(VENV)/.installed-run: pyproject.toml | $(BIN)/python
-	$(BIN)/pip install --quiet -e .
+# Runtime install at the versions of requirements.lock: re-run whenever pyproject.toml or the lock changes.
+$(VENV)/.installed-run: pyproject.toml requirements.lock | $(BIN)/python
+	$(BIN)/pip install --quiet -c requirements.lock -e .
 	touch $@
 
 # Development install (tests, linters, type checker).
-$(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
-	$(BIN)/pip install --quiet -e '.[dev]'
+$(VENV)/.installed-dev: pyproject.toml requirements.lock | $(BIN)/python
+	$(BIN)/pip install --quiet -c requirements.lock -e '.[dev]'
 	touch $@ $(VENV)/.installed-run
+
+# The lock: the newest versions pyproject.toml allows, installed into a scratch venv and frozen.
+lock:
+	rm -rf build/lock-venv && $(PYTHON) -m venv build/lock-venv
+	build/lock-venv/bin/pip install --quiet --upgrade pip && build/lock-venv/bin/pip install --quiet '.[dev]'
+	{ sed -n '1,2p' requirements.lock; build/lock-venv/bin/pip freeze --exclude-editable | grep -v '^driftmap @'; } > requirements.lock.new
+	mv requirements.lock.new requirements.lock && rm -rf build/lock-venv
 
 # Browser UI (frontend/): npm ci when the lock file changes, then a vite build into frontend/dist.
 frontend/node_modules/.installed: frontend/package-lock.json
@@ -68,8 +75,8 @@ demo: $(VENV)/.installed-run frontend
 		--serve --url http://127.0.0.1:$(DEMO_PORT) --user admin --password-stdin --show-login
 
 lint: $(VENV)/.installed-dev
-	$(BIN)/ruff check backend tests bench migrations
-	$(BIN)/ruff format --check backend tests bench migrations
+	$(BIN)/ruff check backend tests bench
+	$(BIN)/ruff format --check backend tests bench
 
 typecheck: $(VENV)/.installed-dev
 	$(BIN)/mypy

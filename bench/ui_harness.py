@@ -33,7 +33,7 @@ import uvicorn
 from ezdxf.document import Drawing
 from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
 
-from driftmap.api.app import FRONTEND_DIST, create_app
+from driftmap.api.app import create_app, ui_dir
 from driftmap.config import Settings
 from driftmap.services import sites as site_service
 from driftmap.services import users as user_service
@@ -217,7 +217,7 @@ def ui_session() -> Iterator[UiSession]:
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
         sys.exit("chromium is not installed (apt-get install chromium)")
-    if not (FRONTEND_DIST / "index.html").exists():
+    if ui_dir() is None:
         sys.exit("frontend/dist is missing: cd frontend && npm run build")
 
     with tempfile.TemporaryDirectory(prefix="bench-ui-") as work:

@@ -62,20 +62,20 @@ class TestSiteAndDrives:
         sites = runner.invoke(app, ["site", "list"])
         assert "demo" in sites.output
 
-    def test_bad_input_exits_2_with_the_file_named(self, data_dir: Path, tmp_path: Path) -> None:
+    def test_bad_input_exits_1_with_the_file_named(self, data_dir: Path, tmp_path: Path) -> None:
         survey = _survey(tmp_path / "survey.dxf")
         assert runner.invoke(app, ["site", "create", "demo", "--survey", str(survey)]).exit_code == 0
         bad = write_test_drive(tmp_path / "bad", frames=4)
         (bad / "frames.csv").write_text("frame,t,x,y,yaw\n0,0.0,,,\n1,0.1,,,\n2,0.1,,,\n3,0.3,,,\n")
         result = runner.invoke(app, ["drive", "import", "demo", str(bad)])
-        assert result.exit_code == 2
+        assert result.exit_code == 1
         assert "frames.csv:4" in result.output
         assert "Traceback" not in result.output
         assert "east-mapping-1" not in runner.invoke(app, ["drive", "list", "demo"]).output
 
     def test_unknown_site_and_missing_survey(self, data_dir: Path, tmp_path: Path) -> None:
         result = runner.invoke(app, ["drive", "list", "nowhere"])
-        assert result.exit_code == 2 and "nowhere" in result.output
+        assert result.exit_code == 1 and "nowhere" in result.output
         result = runner.invoke(app, ["site", "create", "x", "--survey", str(tmp_path / "missing.dxf")])
         assert result.exit_code == 2 and "missing.dxf" in result.output
 
@@ -135,9 +135,9 @@ class TestMapping:
         survey = _survey(tmp_path / "survey.dxf")
         assert runner.invoke(app, ["site", "create", "bare", "--survey", str(survey)]).exit_code == 0
         result = runner.invoke(app, ["map", "show", "bare"])
-        assert result.exit_code == 2 and "map build bare" in result.output
+        assert result.exit_code == 1 and "map build bare" in result.output
         result = runner.invoke(app, ["map", "build", "bare"])
-        assert result.exit_code == 2 and "no grounding" in result.output
+        assert result.exit_code == 1 and "no grounding" in result.output
         result = runner.invoke(app, ["report", "mapping", "bare"])
         assert result.exit_code == 2 and "--truth" in result.output
 

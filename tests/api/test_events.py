@@ -114,7 +114,7 @@ class TestList:
         for path in ("/api/events", "/api/events.csv"):
             response = users.client.get(path, params=query, headers=users.auth("viewer"))
             assert response.status_code == 422, response.text
-            assert response.json()["detail"][0]["loc"] == ["query", field]
+            assert response.json()["errors"][0]["loc"] == ["query", field]
 
     def test_a_range_that_ends_before_it_starts_is_422_naming_until(self, users: ApiUsers) -> None:
         query = {"since": "2026-12-06T09:00:00Z", "until": "2026-12-06T08:00:00Z"}

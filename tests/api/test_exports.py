@@ -100,9 +100,9 @@ class TestMapDownloads:
         site = _site_id(actors)
         url = f"/api/sites/{site}/maps/1/export"
         bad = actors.client.get(url, params={"format": "shp"}, headers=actors.auth("viewer"))
-        assert bad.status_code == 422 and bad.json()["detail"][0]["loc"] == ["query", "format"]
+        assert bad.status_code == 422 and bad.json()["errors"][0]["loc"] == ["query", "format"]
         missing = actors.client.get(url, headers=actors.auth("viewer"))
-        assert missing.status_code == 422 and missing.json()["detail"][0]["loc"] == ["query", "format"]
+        assert missing.status_code == 422 and missing.json()["errors"][0]["loc"] == ["query", "format"]
         several = actors.client.get(url, params={"format": "tum"}, headers=actors.auth("viewer"))
         assert several.status_code == 422 and several.json()["field"] == "drive"
         for path, params in (
@@ -160,12 +160,12 @@ class TestPositionDownloads:
         backwards = actors.client.get(url, params={"format": "csv", "since": 5, "until": 4}, headers=viewer)
         assert backwards.status_code == 422 and backwards.json()["field"] == "until"
         not_a_number = actors.client.get(url, params={"format": "csv", "since": "soon"}, headers=viewer)
-        assert not_a_number.status_code == 422 and not_a_number.json()["detail"][0]["loc"] == [
+        assert not_a_number.status_code == 422 and not_a_number.json()["errors"][0]["loc"] == [
             "query",
             "since",
         ]
         dxf = actors.client.get(url, params={"format": "dxf"}, headers=viewer)
-        assert dxf.status_code == 422 and dxf.json()["detail"][0]["loc"] == ["query", "format"]
+        assert dxf.status_code == 422 and dxf.json()["errors"][0]["loc"] == ["query", "format"]
         ghost = actors.client.get(url, params={"format": "csv", "vehicle": "ghost"}, headers=viewer)
         assert ghost.status_code == 404
         assert (

@@ -26,9 +26,9 @@ REFUSED_WITHIN_S = 1.0
 
 
 def _loc(response: httpx.Response) -> list[Any]:
-    """The ``loc`` of the first error of a FastAPI-shaped 422."""
+    """The ``loc`` of the first validation error of a 422 problem."""
     assert response.status_code == 422, response.text
-    return list(response.json()["detail"][0]["loc"])
+    return list(response.json()["errors"][0]["loc"])
 
 
 def _post_json(users: ApiUsers, url: str, text: str, role: str = "admin") -> httpx.Response:
@@ -94,7 +94,7 @@ class TestNumbersThatAreNotFinite:
             "/api/vehicles/1/positions", params={"start": "nan"}, headers=users.auth("viewer")
         )
         assert _loc(echoed) == ["query", "start"]
-        assert echoed.json()["detail"][0]["input"] == "nan"
+        assert echoed.json()["errors"][0]["input"] == "nan"
 
     def test_a_first_drive_frame_with_a_bad_t_is_named(
         self, users: ApiUsers, empty_drive: int, mini_site: Path
@@ -115,7 +115,7 @@ class TestText:
     def test_lone_surrogates_and_nul_characters_are_named(self, users: ApiUsers) -> None:
         response = _post_json(users, "/api/sites", '{"name": "\\ud800"}')
         assert _loc(response) == ["body", "name"]
-        assert response.json()["detail"][0]["input"] == "\\ud800"
+        assert response.json()["errors"][0]["input"] == "\\ud800"
         nul = _post_json(users, "/api/sites", '{"name": "a", "description": "x\\u0000"}')
         assert _loc(nul) == ["body", "description"]
 

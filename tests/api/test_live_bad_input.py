@@ -50,7 +50,7 @@ class TestARefusedFrameChangesNothing:
         assert _status(_post(live_actors, frames[0].data, 10.0)) == "processed"
         for bad in ("inf", "nan", "1e308"):
             refused = _post(live_actors, frames[1].data, bad)
-            assert refused.status_code == 422 and refused.json()["detail"][0]["loc"] == ["query", "t"], bad
+            assert refused.status_code == 422 and refused.json()["errors"][0]["loc"] == ["query", "t"], bad
         assert _status(_post(live_actors, frames[1].data, 20.0)) == "processed"
 
     def test_a_frame_the_localiser_refuses_does_not_block_earlier_times(

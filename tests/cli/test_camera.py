@@ -65,7 +65,7 @@ class TestIntrinsicsCommand:
     def test_too_few_views_is_an_error_naming_the_count(self, board_dir: Path, tmp_path: Path) -> None:
         args = _intrinsics(board_dir, tmp_path / "c.json", "view0.png", "view1.png", "blank.png")
         result = runner.invoke(app, ["camera", "intrinsics", *args])
-        assert result.exit_code == 2
+        assert result.exit_code == 1
         assert "found in 2 view(s); calibration needs at least 3" in result.output
         assert not (tmp_path / "c.json").exists()
 
@@ -111,7 +111,7 @@ class TestGroundCommand:
         result = runner.invoke(
             app, ["camera", "ground", str(points), "--size", "320x240", "--out", str(tmp_path / "c.json")]
         )
-        assert result.exit_code == 2
+        assert result.exit_code == 1
         assert str(points) in result.output and "points 1, 2, 3 are collinear" in result.output
 
     def test_unknown_frame_size_is_refused(self, tmp_path: Path) -> None:
@@ -169,7 +169,7 @@ class TestGroundFromABoard:
         points.write_text("u,v,x,y\n")
         args = ["camera", "ground", str(points), "--board-image", str(points), "--size", "64x48"]
         result = runner.invoke(app, [*args, "--out", str(tmp_path / "c.json")])
-        assert result.exit_code == 2 and "either a points CSV or --board-image" in result.output
+        assert result.exit_code == 1 and "either a points CSV or --board-image" in result.output
 
     def test_board_not_found_names_the_image(self, tmp_path: Path) -> None:
         image = tmp_path / "empty.png"
@@ -179,7 +179,7 @@ class TestGroundFromABoard:
             app, ["camera", "ground", *args, "--size", "64x48", "--out", str(tmp_path / "c.json")]
         )
         assert (
-            result.exit_code == 2 and "empty.png" in result.output and "no 8x5 board found" in result.output
+            result.exit_code == 1 and "empty.png" in result.output and "no 8x5 board found" in result.output
         )
 
 
@@ -208,4 +208,4 @@ class TestCheckCommand:
             drive, DriveMeta("d", "mapping", 10.0, pinhole_camera()), rows, (encode_png(f) for f in frames)
         )
         result = runner.invoke(app, ["camera", "check", str(drive), "--distance-m", "0"])
-        assert result.exit_code == 2 and "distance_m" in result.output
+        assert result.exit_code == 1 and "distance_m" in result.output

@@ -74,7 +74,7 @@ class TestMapExport:
         result = runner.invoke(
             app, ["map", "export", SITE, "--format", "tum", "--out", str(out), "--poses", str(poses)]
         )
-        assert result.exit_code == 2 and "pick one drive" in result.output
+        assert result.exit_code == 1 and "pick one drive" in result.output
         assert not out.exists() and not poses.exists()
         result = runner.invoke(app, ["map", "export", SITE, "--format", "shp", "--out", str(out)])
         assert result.exit_code == 2 and "--format" in result.output
@@ -125,11 +125,11 @@ class TestPositionsExport:
                 str(out),
             ],
         )
-        assert result.exit_code == 2 and "until" in result.output
+        assert result.exit_code == 1 and "until" in result.output
         result = runner.invoke(app, ["positions", "export", SITE, "--format", "dxf", "--out", str(out)])
         assert result.exit_code == 2 and "--format" in result.output
         result = runner.invoke(
             app, ["positions", "export", SITE, "--vehicle", "ghost", "--format", "csv", "--out", str(out)]
         )
-        assert result.exit_code == 2 and "ghost" in result.output
+        assert result.exit_code == 1 and "ghost" in result.output
         assert not out.exists()

@@ -58,7 +58,7 @@ class TestControlFile:
         bad = tmp_path / "bad.csv"
         bad.write_text(before.read_text() + "nowhere,1,,0.0,0.0,true\n")
         line = len(before.read_text().splitlines()) + 1
-        output = _run("groundings", "import", "tiny", str(bad), code=2)
+        output = _run("groundings", "import", "tiny", str(bad), code=1)
         assert f"bad.csv:{line} field 'drive'" in output and "nowhere" in output
         after = tmp_path / "after.csv"
         _run("groundings", "export", "tiny", "--out", str(after))

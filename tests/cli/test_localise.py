@@ -65,21 +65,21 @@ class TestLocalise:
         assert math.hypot(row.x_m - first.x_m, row.y_m - first.y_m) < MAX_NODE_OFFSET_M  # its start's node
 
     @pytest.mark.parametrize(
-        ("start", "says"),
-        [
-            ("12.5", "expected 'X,Y'"),
-            ("a,b", "expected 'X,Y'"),
-            ("nan,3", "finite"),
-            ("1e7,1e7", "from the map's nearest node"),
+        ("start", "says", "code"),
+        [  # what --start cannot be read as is a usage error (2), a start off the map a refusal (1)
+            ("12.5", "expected 'X,Y'", 2),
+            ("a,b", "expected 'X,Y'", 2),
+            ("nan,3", "finite", 2),
+            ("1e7,1e7", "from the map's nearest node", 1),
         ],
     )
     def test_bad_start_is_refused_before_anything_is_written(
-        self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path, start: str, says: str
+        self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path, start: str, says: str, code: int
     ) -> None:
         out = tmp_path / "est.csv"
         args = ["localise", SITE, str(loc_drive_dir(tiny_site_dir)), "--out", str(out), "--start", start]
         result = runner.invoke(app, args)
-        assert result.exit_code == 2
+        assert result.exit_code == code
         assert says in result.output and "start" in result.output
         assert not out.exists()
 
@@ -91,7 +91,7 @@ class TestLocalise:
         lines[3] = "2,not-a-time"
         frames_csv.write_text("\n".join(lines) + "\n")
         result = runner.invoke(app, ["localise", SITE, str(drive), "--out", str(tmp_path / "e.csv")])
-        assert result.exit_code == 2
+        assert result.exit_code == 1
         assert "frames.csv" in result.output and ":4" in result.output
         assert not (tmp_path / "e.csv").exists()
 
@@ -99,7 +99,7 @@ class TestLocalise:
         result = runner.invoke(
             app, ["localise", SITE, str(tmp_path / "nowhere"), "--out", str(tmp_path / "e.csv")]
         )
-        assert result.exit_code == 2
+        assert result.exit_code == 1
         assert "nowhere" in result.output
 
     def test_unknown_map_version(self, tiny_env: Path, tiny_site_dir: Path, tmp_path: Path) -> None:
@@ -115,7 +115,7 @@ class TestLocalise:
                 "9",
             ],
         )
-        assert result.exit_code == 2
+        assert result.exit_code == 1
         assert "version 9" in result.output
 
 

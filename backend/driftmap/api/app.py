@@ -1,24 +1,32 @@
 """The FastAPI application: every router under ``/api``, OpenAPI at ``/docs``, the UI at ``/``.
 
-Errors of :mod:`driftmap.errors` become JSON ``{"detail", "file", "line", "field"}`` with one status per
-class (:mod:`driftmap.api.error_handlers`); request validation by FastAPI keeps its usual 422 shape.
+Every error answer is an RFC 9457 problem (``application/problem+json``, :mod:`driftmap.api.problems`) with
+driftmap's ``file``, ``line`` and ``field``; :mod:`driftmap.api.error_handlers` maps :mod:`driftmap.errors`
+to statuses, one per class, and answers FastAPI's validation, routing and unexpected faults the same way.
 """
 
 from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from importlib import resources
 from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException
 
 from driftmap import __version__
-from driftmap.api import metrics
+from driftmap.api import metrics, problems
 from driftmap.api.body_guard import BodyGuard
 from driftmap.api.deps import PrincipalCache
-from driftmap.api.error_handlers import driftmap_error_handler, validation_error_handler
+from driftmap.api.error_handlers import (
+    driftmap_error_handler,
+    http_error_handler,
+    server_error_handler,
+    validation_error_handler,
+)
 from driftmap.api.request_ids import RequestIds
 from driftmap.api.routes import ROUTERS
 from driftmap.api.schemas_live import add_to_openapi, event_message, position_message
@@ -31,7 +39,12 @@ from driftmap.services.login_guard import LoginGuard
 from driftmap.services.security import secret_key
 from driftmap.store.storage import Storage
 
-FRONTEND_DIST = Path(__file__).resolve().parents[3] / "frontend" / "dist"
+
+def ui_dir() -> Path | None:
+    """The built browser UI, package data ``driftmap/ui`` (a wheel carries it; in a checkout it links to
+    ``frontend/dist``), or None when it has not been built."""
+    found = resources.files("driftmap") / "ui"
+    return Path(str(found)).resolve() if found.is_dir() and (found / "index.html").is_file() else None
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -79,10 +92,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(RequestIds)  # outermost: the id is set for everything inside, errors too
     app.add_exception_handler(DriftmapError, driftmap_error_handler)
     app.add_exception_handler(RequestValidationError, validation_error_handler)
+    app.add_exception_handler(HTTPException, http_error_handler)
+    app.add_exception_handler(Exception, server_error_handler)
     for router in ROUTERS:
-        app.include_router(router, prefix="/api")
+        app.include_router(router, prefix="/api", responses=problems.PROBLEM_RESPONSES)
     app.include_router(metrics.router)
     add_to_openapi(app)  # the /api/live messages (FastAPI documents no WebSocket)
-    if FRONTEND_DIST.is_dir():
-        app.mount("/", StaticFiles(directory=FRONTEND_DIST, html=True), name="ui")
+    problems.add_to_openapi(app)
+    ui = ui_dir()
+    if ui is not None:
+        app.mount("/", StaticFiles(directory=ui, html=True), name="ui")
     return app

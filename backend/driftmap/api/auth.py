@@ -8,12 +8,12 @@ of the user (:func:`driftmap.services.users.revoke_tokens`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from fastapi import APIRouter, HTTPException, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from driftmap.api.deps import TOKEN_COOKIE, ViewerDep, cached_principal, forget_principals
+from driftmap.api.problems import problem_responses
 from driftmap.api.schemas_access import LoginRequest, Me, PasswordChange, TokenRead
 from driftmap.services import security
 from driftmap.services import users as user_service
@@ -21,9 +21,9 @@ from driftmap.services.login_guard import LoginGuard, LoginRefusedError
 from driftmap.store.storage import Storage
 
 router = APIRouter(prefix="/auth", tags=["auth"])
-_REFUSED: dict[int | str, dict[str, Any]] = {
-    429: {"description": "Too many failed logins (or logins at once); see the Retry-After header."}
-}
+_REFUSED = problem_responses(
+    429, descriptions={429: "Too many failed logins (or logins at once); see the Retry-After header."}
+)
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,8 @@ from typing import Any
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from driftmap.api.error_handlers import error_body, json_safe
+from driftmap.api.error_handlers import error_problem, json_safe
+from driftmap.api.problems import PROBLEM_MEDIA_TYPE, validation_problem
 from driftmap.config import Settings
 from driftmap.errors import PayloadTooLargeError
 from driftmap.formats.bounds import INT64_MAX, INT64_MIN
@@ -129,7 +130,9 @@ class BodyGuard:
         limit = self.limit_of(content_type)
         declared = _declared_length(scope)
         if declared is not None and declared > limit:
-            await _refuse_size(send, f"request body of {declared} bytes is over the {limit} byte limit")
+            await _refuse_size(
+                send, scope, f"request body of {declared} bytes is over the {limit} byte limit"
+            )
             return
         if not _is_json(content_type) or declared == 0:
             await self.app(scope, _counting(receive, limit), send)
@@ -137,11 +140,11 @@ class BodyGuard:
         try:
             body = await _read_all(receive, limit)
         except _TooLargeError:
-            await _refuse_size(send, f"request body is over the {limit} byte limit")
+            await _refuse_size(send, scope, f"request body is over the {limit} byte limit")
             return
         problems = json_problems(body) if body else []
         if problems:
-            await _send_json(send, 422, {"detail": problems})
+            await _send_problem(send, 422, validation_problem(problems, scope.get("path")))
             return
         await self.app(scope, _replay(body, receive), send)
 
@@ -193,12 +196,14 @@ def _counting(receive: Receive, limit: int) -> Receive:
     return counted
 
 
-async def _refuse_size(send: Send, message: str) -> None:
-    await _send_json(send, 413, error_body(PayloadTooLargeError(message, field="body")))
+async def _refuse_size(send: Send, scope: Scope, message: str) -> None:
+    await _send_problem(
+        send, 413, error_problem(PayloadTooLargeError(message, field="body"), scope.get("path"))
+    )
 
 
-async def _send_json(send: Send, status: int, content: object) -> None:
+async def _send_problem(send: Send, status: int, content: object) -> None:
     body = json.dumps(content, ensure_ascii=False, allow_nan=False).encode("utf-8")
-    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]
+    headers = [(b"content-type", PROBLEM_MEDIA_TYPE.encode()), (b"content-length", str(len(body)).encode())]
     await send({"type": "http.response.start", "status": status, "headers": headers})
     await send({"type": "http.response.body", "body": body})

@@ -15,7 +15,7 @@ from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, SessionDep, SettingsDep, StorageDep, SurveyorDep
 from driftmap.api.input_types import Count, Id, Name, Seconds
-from driftmap.api.jobs import QueueDep, accepted
+from driftmap.api.jobs import ACCEPTED, QueueDep, accepted
 from driftmap.api.schemas_data import (
     DriveCreate,
     DriveKind,
@@ -111,6 +111,7 @@ def _ensure_new_name(session: SessionDep, site_id: Id, name: str) -> None:
 @router.post(
     "/sites/{site_id}/drives/zip",
     status_code=status.HTTP_202_ACCEPTED,
+    responses=ACCEPTED,
     dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
 )
 def upload_drive_zip(
@@ -162,6 +163,7 @@ def upload_drive_zip(
 @router.post(
     "/sites/{site_id}/drives/video",
     status_code=status.HTTP_202_ACCEPTED,
+    responses=ACCEPTED,
     dependencies=[Depends(SURVEYOR), Depends(check_content_length)],
 )
 def upload_drive_video(
@@ -380,7 +382,7 @@ def frame_thumbnail(
     )
 
 
-@router.post("/drives/{drive_id}/localise", status_code=status.HTTP_202_ACCEPTED)
+@router.post("/drives/{drive_id}/localise", status_code=status.HTTP_202_ACCEPTED, responses=ACCEPTED)
 def localise_drive(
     request: Request,
     response: Response,

@@ -1,14 +1,15 @@
-"""One mapping of :mod:`driftmap.errors` to HTTP: status codes and the JSON error body.
+"""One mapping of :mod:`driftmap.errors` to HTTP, and the handlers that answer every error as a problem.
 
 :class:`~driftmap.errors.BadRequestError` 400 (the request cannot be read: wrong content type, no body),
 :class:`~driftmap.errors.BadInputError` 422 (read but unusable: a broken image, a bad CSV line),
 :class:`~driftmap.errors.NotFoundError` 404, :class:`~driftmap.errors.ConflictError` 409,
-:class:`~driftmap.errors.PayloadTooLargeError` 413. The body is ``{"detail", "file", "line", "field"}``.
+:class:`~driftmap.errors.PayloadTooLargeError` 413. Every error answer, these, FastAPI's request validation
+(422), routing's 404 and 405, an ``HTTPException`` (401, 403, 429) and an unexpected fault (500), is an RFC 9457
+problem (:mod:`driftmap.api.problems`) with ``file``, ``line`` and ``field``.
 
-FastAPI's own 422 (request validation) keeps its shape, ``{"detail": [{"type", "loc", "msg", "input"}]}``,
-but :func:`validation_error_handler` makes every echoed ``input`` JSON-safe first: a NaN or infinity becomes
-its text (``"nan"``), a lone UTF-16 surrogate its escape (``"\\ud800"``), bytes are decoded with escapes and
-long inputs are cut, so the answer to a bad request never fails itself.
+:func:`validation_error_handler` makes every echoed ``input`` JSON-safe first: a NaN or infinity becomes its
+text (``"nan"``), a lone UTF-16 surrogate its escape (``"\\ud800"``), bytes are decoded with escapes and long
+inputs are cut, so the answer to a bad request never fails itself.
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ from collections.abc import Mapping
 
 from fastapi import Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException
 
+from driftmap.api.problems import ProblemResponse, problem, validation_problem
 from driftmap.errors import (
     BadInputError,
     BadRequestError,
@@ -47,19 +49,44 @@ def status_of(error: DriftmapError) -> int:
 
 
 def error_body(error: DriftmapError) -> dict[str, object]:
-    """The JSON body of an error response."""
+    """``{"detail", "file", "line", "field"}`` of an error (a live frame's refusal on the WebSocket)."""
     if isinstance(error, BadInputError):
         return {"detail": str(error), "file": error.file, "line": error.line, "field": error.field}
     return {"detail": str(error), "file": None, "line": None, "field": None}
 
 
-async def driftmap_error_handler(_request: Request, exc: Exception) -> JSONResponse:
+def error_problem(error: DriftmapError, instance: str | None) -> dict[str, object]:
+    """The problem body of a driftmap error."""
+    if isinstance(error, BadInputError):
+        return problem(
+            status_of(error), str(error), instance, file=error.file, line=error.line, field=error.field
+        )
+    return problem(status_of(error), str(error), instance)
+
+
+async def driftmap_error_handler(request: Request, exc: Exception) -> ProblemResponse:
     """The exception handler the app installs for :class:`~driftmap.errors.DriftmapError`."""
     assert isinstance(exc, DriftmapError)
     code = status_of(exc)
     if code == 500:
         log.error("unmapped driftmap error: %s", exc, exc_info=exc)
-    return JSONResponse(error_body(exc), status_code=code)
+    return ProblemResponse(error_problem(exc, request.url.path), status_code=code)
+
+
+async def http_error_handler(request: Request, exc: Exception) -> ProblemResponse:
+    """The handler for Starlette's ``HTTPException``: routing's 404 and 405, the access checks' 401 and 403,
+    login throttling's 429; its headers (``WWW-Authenticate``, ``Allow``, ``Retry-After``) are kept."""
+    assert isinstance(exc, HTTPException)
+    detail = exc.detail if isinstance(exc.detail, str) else str(json_safe(exc.detail))
+    return ProblemResponse(
+        problem(exc.status_code, detail, request.url.path), status_code=exc.status_code, headers=exc.headers
+    )
+
+
+async def server_error_handler(request: Request, exc: Exception) -> ProblemResponse:
+    """The answer to an unexpected exception (500): a problem without the exception's text, which is logged."""
+    log.error("unhandled error on %s %s", request.method, request.url.path, exc_info=exc)
+    return ProblemResponse(problem(500, "internal server error; see the server log", request.url.path), 500)
 
 
 def json_safe(value: object, depth: int = 0) -> object:
@@ -86,7 +113,9 @@ def json_safe(value: object, depth: int = 0) -> object:
     return json_safe(str(value), depth + 1)
 
 
-async def validation_error_handler(_request: Request, exc: Exception) -> JSONResponse:
+async def validation_error_handler(request: Request, exc: Exception) -> ProblemResponse:
     """The handler the app installs for FastAPI's :class:`RequestValidationError` (422)."""
     assert isinstance(exc, RequestValidationError)
-    return JSONResponse({"detail": json_safe(list(exc.errors()))}, status_code=422)
+    issues = json_safe(list(exc.errors()))
+    assert isinstance(issues, list)
+    return ProblemResponse(validation_problem(issues, request.url.path), status_code=422)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 from collections.abc import AsyncIterator
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import Response, StreamingResponse
@@ -59,6 +59,20 @@ def list_jobs(
     return Page[JobRead](
         items=[JobRead.model_validate(j) for j in rows], total=total, offset=offset, limit=limit
     )
+
+
+ACCEPTED: dict[int | str, dict[str, Any]] = {
+    202: {
+        "description": "The job was queued; follow it at ``Location``.",
+        "headers": {
+            "Location": {
+                "description": "The job's resource, ``/api/jobs/{job_id}``.",
+                "schema": {"type": "string"},
+            }
+        },
+    }
+}
+"""The ``responses=`` of every route answered by :func:`accepted`."""
 
 
 def accepted(request: Request, response: Response, job: Job) -> JobRead:

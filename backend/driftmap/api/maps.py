@@ -10,7 +10,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response, status
 from driftmap.api.deps import ADMIN, VIEWER, SessionDep, StorageDep, SurveyorDep
 from driftmap.api.groundings import attachment
 from driftmap.api.input_types import Count, Id
-from driftmap.api.jobs import QueueDep, accepted
+from driftmap.api.jobs import ACCEPTED, QueueDep, accepted
 from driftmap.api.schemas_data import JobRead, Page
 from driftmap.api.schemas_maps import (
     ClosureRead,
@@ -36,7 +36,7 @@ def _version(session: SessionDep, site_id: Id, version: Id) -> MapVersion:
     return map_service.get_map_version(session, site_by_id(session, site_id), version)
 
 
-@router.post("/sites/{site_id}/maps", status_code=status.HTTP_202_ACCEPTED)
+@router.post("/sites/{site_id}/maps", status_code=status.HTTP_202_ACCEPTED, responses=ACCEPTED)
 def build_map(
     request: Request,
     response: Response,

@@ -9,7 +9,7 @@ from sqlalchemy import select
 
 from driftmap.api.deps import ADMIN, SURVEYOR, VIEWER, AdminDep, SessionDep, SettingsDep, StorageDep
 from driftmap.api.input_types import Count, Id
-from driftmap.api.jobs import QueueDep, accepted
+from driftmap.api.jobs import ACCEPTED, QueueDep, accepted
 from driftmap.api.schemas_data import (
     JobRead,
     Page,
@@ -54,7 +54,7 @@ def create_site(body: SiteCreate, session: SessionDep) -> SiteRead:
     return SiteRead.model_validate(site_service.create_site(session, body.name, body.description))
 
 
-@router.post("/sites/simulate", status_code=status.HTTP_202_ACCEPTED)
+@router.post("/sites/simulate", status_code=status.HTTP_202_ACCEPTED, responses=ACCEPTED)
 def simulate_site(
     request: Request,
     response: Response,

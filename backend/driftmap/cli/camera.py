@@ -11,15 +11,15 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import typer
 from numpy.typing import NDArray
 from rich.table import Table
 
-from driftmap.cli.common import console, err_console, open_storage, user_errors
-from driftmap.core.imaging.lens import LENS_MODELS, Lens
+from driftmap.cli.common import JsonOption, console, err_console, open_storage, print_json, user_errors
+from driftmap.core.imaging.lens import Lens
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError
 from driftmap.formats.camera_setup import (
@@ -36,6 +36,8 @@ from driftmap.formats.frame_images import decode_gray
 from driftmap.services.cameras import calibration as cal
 from driftmap.services.cameras import profiles as profile_service
 
+LensName = Literal["pinhole", "fisheye"]
+"""The names of :data:`~driftmap.core.imaging.lens.LENS_MODELS` (a test keeps them equal)."""
 camera_app = typer.Typer(
     help="Set up a camera: lens intrinsics, the ground plane, a scale check.", no_args_is_help=True
 )
@@ -54,14 +56,12 @@ def intrinsics(
     board: Annotated[str, typer.Option("--board", help="Inner corners COLSxROWS, e.g. 9x6.")],
     square_m: Annotated[float, typer.Option("--square-m", help="Side of one square, metres.")],
     out: Annotated[Path, typer.Option("--out", help="camera.json to write.")],
-    model: Annotated[str, typer.Option("--model", help="pinhole or fisheye.")] = "pinhole",
+    model: Annotated[LensName, typer.Option("--model", help="The lens model.")] = "pinhole",
     camera: Annotated[Path | None, typer.Option("--camera", help="camera.json to add the lens to.")] = None,
     every: Annotated[int, typer.Option("--every", help="Use every N-th frame of a video.")] = 15,
 ) -> None:
     """Calibrate the lens (K and distortion) from chessboard views; print the reprojection RMS per view."""
     with user_errors():
-        if model not in LENS_MODELS:
-            raise BadInputError(f"must be one of {', '.join(LENS_MODELS)}, found {model!r}", field="--model")
         target = cal.parse_board(board, square_m, field="--board")
         block = _start(camera)
         found = cal.calibrate_intrinsics(calibration_images(inputs, every), target, model, field="IMAGES")
@@ -217,10 +217,16 @@ def save(
 
 
 @camera_app.command("profiles")
-def profiles() -> None:
-    """List the stored camera profiles."""
+def profiles(as_json: JsonOption = False) -> None:
+    """List the stored camera profiles (``--json``: each with its full camera block)."""
     storage = open_storage()
     with user_errors(), storage.db.session() as session:
+        if as_json:
+            rows = profile_service.list_profiles(session)
+            print_json(
+                [{"id": p.id, "name": p.name, "description": p.description, "camera": p.camera} for p in rows]
+            )
+            return
         table = Table("id", "name", "size", "lens", "description")
         for p in profile_service.list_profiles(session):
             lens = p.camera.get("lens") or {}

@@ -1,9 +1,20 @@
-"""What every command shares: consoles, the user-error guard, progress bars, opening storage."""
+"""What every command shares: consoles, the user-error guard, ``--json`` output, progress bars, storage.
+
+Exit codes: 0 done, 1 a :class:`~driftmap.errors.DriftmapError` (bad input, not found, conflict: one line on
+stderr), 2 a usage error (Click's: an unknown option, a value outside its choices, options that do not go
+together).
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import math
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from datetime import datetime
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -11,21 +22,63 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
 
 from driftmap.config import get_settings
-from driftmap.errors import DriftmapError
+from driftmap.errors import BadInputError, DriftmapError
 from driftmap.store.storage import Storage
 
 console = Console()
 err_console = Console(stderr=True)
 
 
+DOMAIN_ERROR_EXIT = 1
+"""The exit code of a command refused with a DriftmapError."""
+USAGE_ERROR_EXIT = 2
+"""The exit code of a usage error (Click's own for an unknown option or a value outside its choices)."""
+
+JsonOption = Annotated[
+    bool, typer.Option("--json", help="Print one JSON document on stdout instead of tables and text.")
+]
+
+
 @contextmanager
 def user_errors() -> Iterator[None]:
-    """Print a DriftmapError as one clear line and exit 2, without a traceback."""
+    """Print a DriftmapError as one clear line and exit 1, without a traceback.
+
+    A :class:`BadInputError` whose ``field`` is an option (``--format``) is the command line's fault: a usage
+    error, exit 2 as Click's own.
+    """
     try:
         yield
+    except BadInputError as exc:
+        usage = exc.field is not None and exc.field.startswith("--")
+        _refuse(exc, USAGE_ERROR_EXIT if usage else DOMAIN_ERROR_EXIT)
     except DriftmapError as exc:
-        err_console.print(Text.assemble(("error: ", "bold red"), str(exc)), soft_wrap=True)
-        raise typer.Exit(2) from None
+        _refuse(exc, DOMAIN_ERROR_EXIT)
+
+
+def _refuse(exc: DriftmapError, code: int) -> None:
+    err_console.print(Text.assemble(("error: ", "bold red"), str(exc)), soft_wrap=True)
+    raise typer.Exit(code) from None
+
+
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        value = dataclasses.asdict(value)
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, datetime):
+        return value.isoformat()
+    return value
+
+
+def print_json(document: Any) -> None:
+    """Write ``document`` as one JSON document on stdout: dataclasses as objects, dates in ISO 8601,
+    NaN and infinities as null, anything else unknown (a path) as its text."""
+    sys.stdout.write(json.dumps(_plain(document), default=str, ensure_ascii=False, allow_nan=False) + "\n")
+    sys.stdout.flush()
 
 
 @contextmanager

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 from rich.table import Table
 
-from driftmap.cli.common import console, open_storage, stage_progress, user_errors
+from driftmap.cli.common import JsonOption, console, open_storage, print_json, stage_progress, user_errors
 from driftmap.config import get_settings
 from driftmap.errors import BadInputError
 from driftmap.formats.site_crs import SiteCrs
@@ -20,6 +20,10 @@ from driftmap.store.storage import Storage
 site_app = typer.Typer(help="Sites and their survey maps.", no_args_is_help=True)
 drive_app = typer.Typer(help="Recorded drives: import, export, list.", no_args_is_help=True)
 db_app = typer.Typer(help="The database schema.", no_args_is_help=True)
+SizeName = Literal["tiny", "small", "medium", "large"]
+"""The names of :data:`driftmap.sim.params.SIZES` (a test keeps them equal)."""
+SimCamera = Literal["pinhole", "wide180"]
+DriveKind = Literal["mapping", "localisation"]
 
 
 def simulate(
@@ -28,13 +32,13 @@ def simulate(
     ],
     seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same site.")] = 1,
     size: Annotated[
-        str, typer.Option(help="tiny, small (~400 m), medium (~1.5 km) or large (~6 km).")
+        SizeName, typer.Option(help="tiny, small (~400 m), medium (~1.5 km) or large (~6 km).")
     ] = "small",
     obscurants: Annotated[
         bool, typer.Option("--obscurants/--no-obscurants", help="Also write dust and water copies.")
     ] = True,
     camera: Annotated[
-        str,
+        SimCamera,
         typer.Option(
             help="pinhole (320x240, looking ahead) or wide180 (paper 000's 944x800 180-degree fisheye at the"
             " rear, with chessboard images to calibrate it in OUT/calibration)."
@@ -140,7 +144,7 @@ def drive_import(
     name: Annotated[
         str | None, typer.Option(help="For a video: the drive's name (default: file stem).")
     ] = None,
-    kind: Annotated[str, typer.Option(help="For a video: mapping or localisation.")] = "mapping",
+    kind: Annotated[DriveKind, typer.Option(help="For a video: mapping or localisation.")] = "mapping",
 ) -> None:
     """Import one drive into a site; a failed import leaves nothing behind."""
     storage = open_storage()
@@ -164,11 +168,14 @@ def drive_export(
 
 
 @drive_app.command("list")
-def drive_list(site: Annotated[str, typer.Argument(help="Site name.")]) -> None:
+def drive_list(site: Annotated[str, typer.Argument(help="Site name.")], as_json: JsonOption = False) -> None:
     """List the drives of a site."""
     storage = open_storage()
     with user_errors(), storage.db.session() as session:
         rows = drive_service.list_drives(session, site_service.get_site(session, site))
+        if as_json:
+            print_json([_drive_json(row) for row in rows])
+            return
         table = Table("id", "name", "kind", "frames", "fps", "duration s", "groundings", "truth")
         for row in rows:
             table.add_row(
@@ -184,11 +191,39 @@ def drive_list(site: Annotated[str, typer.Argument(help="Site name.")]) -> None:
     console.print(table)
 
 
+def _drive_json(row: drive_service.DriveSummary) -> dict[str, object]:
+    return {
+        "id": row.id,
+        "name": row.name,
+        "kind": row.kind,
+        "frames": row.frame_count,
+        "fps": row.fps,
+        "duration_s": row.duration_s,
+        "groundings": row.grounding_count,
+        "truth": row.has_truth,
+    }
+
+
 @site_app.command("list")
-def site_list() -> None:
+def site_list(as_json: JsonOption = False) -> None:
     """List the sites."""
     storage = open_storage()
     with user_errors(), storage.db.session() as session:
+        if as_json:
+            sites = site_service.list_sites(session)
+            print_json(
+                [
+                    {
+                        "id": s.id,
+                        "name": s.name,
+                        "survey_maps": len(s.survey_maps),
+                        "drives": len(s.drives),
+                        "created_at": s.created_at.isoformat(),
+                    }
+                    for s in sites
+                ]
+            )
+            return
         table = Table("id", "name", "survey maps", "drives", "created")
         for site in site_service.list_sites(session):
             table.add_row(

@@ -5,13 +5,13 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 import typer
 from rich.table import Table
 
-from driftmap.cli.common import console, open_storage, stage_progress, user_errors
+from driftmap.cli.common import JsonOption, console, open_storage, print_json, stage_progress, user_errors
 from driftmap.config import get_settings
 from driftmap.core.mapping.pipeline import MAP_PRESETS, MappingParams
 from driftmap.core.odometry.drive import dead_reckon
@@ -28,8 +28,9 @@ from driftmap.services.residuals import ResidualSummary, summarise
 map_app = typer.Typer(help="Map versions: build, show, export.", no_args_is_help=True)
 report_app = typer.Typer(help="Evaluation reports against ground truth.", no_args_is_help=True)
 
-MODELS: dict[str, OdometryModel] = {"auto": "auto", "linear": "linear", "homography": "homography"}
-PresetOption = Annotated[str, typer.Option("--preset", help="Parameter preset: paper or fast.")]
+PresetName = Literal["paper", "fast"]
+"""The names of :data:`~driftmap.core.mapping.pipeline.MAP_PRESETS` (a test keeps them equal)."""
+PresetOption = Annotated[PresetName, typer.Option("--preset", help="Parameter preset.")]
 DEFAULT_WORKERS = min(2, os.cpu_count() or 1)
 WorkersOption = Annotated[
     int,
@@ -46,17 +47,17 @@ def _preset(name: str) -> MappingParams:
 def odometry(
     drive_dir: Annotated[Path, typer.Argument(help="A drive folder (formats.md).")],
     out: Annotated[Path, typer.Option("--out", help="Poses CSV to write (drive,frame,x,y,yaw).")],
-    model: Annotated[str, typer.Option(help="auto, linear (eq. 1-2) or homography (bird's-eye).")] = "auto",
+    model: Annotated[
+        OdometryModel, typer.Option(help="auto, linear (eq. 1-2) or homography (bird's-eye).")
+    ] = "auto",
 ) -> None:
     """Dead-reckon one drive with ground-plane visual odometry (from its first true pose when known)."""
     with user_errors():
-        if model not in MODELS:
-            raise BadInputError(f"unknown model {model!r}; choose {', '.join(MODELS)}", field="--model")
         folder = read_drive_folder(drive_dir)
         first = folder.frames[0]
         start = (first.x_m, first.y_m, first.yaw_rad) if first.has_truth else (0.0, 0.0, 0.0)
         frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
-        params = replace(ODOMETRY_DEFAULT, model=MODELS[model])
+        params = replace(ODOMETRY_DEFAULT, model=model)
         result = dead_reckon(
             frames, folder.meta.camera, params, (start[0] or 0.0, start[1] or 0.0, start[2] or 0.0)
         )
@@ -82,6 +83,7 @@ def map_build(
     site: Annotated[str, typer.Argument(help="Site name.")],
     preset: PresetOption = "paper",
     workers: WorkersOption = DEFAULT_WORKERS,
+    as_json: JsonOption = False,
 ) -> None:
     """Build a new immutable map version from the site's mapping drives and groundings."""
     storage = open_storage()
@@ -95,6 +97,9 @@ def map_build(
                     session, storage.blobs, batch, record, params, report, workers=workers
                 )
             number = version.version
+    if as_json:
+        print_json({"site": site, "version": number, "stats": map_service.json_safe(build.stats)})
+        return
     console.print(f"map version {number} of {site!r}: {_stats_line(build.stats)}")
 
 
@@ -108,12 +113,26 @@ def _stats_line(stats: dict[str, float | int]) -> str:
 def map_show(
     site: Annotated[str, typer.Argument(help="Site name.")],
     version: Annotated[int | None, typer.Option(help="Map version (default: latest).")] = None,
+    as_json: JsonOption = False,
 ) -> None:
     """Summarise a map version: build figures, the grounding residuals (largest first) and their RMS, mean
     and max per drive and overall, metres."""
     storage = open_storage()
     with user_errors(), storage.db.session() as session:
         record = map_service.get_map_version(session, site_service.get_site(session, site), version)
+        if as_json:
+            rows = map_service.residual_rows(session, record)
+            document = {
+                "site": site,
+                "version": record.version,
+                "created_at": record.created_at,
+                "created_by": record.created_by,
+                "stats": record.stats,
+                "residuals": rows,
+                "summary": summarise(record.version, rows),
+            }
+            print_json(document)
+            return
         console.print(
             f"map version {record.version} of {site!r}, built {record.created_at:%Y-%m-%d %H:%M} by {record.created_by}"
         )
@@ -159,6 +178,7 @@ def report_mapping(
     ] = None,
     preset: PresetOption = "paper",
     workers: WorkersOption = DEFAULT_WORKERS,
+    as_json: JsonOption = False,
 ) -> None:
     """The paper's Table I (VO, VO+loops, VO+groundings, full) and a Fig. 6-style PNG."""
     storage = open_storage()

@@ -16,11 +16,11 @@ import signal
 import sys
 from collections.abc import Callable
 from types import FrameType
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import typer
 
-from driftmap.cli.common import console, open_storage, user_errors
+from driftmap.cli.common import JsonOption, console, open_storage, print_json, user_errors
 from driftmap.cli.log_config import log_config
 from driftmap.cli.supervisor import WorkerSupervisor
 from driftmap.config import get_settings
@@ -37,7 +37,10 @@ were killed over and over before serving."""
 @user_app.command("add")
 def user_add(
     name: Annotated[str, typer.Argument(help="The user name to log in with.")],
-    role: Annotated[str, typer.Option(help="admin, surveyor (groundings, imports, builds) or viewer.")],
+    role: Annotated[
+        Literal["admin", "surveyor", "viewer"],
+        typer.Option(help="admin, surveyor (groundings, imports, builds) or viewer."),
+    ],
     password_stdin: Annotated[
         bool, typer.Option("--password-stdin", help="Read the password from the first line of stdin.")
     ] = False,
@@ -58,12 +61,16 @@ def user_add(
 
 
 @user_app.command("list")
-def user_list() -> None:
+def user_list(as_json: JsonOption = False) -> None:
     """Every user with its role."""
     storage = open_storage()
     try:
         with storage.db.session() as session:
-            for user in user_service.list_users(session):
+            users = user_service.list_users(session)
+            if as_json:
+                print_json([{"id": u.id, "username": u.username, "role": u.role} for u in users])
+                return
+            for user in users:
                 console.print(f"{user.id}\t{user.username}\t{user.role}")
     finally:
         storage.close()

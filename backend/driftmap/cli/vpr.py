@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 from rich.table import Table
@@ -42,7 +42,7 @@ def vpr_match(
     query: Annotated[Path, typer.Option("--query", help="Folder of query images (sorted name order).")],
     out: Annotated[Path, typer.Option("--out", help="CSV to write (query,db,score), one row per query.")],
     method: Annotated[
-        str | None,
+        Literal["sad", "sesame"] | None,
         typer.Option(
             help="sad (patch-normalised SAD) or sesame (the SESAME paper); default sad with --temporal, else sesame."
         ),
@@ -51,7 +51,7 @@ def vpr_match(
         bool, typer.Option("--temporal", help="HMM over the references as an ordered route.")
     ] = False,
     preset: Annotated[
-        str | None,
+        Literal["mine", "route"] | None,
         typer.Option(
             help="mine (shift search +-4/+-2 px) or route (camera on a fixed path, no shifts); default route"
             " with --temporal, else mine."

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,8 @@ from alembic.config import Config
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.orm import Session, sessionmaker
 
-MIGRATIONS_DIR = Path(__file__).resolve().parents[3] / "migrations"
+MIGRATIONS_DIR = Path(str(resources.files("driftmap") / "migrations"))
+"""The Alembic scripts, package data of driftmap (an installed wheel carries them)."""
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:

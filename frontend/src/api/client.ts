@@ -24,34 +24,48 @@ const REVOKE_AFTER_MS = 60_000;
 
 export type Query = Record<string, string | number | boolean | null | undefined>;
 
-/** An error answer of the API: its HTTP status and the ``detail`` text. */
+/** An error answer of the API: its HTTP status, the text to show, and the problem it came with (if any). */
 export class ApiError extends Error {
   constructor(
     readonly status: number,
     message: string,
+    readonly problem: Problem | null = null,
   ) {
     super(message);
   }
 }
 
+/** The body of every error answer: RFC 9457 problem details with driftmap's ``file``, ``line``, ``field``. */
+export type Problem = Schemas["Problem"];
+
+function issuesText(issues: unknown[]): string | null {
+  const parts = issues.map((item: unknown) => {
+    const { loc, msg } = (item ?? {}) as { loc?: unknown; msg?: unknown };
+    const where = Array.isArray(loc) ? loc.filter((l) => l !== "body").join(".") : "";
+    const text = typeof msg === "string" ? msg : JSON.stringify(item);
+    return where ? `${where}: ${text}` : text;
+  });
+  return parts.length > 0 ? parts.join("; ") : null;
+}
+
 /**
- * The text of an error body: a driftmap error's ``detail`` (with its ``field`` when the detail does not name
- * it), or FastAPI's validation list as "field: message; ..." (the location without ``body``). Null without one.
+ * The text of an error body: a problem's ``detail`` (with its ``field`` when the detail does not name it),
+ * else its validation ``errors`` as "field: message; ..." (a ``detail`` list is read the same way), else its
+ * ``title``. Null without any of them.
  */
-export function detailText(body: { detail?: unknown; field?: unknown }): string | null {
-  const { detail, field } = body;
-  if (typeof detail === "string") {
+export function detailText(body: {
+  detail?: unknown;
+  field?: unknown;
+  errors?: unknown;
+  title?: unknown;
+}): string | null {
+  const { detail, field, errors, title } = body;
+  if (typeof detail === "string" && detail) {
     return typeof field === "string" && field && !detail.includes(field) ? `${field}: ${detail}` : detail;
   }
-  if (Array.isArray(detail)) {
-    const parts = detail.map((item: unknown) => {
-      const { loc, msg } = (item ?? {}) as { loc?: unknown; msg?: unknown };
-      const where = Array.isArray(loc) ? loc.filter((l) => l !== "body").join(".") : "";
-      const text = typeof msg === "string" ? msg : JSON.stringify(item);
-      return where ? `${where}: ${text}` : text;
-    });
-    return parts.length > 0 ? parts.join("; ") : null;
-  }
+  if (Array.isArray(detail)) return issuesText(detail);
+  if (Array.isArray(errors)) return issuesText(errors);
+  if (typeof title === "string" && title) return title;
   return detail === undefined || detail === null ? null : JSON.stringify(detail);
 }
 
@@ -89,12 +103,15 @@ export function buildUrl(path: string, params: Record<string, string | number> =
 async function refusal(response: Response): Promise<ApiError> {
   if (response.status === 401 && onUnauthorized) onUnauthorized();
   let detail = response.statusText || `HTTP ${response.status}`;
+  let problem: Problem | null = null;
   try {
-    detail = detailText((await response.json()) as { detail?: unknown }) ?? detail;
+    const body = (await response.json()) as Record<string, unknown>;
+    if (typeof body.status === "number" && typeof body.title === "string") problem = body as unknown as Problem;
+    detail = detailText(body) ?? detail;
   } catch {
     /* not JSON */
   }
-  return new ApiError(response.status, detail);
+  return new ApiError(response.status, detail, problem);
 }
 
 async function send(method: string, url: string, body?: unknown): Promise<unknown> {

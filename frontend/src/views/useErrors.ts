@@ -2,6 +2,12 @@
 import { useCallback, useState } from "react";
 import { ApiError } from "../api/client";
 
+/** The text to show for a failed action: the API's problem text (see ``detailText``), else the error's own. */
+export function errorText(e: unknown): string {
+  if (e instanceof ApiError) return e.message || e.problem?.title || `HTTP ${e.status}`;
+  return e instanceof Error ? e.message : String(e);
+}
+
 export function useErrors(): [string | null, (f: () => Promise<void>) => Promise<void>] {
   const [error, setError] = useState<string | null>(null);
   const run = useCallback(async (f: () => Promise<void>) => {
@@ -9,7 +15,7 @@ export function useErrors(): [string | null, (f: () => Promise<void>) => Promise
     try {
       await f();
     } catch (e) {
-      setError(e instanceof ApiError ? e.message : String(e));
+      setError(errorText(e));
     }
   }, []);
   return [error, run];

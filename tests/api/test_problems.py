@@ -1,0 +1,117 @@
+"""Every error answer is an RFC 9457 problem, and the OpenAPI document says so for every route."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import httpx
+import pytest
+
+from driftmap.api.problems import PROBLEM_MEDIA_TYPE, PROBLEM_RESPONSES, Problem
+from tests.api.data_helpers import ApiUsers
+
+PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
+NOT_PROBLEMS = {("/api/health", "get", "503")}
+"""Error statuses whose body is not a problem: the health report answers 503 with its own checks."""
+
+
+def _operations(document: dict[str, Any]) -> list[tuple[str, str, dict[str, Any]]]:
+    return [
+        (path, method, operation)
+        for path, item in document["paths"].items()
+        for method, operation in item.items()
+    ]
+
+
+def _check_problem(response: httpx.Response, status: int, document: dict[str, Any]) -> dict[str, Any]:
+    """The body of ``response``, checked to be a problem of ``status`` that the OpenAPI component allows."""
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"].split(";")[0] == PROBLEM_MEDIA_TYPE
+    body: dict[str, Any] = response.json()
+    Problem.model_validate(body)
+    component = document["components"]["schemas"]["Problem"]
+    assert set(component["required"]) <= set(body) <= set(component["properties"]), body
+    assert body["status"] == status and body["title"] and body["detail"]
+    assert body["instance"] == response.request.url.path
+    return body
+
+
+@pytest.fixture
+def document(users: ApiUsers) -> dict[str, Any]:
+    openapi: dict[str, Any] = users.app.openapi()
+    return openapi
+
+
+class TestTheDocument:
+    def test_every_documented_error_is_a_problem(self, document: dict[str, Any]) -> None:
+        operations = _operations(document)
+        assert len(operations) > 50
+        for path, method, operation in operations:
+            responses = operation["responses"]
+            assert {str(code) for code in PROBLEM_RESPONSES} <= set(responses), (path, method)
+            for code, response in responses.items():
+                if int(code) < 400 or (path, method, code) in NOT_PROBLEMS:
+                    continue
+                assert response["content"] == {PROBLEM_MEDIA_TYPE: {"schema": PROBLEM_REF}}, (
+                    path,
+                    method,
+                    code,
+                )
+
+    def test_no_route_keeps_fastapis_validation_schema(self, document: dict[str, Any]) -> None:
+        assert "HTTPValidationError" not in document["components"]["schemas"]
+
+    def test_every_202_names_its_location(self, document: dict[str, Any]) -> None:
+        accepted = [(p, m, o) for p, m, o in _operations(document) if "202" in o["responses"]]
+        assert len(accepted) == 5
+        for path, method, operation in accepted:
+            assert "Location" in operation["responses"]["202"]["headers"], (path, method)
+
+
+class TestRealAnswers:
+    def test_validation_422(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        response = users.client.get("/api/jobs?limit=0", headers=users.auth("viewer"))
+        body = _check_problem(response, 422, document)
+        assert body["field"] == "limit" and body["errors"][0]["loc"] == ["query", "limit"]
+        assert body["detail"].startswith("limit: ")
+
+    def test_body_guard_422_names_the_field(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        response = users.client.post(
+            "/api/sites",
+            content='{"name": "a", "description": NaN}',
+            headers={**users.auth("admin"), "Content-Type": "application/json"},
+        )
+        assert _check_problem(response, 422, document)["field"] == "description"
+
+    def test_domain_and_routing_404(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        missing = users.client.get("/api/sites/424242", headers=users.auth("viewer"))
+        assert "424242" in _check_problem(missing, 404, document)["detail"]
+        _check_problem(users.client.get("/api/no-such-thing"), 404, document)
+
+    def test_405_keeps_allow(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        response = users.client.delete("/api/health")
+        _check_problem(response, 405, document)
+        assert "GET" in response.headers["allow"]
+
+    def test_409(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        body = {"username": "viewer", "password": "longenough1", "role": "viewer"}
+        response = users.client.post("/api/users", json=body, headers=users.auth("admin"))
+        assert "already exists" in _check_problem(response, 409, document)["detail"]
+
+    def test_413(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        limit = users.app.state.settings.max_json_bytes
+        response = users.client.post(
+            "/api/sites",
+            content=b" " * (limit + 1),
+            headers={**users.auth("admin"), "Content-Type": "application/json"},
+        )
+        assert _check_problem(response, 413, document)["field"] == "body"
+
+    def test_401_keeps_www_authenticate(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        response = users.client.get("/api/sites")
+        _check_problem(response, 401, document)
+        assert response.headers["www-authenticate"].startswith("Bearer")
+
+    def test_403(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        response = users.client.post("/api/sites", json={"name": "x"}, headers=users.auth("viewer"))
+        _check_problem(response, 403, document)
