@@ -500,6 +500,76 @@ class TestGrounding:
         expect(p.get_by_test_id(f"residual-summary-{first['drive']}")).to_be_visible()
         assert page.errors == []
 
+    def test_a_second_build_is_refused_and_each_preset_is_explained(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        preset, explained = p.get_by_test_id("build-preset"), p.get_by_test_id("build-preset-explanation")
+        expect(preset).to_have_value("paper")
+        expect(explained).to_contain_text("the full loop-closure search")
+        preset.select_option("fast")
+        expect(explained).to_contain_text("far fewer loop closures")
+        queued = server.api("POST", "/api/sites/1/maps", json={"preset": "fast"})  # no worker: stays queued
+        assert queued.status_code == 202, queued.text
+        try:
+            p.get_by_test_id("build-map").click()
+            expect(p.get_by_test_id("build-refused")).to_contain_text(
+                f"already building its map (job {queued.json()['id']}, queued)"
+            )
+            expect(p.get_by_test_id("build-job")).to_have_count(0)
+        finally:
+            server.api("POST", f"/api/jobs/{queued.json()['id']}/cancel")
+        assert [e for e in page.errors if "409 (Conflict)" not in e] == []  # the browser logs the refusal
+
+    def test_a_row_opens_its_keyframe_any_frame_is_reached_and_the_large_view_zooms(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        expect(p.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
+        last = groundings(server)[-1]
+        p.get_by_test_id(f"grounding-row-{last['id']}").locator("td").nth(1).click()
+        selected = p.get_by_test_id("selected-frame")
+        expect(selected).to_have_attribute("data-frame", str(last["frame"]))
+        expect(p.get_by_test_id("drive-select")).to_have_value(str(last["drive_id"]))
+        p.get_by_test_id("residual-exaggeration").select_option("10")
+
+        # any frame, not only the strip's keyframes; the strip turns to the keyframe before it
+        p.get_by_test_id("goto-frame").fill("13")
+        p.get_by_test_id("goto-frame").press("Enter")
+        expect(selected).to_have_attribute("data-frame", "13")
+        expect(p.get_by_test_id("frame-slider")).to_have_value("13")
+        expect(p.get_by_test_id("keyframe-10")).to_be_in_viewport()
+        expect(p.get_by_test_id("place-button")).to_be_visible()  # it can be grounded
+        p.get_by_test_id("goto-frame").fill("999999")
+        p.get_by_test_id("goto-frame-button").click()
+        expect(p.get_by_test_id("goto-frame-error")).to_contain_text("the drive has frames 0 to")
+        p.evaluate("document.activeElement.blur()")
+        p.keyboard.press("ArrowRight")  # from a frame between keyframes to the next keyframe
+        expect(selected).to_have_attribute("data-frame", "20")
+        expect(p.get_by_test_id("keyframe-20")).to_have_class(re.compile("selected"))
+
+        # the large view: at least 640 px wide with the plan beside it; zoom, fit, close
+        p.get_by_test_id("frame-large").click()
+        view = p.get_by_test_id("frame-view")
+        expect(view).to_have_attribute("data-frame", "20")
+        box, plan = view.bounding_box(), p.get_by_test_id("map").bounding_box()
+        assert box is not None and plan is not None
+        assert box["width"] >= 640 and plan["x"] >= box["x"] + box["width"] - 1 and plan["width"] > 200
+        p.get_by_test_id("frame-zoom-in").click()
+        expect(view).to_have_attribute("data-scale", "1.50")
+        p.get_by_test_id("frame-view").locator(".frameview-box").hover()
+        p.mouse.wheel(0, -100)
+        expect(view).to_have_attribute("data-scale", "1.88")
+        p.get_by_test_id("frame-fit").click()
+        expect(view).to_have_attribute("data-scale", "1.00")
+        p.get_by_test_id("frame-view-close").click()
+        expect(view).to_have_count(0)
+        assert page.errors == []
+
     def test_build_a_new_version_and_compare_it_with_the_old_as_an_overlay(
         self, server: Server, page: PageWithLog, worker: object
     ) -> None:
@@ -508,10 +578,12 @@ class TestGrounding:
         p.get_by_test_id("nav-grounding").click()
         expect(p.get_by_test_id("map-version")).to_have_text("map v1")
         expect(p.get_by_test_id("compare-panel")).to_have_count(0)  # one version: nothing to compare
+        p.get_by_test_id("build-preset").select_option("fast")
         p.get_by_test_id("build-map").click()
-        expect(p.get_by_test_id("build-job")).to_have_attribute(
-            "data-status", "succeeded", timeout=BUILD_DEADLINE_MS
-        )
+        job = p.get_by_test_id("build-job")
+        expect(job).to_have_attribute("data-preset", "fast")
+        expect(job).to_have_attribute("data-status", "succeeded", timeout=BUILD_DEADLINE_MS)
+        expect(job).to_have_attribute("data-progress", "1.000")
         expect(p.get_by_test_id("map-version")).to_have_text("map v2")
 
         p.get_by_test_id("toggle-compare").check()
