@@ -175,6 +175,33 @@ class TestLoginAndSurvey:
         screenshot(p, "ui_survey")
         assert page.errors == []
 
+    def test_the_plans_text_labels_are_drawn_and_toggle_with_their_layer(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        plan = p.get_by_test_id("map")
+        expect(plan).to_have_attribute("data-ready", "yes")
+        layers = server.api("GET", "/api/sites/1/survey/layers").json()["layers"]
+        texts = [f for f in layers["LABELS"]["features"] if f["properties"].get("text")]
+        expect(plan).to_have_attribute("data-labels", str(len(texts)))
+        label = texts[0]
+        at = pixel_of(p, *label["geometry"]["coordinates"])
+        for _ in range(4):  # close enough for the lettering (its DXF height in metres) to be readable
+            p.mouse.move(*at)
+            p.mouse.wheel(0, -300)
+            p.wait_for_timeout(300)  # the wheel zoom animates
+        at = pixel_of(p, *label["geometry"]["coordinates"])
+        clip = {"x": at[0] - 60, "y": at[1] - 20, "width": 120, "height": 40}
+        p.mouse.move(1, 1)
+        shown = p.screenshot(clip=clip)
+        p.get_by_test_id("layer-toggle-LABELS").uncheck()
+        p.wait_for_timeout(300)
+        hidden = p.screenshot(clip=clip)
+        assert shown != hidden, "the label drew nothing"
+        p.get_by_test_id("layer-toggle-LABELS").check()
+        assert page.errors == []
+
 
 class TestRoles:
     def test_viewer_sees_no_editing_controls(self, server: Server, page: PageWithLog) -> None:
@@ -740,4 +767,59 @@ class TestAdmin:
         assert demote.status_code == 409 and "last active admin" in demote.json()["detail"], demote.text
         removed = server.api("DELETE", f"/api/users/{me['id']}")
         assert removed.status_code == 409 and "your own account" in removed.json()["detail"], removed.text
+        assert page.errors == []
+
+
+PAGES = ("survey", "monitor", "grounding", "cameras", "admin")
+TABLET = {"width": 390, "height": 844}
+
+
+def sideways_overflow_px(page: Page) -> float:
+    """How far the page reaches beyond the window sideways (0: nothing to scroll to)."""
+    over: float = page.evaluate(
+        "() => Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
+        " - document.documentElement.clientWidth"
+    )
+    return over
+
+
+class TestLayout:
+    def test_a_tablet_gets_a_menu_a_full_width_map_and_a_pull_up_panel_and_nothing_overflows(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        p.set_viewport_size(TABLET)
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        menu = p.get_by_test_id("menu-toggle")
+        expect(menu).to_be_visible()
+        expect(p.get_by_test_id("nav-monitor")).to_be_hidden()  # the header is folded into the menu
+        menu.click()
+        p.get_by_test_id("nav-monitor").click()
+        expect(p.get_by_test_id("nav-monitor")).to_be_hidden()  # a choice closes the menu
+        expect(p.get_by_test_id("vehicle-list")).to_be_attached()
+        plan = p.get_by_test_id("map").bounding_box()
+        assert plan is not None and plan["width"] >= TABLET["width"] - 1, plan
+
+        side, handle = p.locator("aside.side"), p.get_by_test_id("panel-handle")
+        closed = side.bounding_box()
+        assert closed is not None and closed["width"] >= TABLET["width"] - 1
+        handle.click()  # pull the panel up: vehicles and events
+        expect(handle).to_have_attribute("aria-expanded", "true")
+        expect(p.get_by_test_id("events-panel")).to_be_in_viewport()
+        opened = side.bounding_box()
+        assert opened is not None and opened["height"] > closed["height"] * 2, (closed, opened)
+        screenshot(p, "ui_tablet")
+
+        for name in PAGES:
+            menu.click()
+            p.get_by_test_id(f"nav-{name}").click()
+            expect(p.get_by_test_id(f"nav-{name}")).to_be_hidden()
+            assert sideways_overflow_px(p) <= 0, f"{name} overflows sideways at 390 px"
+        for width in (1366, 1440):
+            p.set_viewport_size({"width": width, "height": 800})
+            expect(menu).to_be_hidden()
+            for name in PAGES:
+                p.get_by_test_id(f"nav-{name}").click()
+                expect(p.get_by_test_id(f"nav-{name}")).to_have_class("active")
+                assert sideways_overflow_px(p) <= 0, f"{name} overflows sideways at {width} px"
         assert page.errors == []
