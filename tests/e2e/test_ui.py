@@ -650,6 +650,45 @@ class TestAdmin:
         expect(p.get_by_test_id("vehicle-token")).to_have_count(0)
         assert page.errors == []
 
+    def test_copy_a_token_see_when_each_vehicle_was_last_seen_and_upload_a_plan_with_progress(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path, tmp_path: Path
+    ) -> None:
+        site = server.api("POST", "/api/sites", json={"name": "upload-bay"})
+        assert site.status_code == 201, site.text
+        p = page.page
+        p.context.grant_permissions(["clipboard-read", "clipboard-write"])
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-admin").click()
+
+        p.get_by_test_id("new-vehicle-name").fill("loader-2")
+        p.get_by_role("button", name="Add vehicle").click()
+        token = p.get_by_test_id("vehicle-token").locator(".token").inner_text()
+        p.get_by_test_id("copy-token").click()
+        expect(p.get_by_test_id("copy-token-state")).to_have_text("copied")
+        assert p.evaluate("navigator.clipboard.readText()") == token
+        expect(p.get_by_test_id("admin-last-seen-loader-2")).to_have_text("never")
+
+        # the plan goes to the chosen site, its progress shown; a bad drive zip is refused with the reason
+        p.get_by_test_id("upload-site").select_option(str(site.json()["id"]))
+        p.get_by_test_id("upload-plan-file").set_input_files(tiny_site_dir / "survey.dxf")
+        p.get_by_test_id("upload-plan-send").click()
+        plan = p.get_by_test_id("upload-plan")
+        expect(plan).to_have_attribute("data-state", "done")
+        expect(plan).to_contain_text("survey.dxf stored")
+        plans = server.api("GET", f"/api/sites/{site.json()['id']}/survey").json()
+        assert [m["filename"] for m in plans] == ["survey.dxf"]
+        not_zip = tmp_path / "drive.zip"
+        not_zip.write_bytes(b"not a zip file")
+        p.get_by_test_id("upload-zip-file").set_input_files(not_zip)
+        p.get_by_test_id("upload-zip-send").click()
+        refused = p.get_by_test_id("upload-zip")
+        expect(refused).to_have_attribute("data-state", "refused")
+        expect(refused).to_contain_text("zip")
+        page.errors.clear()  # the browser logs the refused request
+        p.get_by_test_id("upload-video-send").click()  # nothing chosen: said before anything is sent
+        expect(p.get_by_test_id("upload-video")).to_contain_text("choose a video file")
+        assert page.errors == []
+
     def test_disable_a_user_refuses_their_login_and_enable_lets_them_back(
         self, server: Server, page: PageWithLog
     ) -> None:
