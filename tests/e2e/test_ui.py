@@ -540,14 +540,21 @@ class TestGrounding:
         expect(explained).to_contain_text("far fewer loop closures")
         queued = server.api("POST", "/api/sites/1/maps", json={"preset": "fast"})  # no worker: stays queued
         assert queued.status_code == 202, queued.text
+        job = p.get_by_test_id("build-job")
         try:
             p.get_by_test_id("build-map").click()
             expect(p.get_by_test_id("build-refused")).to_contain_text(
                 f"already building its map (job {queued.json()['id']}, queued)"
             )
-            expect(p.get_by_test_id("build-job")).to_have_count(0)
+            expect(job).to_have_attribute("data-status", "queued")  # the build under way is shown instead
+            expect(job).to_contain_text(f"job {queued.json()['id']} (fast): queued: waiting for a worker")
+            expect(p.get_by_test_id("build-map")).to_be_disabled()
+            p.reload()  # a panel opened later shows it too
+            expect(job).to_have_attribute("data-status", "queued")
         finally:
             server.api("POST", f"/api/jobs/{queued.json()['id']}/cancel")
+        expect(job).to_have_attribute("data-status", "cancelled")
+        expect(p.get_by_test_id("build-map")).to_be_enabled()
         assert [e for e in page.errors if "409 (Conflict)" not in e] == []  # the browser logs the refusal
 
     def test_a_row_opens_its_keyframe_any_frame_is_reached_and_the_large_view_zooms(

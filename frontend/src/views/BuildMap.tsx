@@ -1,8 +1,9 @@
 // The grounding panel's header: the map version shown and, for surveyors, "Build map" with a choice of preset
 // (each explained in a line), which starts a map build job and shows its overall progress and the time left
-// until it ends; a refusal (another build of the site still queued or running) is said under it. ``onBuilt``
-// runs when the new version is stored.
-import { useEffect, useState } from "react";
+// until it ends; a build of the site already queued or running (anyone's) is shown the same way when the panel
+// opens, and a refusal (such a build started meanwhile) is said under the button, that build then shown.
+// ``onBuilt`` runs when the new version is stored.
+import { useCallback, useEffect, useState } from "react";
 import { ApiError, apiGet, apiPost, type Schemas } from "../api/client";
 import { PRESETS, overallProgress, progressText, secondsLeft, type Preset } from "../lib/buildProgress";
 import { serverDate } from "../lib/time";
@@ -28,6 +29,23 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
   const running = job !== null && !ENDED.includes(job.status);
   const now = useNow(POLL_MS);
 
+  /** Show the site's build that is running or queued, if any. */
+  const attach = useCallback(async () => {
+    for (const status of ["running", "queued"] as const) {
+      const page = await apiGet("/api/jobs", {}, { site_id: siteId, kind: "map.build", status, limit: 1 });
+      if (page.items[0]) {
+        setJob(page.items[0]);
+        return;
+      }
+    }
+  }, [siteId]);
+
+  useEffect(() => {
+    // attach sets state only after its requests resolve
+    // eslint-disable-next-line react-hooks/set-state-in-effect
+    void attach().catch(() => undefined);
+  }, [attach]);
+
   const build = async () => {
     setRefused(null);
     try {
@@ -36,6 +54,7 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
       const text = e instanceof ApiError ? e.message : String(e);
       setRefused(text);
       onError(text);
+      if (e instanceof ApiError && e.status === 409) await attach();
     }
   };
 
