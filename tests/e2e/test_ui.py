@@ -607,11 +607,24 @@ class TestGrounding:
     def test_build_a_new_version_and_compare_it_with_the_old_as_an_overlay(
         self, server: Server, page: PageWithLog, worker: object
     ) -> None:
+        # a grounding 30 m off its keyframe, left out of the build from its row: it changes nothing
+        first = groundings(server)[0]
+        taken = {g["frame"] for g in groundings(server) if g["drive_id"] == first["drive_id"]}
+        stray = server.api(
+            "POST",
+            f"/api/drives/{first['drive_id']}/groundings",
+            json={"frame": min(set(range(5, 100)) - taken), "x": first["x_m"] + 30.0, "y": first["y_m"]},
+        )
+        assert stray.status_code == 201, stray.text
         p = page.page
         log_in(p, server, "admin", ADMIN_PASSWORD)
         p.get_by_test_id("nav-grounding").click()
         expect(p.get_by_test_id("map-version")).to_have_text("map v1")
         expect(p.get_by_test_id("compare-panel")).to_have_count(0)  # one version: nothing to compare
+        box = p.get_by_test_id(f"enable-grounding-{stray.json()['id']}")
+        box.click()  # the box shows the server's state once the PATCH is answered
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("left out of the next build")
+        expect(box).not_to_be_checked()
         p.get_by_test_id("build-preset").select_option("fast")
         p.get_by_test_id("build-map").click()
         job = p.get_by_test_id("build-job")
@@ -619,6 +632,10 @@ class TestGrounding:
         expect(job).to_have_attribute("data-status", "succeeded", timeout=BUILD_DEADLINE_MS)
         expect(job).to_have_attribute("data-progress", "1.000")
         expect(p.get_by_test_id("map-version")).to_have_text("map v2")
+        used = server.api("GET", "/api/sites/1/maps/2/residuals").json()
+        assert stray.json()["id"] not in {r["grounding_id"] for r in used}
+        assert server.api("GET", "/api/sites/1/maps/compare", params={"a": 1, "b": 2}).json()["max_m"] < 0.01
+        assert server.api("DELETE", f"/api/groundings/{stray.json()['id']}").status_code == 204
 
         p.get_by_test_id("toggle-compare").check()
         expect(p.get_by_test_id("compare-a")).to_have_value("1")
