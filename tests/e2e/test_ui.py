@@ -708,10 +708,18 @@ class TestAdmin:
         refused = p.get_by_test_id("upload-zip")
         expect(refused).to_have_attribute("data-state", "refused")
         expect(refused).to_contain_text("zip")
-        page.errors.clear()  # the browser logs the refused request
         p.get_by_test_id("upload-video-send").click()  # nothing chosen: said before anything is sent
         expect(p.get_by_test_id("upload-video")).to_contain_text("choose a video file")
-        assert page.errors == []
+        video, calibration = tmp_path / "run-9.mp4", tmp_path / "camera.json"
+        video.write_bytes(b"\0" * 200_000)
+        calibration.write_text("[1, 2]")
+        p.get_by_test_id("upload-video-file").set_input_files(video)
+        p.get_by_test_id("upload-video-calibration").set_input_files(calibration)
+        p.get_by_test_id("upload-video-send").click()  # sent, and the server's reason shown
+        expect(p.get_by_test_id("upload-video")).to_have_attribute("data-state", "refused")
+        expect(p.get_by_test_id("upload-video")).to_contain_text("calibration must be a JSON object")
+        # the browser logs the two refused requests, and nothing else
+        assert [e for e in page.errors if "Failed to load resource" not in e] == [], page.errors
 
     def test_disable_a_user_refuses_their_login_and_enable_lets_them_back(
         self, server: Server, page: PageWithLog
