@@ -23,6 +23,9 @@ export function App() {
   const [page, setPage] = useState<Page>(() => (location.hash.slice(1) as Page) || "survey");
   const [sites, setSites] = useState<Schemas["SiteRead"][]>([]);
   const [siteId, setSiteId] = useState<number | null>(null);
+  // below 900 px (a tablet): the header's contents fold into a menu, the side panel into a pull-up panel
+  const [menuOpen, setMenuOpen] = useState(false);
+  const [panelOpen, setPanelOpen] = useState(false);
 
   useEffect(() => {
     setUnauthorizedHandler(() => {
@@ -60,39 +63,62 @@ export function App() {
 
   return (
     <div className="shell">
-      <header className="topbar">
+      <header className={`topbar ${menuOpen ? "menu-open" : ""}`}>
         <span className="brand">driftmap</span>
-        <nav className="nav">
-          {visiblePages.map((p) => (
-            <button
-              key={p.id}
-              data-testid={`nav-${p.id}`}
-              className={current === p.id ? "active" : ""}
-              onClick={() => setPage(p.id)}
-            >
-              {p.label}
-            </button>
-          ))}
-        </nav>
-        <span className="spacer" />
-        <label className="muted">
-          Site{" "}
-          <select data-testid="site-select" value={siteId ?? ""} onChange={(e) => setSiteId(Number(e.target.value))}>
-            {sites.map((s) => (
-              <option key={s.id} value={s.id}>
-                {s.name}
-              </option>
-            ))}
-          </select>
-        </label>
-        <span data-testid="whoami">
-          {me.name} <span className="muted">({me.role})</span>
-        </span>
-        <button data-testid="logout" onClick={() => void logout().then(() => setMe(null))}>
-          Log out
+        <span className="spacer narrow-only" />
+        <button
+          className="menu-button"
+          data-testid="menu-toggle"
+          aria-expanded={menuOpen}
+          aria-label="Menu"
+          onClick={() => setMenuOpen((o) => !o)}
+        >
+          ☰
         </button>
+        <div className="menu" data-testid="menu">
+          <nav className="nav">
+            {visiblePages.map((p) => (
+              <button
+                key={p.id}
+                data-testid={`nav-${p.id}`}
+                className={current === p.id ? "active" : ""}
+                onClick={() => {
+                  setPage(p.id);
+                  setMenuOpen(false);
+                }}
+              >
+                {p.label}
+              </button>
+            ))}
+          </nav>
+          <span className="spacer" />
+          <label className="muted">
+            Site{" "}
+            <select data-testid="site-select" value={siteId ?? ""} onChange={(e) => setSiteId(Number(e.target.value))}>
+              {sites.map((s) => (
+                <option key={s.id} value={s.id}>
+                  {s.name}
+                </option>
+              ))}
+            </select>
+          </label>
+          <span data-testid="whoami">
+            {me.name} <span className="muted">({me.role})</span>
+          </span>
+          <button data-testid="logout" onClick={() => void logout().then(() => setMe(null))}>
+            Log out
+          </button>
+        </div>
       </header>
-      <main className="content">
+      <main className={`content ${panelOpen ? "panel-open" : ""}`}>
+        <button
+          className="panel-handle"
+          data-testid="panel-handle"
+          aria-expanded={panelOpen}
+          onClick={() => setPanelOpen((o) => !o)}
+        >
+          {panelOpen ? "▼ Map" : "▲ Panel"}
+        </button>
         {current === "admin" ? (
           <AdminView sites={sites} onSitesChanged={loadSites} meId={me.id} />
         ) : current === "cameras" ? (

@@ -6,6 +6,7 @@ from __future__ import annotations
 from sqlalchemy import select
 
 from driftmap.formats.csv_exports import LOCALISATION_HEADER
+from driftmap.store.job_models import Job
 from driftmap.store.models import MapVersion
 from tests.api.data_helpers import ApiUsers
 
@@ -62,6 +63,34 @@ class TestBuildAndRead:
         response = users.client.post(f"/api/sites/{site_id}/maps", json={}, headers=users.auth("surveyor"))
         assert response.status_code == 409 and "'empty-run'" in response.json()["detail"]
         assert users.get("/api/jobs")["total"] == 0
+
+
+class TestOneBuildAtATime:
+    def test_a_second_build_is_refused_while_one_is_queued_or_running(
+        self, users: ApiUsers, site_id: int
+    ) -> None:
+        with users.storage.db.session() as session:  # a build no worker has taken yet
+            pending = Job(kind="map.build", site_id=site_id, args={"preset": "fast"}, status="queued")
+            session.add(pending)
+            session.flush()
+            pending_id = pending.id
+
+        def start() -> tuple[int, str]:
+            response = users.client.post(
+                f"/api/sites/{site_id}/maps", json={"preset": "fast"}, headers=users.auth("surveyor")
+            )
+            return response.status_code, response.text
+
+        for status in ("queued", "running"):
+            with users.storage.db.session() as session:
+                session.get_one(Job, pending_id).status = status
+            code, text = start()
+            assert code == 409, text
+            assert f"job {pending_id}, {status}" in text
+        assert users.get("/api/jobs")["total"] == 1
+        with users.storage.db.session() as session:
+            session.get_one(Job, pending_id).status = "cancelled"
+        assert build(users, site_id)["result"]["version"] == 1
 
 
 class TestCompareAndDelete:

@@ -1,7 +1,7 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status and alert and the vehicle's latest frame, placing a vehicle's known start on the
-plan and its trail along the tunnels, an event acknowledged on one user's screen showing so on another's,
-against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+the camera-obscured status and alert, the vehicle's latest frame and following it on the map, placing a
+vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
+showing so on another's, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
@@ -245,6 +245,19 @@ class TestLatestFrame:
         assert full.locator("img").evaluate("img => img.naturalWidth") == 320
         p.keyboard.press("Escape")
         expect(full).to_have_count(0)
+
+        # follow: the map centres on the selected vehicle until the user drags the map
+        plan, follow = p.get_by_test_id("map"), p.get_by_test_id("follow-toggle")
+        follow.check()
+        expect(plan).to_have_attribute("data-follow-offset", "0.00")
+        box = plan.bounding_box()
+        assert box is not None
+        p.mouse.move(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
+        p.mouse.down()
+        p.mouse.move(box["x"] + 0.3 * box["width"], box["y"] + 0.4 * box["height"], steps=5)
+        p.mouse.up()
+        expect(follow).not_to_be_checked()
+        expect(plan).not_to_have_attribute("data-follow-offset", re.compile(".*"))
         assert page.errors == []
 
 

@@ -175,6 +175,33 @@ class TestLoginAndSurvey:
         screenshot(p, "ui_survey")
         assert page.errors == []
 
+    def test_the_plans_text_labels_are_drawn_and_toggle_with_their_layer(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        plan = p.get_by_test_id("map")
+        expect(plan).to_have_attribute("data-ready", "yes")
+        layers = server.api("GET", "/api/sites/1/survey/layers").json()["layers"]
+        texts = [f for f in layers["LABELS"]["features"] if f["properties"].get("text")]
+        expect(plan).to_have_attribute("data-labels", str(len(texts)))
+        label = texts[0]
+        at = pixel_of(p, *label["geometry"]["coordinates"])
+        for _ in range(4):  # close enough for the lettering (its DXF height in metres) to be readable
+            p.mouse.move(*at)
+            p.mouse.wheel(0, -300)
+            p.wait_for_timeout(300)  # the wheel zoom animates
+        at = pixel_of(p, *label["geometry"]["coordinates"])
+        clip = {"x": at[0] - 60, "y": at[1] - 20, "width": 120, "height": 40}
+        p.mouse.move(1, 1)
+        shown = p.screenshot(clip=clip)
+        p.get_by_test_id("layer-toggle-LABELS").uncheck()
+        p.wait_for_timeout(300)
+        hidden = p.screenshot(clip=clip)
+        assert shown != hidden, "the label drew nothing"
+        p.get_by_test_id("layer-toggle-LABELS").check()
+        assert page.errors == []
+
 
 class TestRoles:
     def test_viewer_sees_no_editing_controls(self, server: Server, page: PageWithLog) -> None:
@@ -500,19 +527,115 @@ class TestGrounding:
         expect(p.get_by_test_id(f"residual-summary-{first['drive']}")).to_be_visible()
         assert page.errors == []
 
+    def test_a_second_build_is_refused_and_each_preset_is_explained(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        preset, explained = p.get_by_test_id("build-preset"), p.get_by_test_id("build-preset-explanation")
+        expect(preset).to_have_value("paper")
+        expect(explained).to_contain_text("the full loop-closure search")
+        preset.select_option("fast")
+        expect(explained).to_contain_text("far fewer loop closures")
+        queued = server.api("POST", "/api/sites/1/maps", json={"preset": "fast"})  # no worker: stays queued
+        assert queued.status_code == 202, queued.text
+        job = p.get_by_test_id("build-job")
+        try:
+            p.get_by_test_id("build-map").click()
+            expect(p.get_by_test_id("build-refused")).to_contain_text(
+                f"already building its map (job {queued.json()['id']}, queued)"
+            )
+            expect(job).to_have_attribute("data-status", "queued")  # the build under way is shown instead
+            expect(job).to_contain_text(f"job {queued.json()['id']} (fast): queued: waiting for a worker")
+            expect(p.get_by_test_id("build-map")).to_be_disabled()
+            p.reload()  # a panel opened later shows it too
+            expect(job).to_have_attribute("data-status", "queued")
+        finally:
+            server.api("POST", f"/api/jobs/{queued.json()['id']}/cancel")
+        expect(job).to_have_attribute("data-status", "cancelled")
+        expect(p.get_by_test_id("build-map")).to_be_enabled()
+        assert [e for e in page.errors if "409 (Conflict)" not in e] == []  # the browser logs the refusal
+
+    def test_a_row_opens_its_keyframe_any_frame_is_reached_and_the_large_view_zooms(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        expect(p.get_by_test_id("map")).to_have_attribute("data-ready", "yes")
+        last = groundings(server)[-1]
+        p.get_by_test_id(f"grounding-row-{last['id']}").locator("td").nth(1).click()
+        selected = p.get_by_test_id("selected-frame")
+        expect(selected).to_have_attribute("data-frame", str(last["frame"]))
+        expect(p.get_by_test_id("drive-select")).to_have_value(str(last["drive_id"]))
+        p.get_by_test_id("residual-exaggeration").select_option("10")
+
+        # any frame, not only the strip's keyframes; the strip turns to the keyframe before it
+        p.get_by_test_id("goto-frame").fill("13")
+        p.get_by_test_id("goto-frame").press("Enter")
+        expect(selected).to_have_attribute("data-frame", "13")
+        expect(p.get_by_test_id("frame-slider")).to_have_value("13")
+        expect(p.get_by_test_id("keyframe-10")).to_be_in_viewport()
+        expect(p.get_by_test_id("place-button")).to_be_visible()  # it can be grounded
+        p.get_by_test_id("goto-frame").fill("999999")
+        p.get_by_test_id("goto-frame-button").click()
+        expect(p.get_by_test_id("goto-frame-error")).to_contain_text("the drive has frames 0 to")
+        p.evaluate("document.activeElement.blur()")
+        p.keyboard.press("ArrowRight")  # from a frame between keyframes to the next keyframe
+        expect(selected).to_have_attribute("data-frame", "20")
+        expect(p.get_by_test_id("keyframe-20")).to_have_class(re.compile("selected"))
+
+        # the large view: at least 640 px wide with the plan beside it; zoom, fit, close
+        p.get_by_test_id("frame-large").click()
+        view = p.get_by_test_id("frame-view")
+        expect(view).to_have_attribute("data-frame", "20")
+        box, plan = view.bounding_box(), p.get_by_test_id("map").bounding_box()
+        assert box is not None and plan is not None
+        assert box["width"] >= 640 and plan["x"] >= box["x"] + box["width"] - 1 and plan["width"] > 200
+        p.get_by_test_id("frame-zoom-in").click()
+        expect(view).to_have_attribute("data-scale", "1.50")
+        p.get_by_test_id("frame-view").locator(".frameview-box").hover()
+        p.mouse.wheel(0, -100)
+        expect(view).to_have_attribute("data-scale", "1.88")
+        p.get_by_test_id("frame-fit").click()
+        expect(view).to_have_attribute("data-scale", "1.00")
+        p.get_by_test_id("frame-view-close").click()
+        expect(view).to_have_count(0)
+        assert page.errors == []
+
     def test_build_a_new_version_and_compare_it_with_the_old_as_an_overlay(
         self, server: Server, page: PageWithLog, worker: object
     ) -> None:
+        # a grounding 30 m off its keyframe, left out of the build from its row: it changes nothing
+        first = groundings(server)[0]
+        taken = {g["frame"] for g in groundings(server) if g["drive_id"] == first["drive_id"]}
+        stray = server.api(
+            "POST",
+            f"/api/drives/{first['drive_id']}/groundings",
+            json={"frame": min(set(range(5, 100)) - taken), "x": first["x_m"] + 30.0, "y": first["y_m"]},
+        )
+        assert stray.status_code == 201, stray.text
         p = page.page
         log_in(p, server, "admin", ADMIN_PASSWORD)
         p.get_by_test_id("nav-grounding").click()
         expect(p.get_by_test_id("map-version")).to_have_text("map v1")
         expect(p.get_by_test_id("compare-panel")).to_have_count(0)  # one version: nothing to compare
+        box = p.get_by_test_id(f"enable-grounding-{stray.json()['id']}")
+        box.click()  # the box shows the server's state once the PATCH is answered
+        expect(p.get_by_test_id("grounding-message")).to_contain_text("left out of the next build")
+        expect(box).not_to_be_checked()
+        p.get_by_test_id("build-preset").select_option("fast")
         p.get_by_test_id("build-map").click()
-        expect(p.get_by_test_id("build-job")).to_have_attribute(
-            "data-status", "succeeded", timeout=BUILD_DEADLINE_MS
-        )
+        job = p.get_by_test_id("build-job")
+        expect(job).to_have_attribute("data-preset", "fast")
+        expect(job).to_have_attribute("data-status", "succeeded", timeout=BUILD_DEADLINE_MS)
+        expect(job).to_have_attribute("data-progress", "1.000")
         expect(p.get_by_test_id("map-version")).to_have_text("map v2")
+        used = server.api("GET", "/api/sites/1/maps/2/residuals").json()
+        assert stray.json()["id"] not in {r["grounding_id"] for r in used}
+        assert server.api("GET", "/api/sites/1/maps/compare", params={"a": 1, "b": 2}).json()["max_m"] < 0.01
+        assert server.api("DELETE", f"/api/groundings/{stray.json()['id']}").status_code == 204
 
         p.get_by_test_id("toggle-compare").check()
         expect(p.get_by_test_id("compare-a")).to_have_value("1")
@@ -550,6 +673,53 @@ class TestAdmin:
         p.get_by_role("button", name="Done").click()
         expect(p.get_by_test_id("vehicle-token")).to_have_count(0)
         assert page.errors == []
+
+    def test_copy_a_token_see_when_each_vehicle_was_last_seen_and_upload_a_plan_with_progress(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path, tmp_path: Path
+    ) -> None:
+        site = server.api("POST", "/api/sites", json={"name": "upload-bay"})
+        assert site.status_code == 201, site.text
+        p = page.page
+        p.context.grant_permissions(["clipboard-read", "clipboard-write"])
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-admin").click()
+
+        p.get_by_test_id("new-vehicle-name").fill("loader-2")
+        p.get_by_role("button", name="Add vehicle").click()
+        token = p.get_by_test_id("vehicle-token").locator(".token").inner_text()
+        p.get_by_test_id("copy-token").click()
+        expect(p.get_by_test_id("copy-token-state")).to_have_text("copied")
+        assert p.evaluate("navigator.clipboard.readText()") == token
+        expect(p.get_by_test_id("admin-last-seen-loader-2")).to_have_text("never")
+
+        # the plan goes to the chosen site, its progress shown; a bad drive zip is refused with the reason
+        p.get_by_test_id("upload-site").select_option(str(site.json()["id"]))
+        p.get_by_test_id("upload-plan-file").set_input_files(tiny_site_dir / "survey.dxf")
+        p.get_by_test_id("upload-plan-send").click()
+        plan = p.get_by_test_id("upload-plan")
+        expect(plan).to_have_attribute("data-state", "done")
+        expect(plan).to_contain_text("survey.dxf stored")
+        plans = server.api("GET", f"/api/sites/{site.json()['id']}/survey").json()
+        assert [m["filename"] for m in plans] == ["survey.dxf"]
+        not_zip = tmp_path / "drive.zip"
+        not_zip.write_bytes(b"not a zip file")
+        p.get_by_test_id("upload-zip-file").set_input_files(not_zip)
+        p.get_by_test_id("upload-zip-send").click()
+        refused = p.get_by_test_id("upload-zip")
+        expect(refused).to_have_attribute("data-state", "refused")
+        expect(refused).to_contain_text("zip")
+        p.get_by_test_id("upload-video-send").click()  # nothing chosen: said before anything is sent
+        expect(p.get_by_test_id("upload-video")).to_contain_text("choose a video file")
+        video, calibration = tmp_path / "run-9.mp4", tmp_path / "camera.json"
+        video.write_bytes(b"\0" * 200_000)
+        calibration.write_text("[1, 2]")
+        p.get_by_test_id("upload-video-file").set_input_files(video)
+        p.get_by_test_id("upload-video-calibration").set_input_files(calibration)
+        p.get_by_test_id("upload-video-send").click()  # sent, and the server's reason shown
+        expect(p.get_by_test_id("upload-video")).to_have_attribute("data-state", "refused")
+        expect(p.get_by_test_id("upload-video")).to_contain_text("calibration must be a JSON object")
+        # the browser logs the two refused requests, and nothing else
+        assert [e for e in page.errors if "Failed to load resource" not in e] == [], page.errors
 
     def test_disable_a_user_refuses_their_login_and_enable_lets_them_back(
         self, server: Server, page: PageWithLog
@@ -668,4 +838,59 @@ class TestAdmin:
         assert demote.status_code == 409 and "last active admin" in demote.json()["detail"], demote.text
         removed = server.api("DELETE", f"/api/users/{me['id']}")
         assert removed.status_code == 409 and "your own account" in removed.json()["detail"], removed.text
+        assert page.errors == []
+
+
+PAGES = ("survey", "monitor", "grounding", "cameras", "admin")
+TABLET = {"width": 390, "height": 844}
+
+
+def sideways_overflow_px(page: Page) -> float:
+    """How far the page reaches beyond the window sideways (0: nothing to scroll to)."""
+    over: float = page.evaluate(
+        "() => Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
+        " - document.documentElement.clientWidth"
+    )
+    return over
+
+
+class TestLayout:
+    def test_a_tablet_gets_a_menu_a_full_width_map_and_a_pull_up_panel_and_nothing_overflows(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        p = page.page
+        p.set_viewport_size(TABLET)
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        menu = p.get_by_test_id("menu-toggle")
+        expect(menu).to_be_visible()
+        expect(p.get_by_test_id("nav-monitor")).to_be_hidden()  # the header is folded into the menu
+        menu.click()
+        p.get_by_test_id("nav-monitor").click()
+        expect(p.get_by_test_id("nav-monitor")).to_be_hidden()  # a choice closes the menu
+        expect(p.get_by_test_id("vehicle-list")).to_be_attached()
+        plan = p.get_by_test_id("map").bounding_box()
+        assert plan is not None and plan["width"] >= TABLET["width"] - 1, plan
+
+        side, handle = p.locator("aside.side"), p.get_by_test_id("panel-handle")
+        closed = side.bounding_box()
+        assert closed is not None and closed["width"] >= TABLET["width"] - 1
+        handle.click()  # pull the panel up: vehicles and events
+        expect(handle).to_have_attribute("aria-expanded", "true")
+        expect(p.get_by_test_id("events-panel")).to_be_in_viewport()
+        opened = side.bounding_box()
+        assert opened is not None and opened["height"] > closed["height"] * 2, (closed, opened)
+        screenshot(p, "ui_tablet")
+
+        for name in PAGES:
+            menu.click()
+            p.get_by_test_id(f"nav-{name}").click()
+            expect(p.get_by_test_id(f"nav-{name}")).to_be_hidden()
+            assert sideways_overflow_px(p) <= 0, f"{name} overflows sideways at 390 px"
+        for width in (1366, 1440):
+            p.set_viewport_size({"width": width, "height": 800})
+            expect(menu).to_be_hidden()
+            for name in PAGES:
+                p.get_by_test_id(f"nav-{name}").click()
+                expect(p.get_by_test_id(f"nav-{name}")).to_have_class("active")
+                assert sideways_overflow_px(p) <= 0, f"{name} overflows sideways at {width} px"
         assert page.errors == []

@@ -36,7 +36,7 @@ def draw_plan(version: str) -> Drawing:
     msp.add_polyline3d([(0, 20, 5), (3, 24, 7)], dxfattribs={"layer": "POLY3D"})
     msp.add_arc((20, 0), 5, 0, 90, dxfattribs={"layer": "ARCS"})
     msp.add_circle((30, 30), 2, dxfattribs={"layer": "CIRCLES"})
-    msp.add_text("DP1", dxfattribs={"layer": "LABELS", "insert": (5, 6)})
+    msp.add_text("DP1", height=1.5, dxfattribs={"layer": "LABELS", "insert": (5, 6)})
     block = doc.blocks.new("DRAWPOINT")
     block.add_line((0, 0), (1, 0))  # layer 0: takes the layer of the reference
     block.add_circle((0, 0), 0.5, dxfattribs={"layer": "DP_RING"})
@@ -100,8 +100,9 @@ class TestEntities:
 
     def test_text_is_a_point_with_its_text(self, plan: Any) -> None:
         features = plan.layers["LABELS"].features["features"]
-        texts = {f["properties"]["text"]: f["geometry"] for f in features}
-        assert texts["DP1"] == {"type": "Point", "coordinates": [5.0, 6.0]}
+        texts = {f["properties"]["text"]: f for f in features}
+        assert texts["DP1"]["geometry"] == {"type": "Point", "coordinates": [5.0, 6.0]}
+        assert texts["DP1"]["properties"]["height_m"] == 1.5  # the browser draws it this high
 
     def test_block_reference_is_rotated_scaled_and_moved(self, plan: Any) -> None:
         # block LINE (0,0)-(1,0) on layer 0, rotated 90 degrees, scaled 2, at (100, 200)
@@ -153,7 +154,7 @@ class TestNewerEntities:
 
     def test_mtext(self, new_plan: Any) -> None:
         features = new_plan.layers["LABELS"].features["features"]
-        assert features[1]["properties"] == {"text": "Drive 7", "entity": "MTEXT"}
+        assert features[1]["properties"] == {"text": "Drive 7", "entity": "MTEXT", "height_m": 2.5}
         assert features[1]["geometry"]["coordinates"] == [7.0, 8.0]
 
     def test_hatch_boundary_is_a_closed_line(self, new_plan: Any) -> None:

@@ -46,9 +46,11 @@ def build_map(
     queue: QueueDep,
     user: SurveyorDep,
 ) -> JobRead:
-    """Start building the next map version from the site's mapping drives and groundings (a job)."""
+    """Start building the next map version from the site's mapping drives and groundings (a job); 409 while
+    another build of the site is queued or running."""
     site = site_by_id(session, site_id)
     map_service.ensure_buildable(session, site)
+    map_service.ensure_no_build_running(session, site)
     job = job_service.submit(
         session, queue.enqueue, "map.build", body.model_dump(), site_id=site.id, created_by=user.name
     )

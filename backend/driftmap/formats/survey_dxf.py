@@ -10,7 +10,8 @@ Every drawable entity becomes a GeoJSON-like feature in plane metres (x east, y 
 * HATCH (and MPOLYGON) boundary paths, polyline and edge paths alike (lines, arcs, ellipses, splines),
   become one closed ``LineString`` each; the fill itself is not drawn.
 * TEXT, MTEXT and the ATTRIBs of block references become ``Point`` features at their insertion point
-  with ``properties.text``; POINT entities become ``Point`` features without text.
+  with ``properties.text`` (and ``properties.height_m``, the lettering's height, when the entity has one);
+  POINT entities become ``Point`` features without text.
 * INSERT (and MINSERT) block references are exploded recursively with their transforms; entities on
   layer ``0`` inside a block take the layer of the reference, as in CAD programs.
 * Everything else (DIMENSION, 3D solids, meshes, images, ...) is counted in ``skipped`` and left out.

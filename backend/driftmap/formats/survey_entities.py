@@ -206,7 +206,10 @@ class EntityReader:
         text = entity.plain_text()  # type: ignore[attr-defined]
         if not isinstance(text, str):
             raise _DamagedEntityError(dxftype)
-        properties = {"entity": dxftype, "text": text}
+        properties: dict[str, Any] = {"entity": dxftype, "text": text}
+        height = float(entity.dxf.get("char_height" if dxftype == "MTEXT" else "height", 0.0)) * self.scale
+        if math.isfinite(height) and height > 0:
+            properties["height_m"] = height  # the lettering's height: the browser scales the label with it
         if dxftype == "ATTRIB":
             properties["tag"] = entity.dxf.tag
         return self._point_feature(location, entity, properties)

@@ -28,6 +28,7 @@ from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_in_processes
 from driftmap.store.blobs import BlobBatch, BlobStore
+from driftmap.store.job_models import Job
 from driftmap.store.models import (
     Drive,
     Frame,
@@ -289,6 +290,31 @@ def ensure_buildable(session: Session, site: Site) -> None:
         raise ConflictError(
             f"site {site.name!r} has no grounding on any mapping drive that is enabled; "
             "ground (or enable) at least two frames first"
+        )
+
+
+def ensure_no_build_running(session: Session, site: Site) -> None:
+    """Refuse a second build of ``site`` while one is queued or running (it would build the same version
+    number from the same drives twice over).
+
+    Raises:
+        ConflictError: naming the job already building the site's map.
+    """
+    busy = session.scalar(
+        select(Job)
+        .where(
+            Job.kind == "map.build",
+            Job.site_id == site.id,
+            Job.parent_id.is_(None),
+            Job.status.in_(("queued", "running")),
+        )
+        .order_by(Job.id)
+        .limit(1)
+    )
+    if busy is not None:
+        raise ConflictError(
+            f"site {site.name!r} is already building its map (job {busy.id}, {busy.status}); "
+            "wait for it to end or cancel it"
         )
 
 

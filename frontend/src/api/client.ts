@@ -183,6 +183,44 @@ export function apiPostForm<P extends PathsWith<"post">>(
   return send("post", buildUrl(path, params), form) as Promise<Ok<Op<P, "post">>>;
 }
 
+/**
+ * POST a multipart form (a plan, a drive zip, a video) with the upload's progress: ``onProgress(loaded, total)``
+ * in bytes as the browser sends it (fetch cannot tell). A refusal rejects with an ApiError and the reason.
+ */
+export function apiUploadForm<P extends PathsWith<"post">>(
+  path: P,
+  params: Record<string, string | number>,
+  form: FormData,
+  onProgress: (loaded: number, total: number) => void,
+): Promise<Ok<Op<P, "post">>> {
+  return new Promise((resolve, reject) => {
+    const xhr = new XMLHttpRequest();
+    xhr.open("POST", buildUrl(path, params));
+    if (token) xhr.setRequestHeader("Authorization", `Bearer ${token}`);
+    xhr.upload.onprogress = (e) => {
+      if (e.lengthComputable) onProgress(e.loaded, e.total);
+    };
+    xhr.onload = () => {
+      let body: unknown = undefined;
+      try {
+        body = JSON.parse(xhr.responseText);
+      } catch {
+        /* not JSON */
+      }
+      if (xhr.status >= 200 && xhr.status < 300) {
+        resolve(body as Ok<Op<P, "post">>);
+        return;
+      }
+      if (xhr.status === 401 && onUnauthorized) onUnauthorized();
+      const reason = typeof body === "object" && body !== null ? detailText(body) : null;
+      const detail = reason ?? (xhr.statusText || `HTTP ${xhr.status}`);
+      reject(new ApiError(xhr.status, detail));
+    };
+    xhr.onerror = () => reject(new ApiError(0, "the upload failed: no answer from the server"));
+    xhr.send(form);
+  });
+}
+
 /** PUT a multipart form (e.g. a CSV upload) to a route. */
 export function apiPutForm<P extends PathsWith<"put">>(
   path: P,

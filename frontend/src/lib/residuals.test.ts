@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { filterByDrive, joinResiduals, sortRows } from "./residuals";
+import { arrowEnd, filterByDrive, joinResiduals, sortRows } from "./residuals";
 
 const groundings = [
   { id: 1, drive_id: 1, drive: "east", frame: 10, x_m: 1, y_m: 2 },
@@ -48,5 +48,13 @@ describe("residual table", () => {
   it("filters by drive", () => {
     expect(filterByDrive(rows, 2).map((r) => r.id)).toEqual([3, 4]);
     expect(filterByDrive(rows, null)).toHaveLength(4);
+  });
+});
+
+describe("arrowEnd", () => {
+  it("ends at the pose unexaggerated and factor times as far otherwise", () => {
+    expect(arrowEnd([10, 20], [11, 18], 1)).toEqual([11, 18]);
+    expect(arrowEnd([10, 20], [11, 18], 10)).toEqual([20, 0]);
+    expect(arrowEnd([10, 20], [10, 20], 50)).toEqual([10, 20]);
   });
 });

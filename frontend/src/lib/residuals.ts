@@ -93,3 +93,14 @@ export function sortRows(rows: GroundingRow[], key: SortKey, dir: SortDir): Grou
 export function filterByDrive(rows: GroundingRow[], driveId: number | null): GroundingRow[] {
   return driveId === null ? rows : rows.filter((r) => r.driveId === driveId);
 }
+
+/** The exaggeration factors offered for the residual arrows on the plan. */
+export const EXAGGERATIONS = [1, 2, 5, 10, 20, 50] as const;
+
+/**
+ * Where a residual arrow from the surveyed point ``at`` towards the keyframe's optimised ``pose`` ends when the
+ * residual is drawn ``factor`` times its length (same units as the points; ``factor`` 1 ends at the pose).
+ */
+export function arrowEnd(at: readonly number[], pose: readonly number[], factor: number): [number, number] {
+  return [at[0]! + factor * (pose[0]! - at[0]!), at[1]! + factor * (pose[1]! - at[1]!)];
+}

@@ -1,5 +1,5 @@
-// Groundings on the plan: a square at each surveyed point with a line to its keyframe's optimised pose (the
-// residual vector). When editable, a square can be dragged to adjust its surveyed point: ``onMove`` gets the
+// Groundings on the plan: a square at each surveyed point with an arrow towards its keyframe's optimised pose
+// (the residual vector, drawn ``exaggeration`` times its length so that centimetres show at mine scale). When editable, a square can be dragged to adjust its surveyed point: ``onMove`` gets the
 // grounding's id and its new position in mine-grid metres once the drag ends.
 import { useEffect, useRef } from "react";
 import { useLatest } from "../lib/useLatest";
@@ -10,7 +10,7 @@ import Translate from "ol/interaction/Translate";
 import VectorLayer from "ol/layer/Vector";
 import VectorSource from "ol/source/Vector";
 import { Fill, RegularShape, Stroke, Style } from "ol/style";
-import type { GroundingRow } from "../lib/residuals";
+import { arrowEnd, type GroundingRow } from "../lib/residuals";
 import type { MapCtx } from "./MineMap";
 
 interface Props {
@@ -21,6 +21,8 @@ interface Props {
   editable: boolean;
   /** The selected keyframe's grounding, drawn highlighted. */
   selectedId: number | null;
+  /** The residual arrows are drawn this many times their length (1: to the pose). */
+  exaggeration: number;
   onMove: (id: number, x: number, y: number) => void;
 }
 
@@ -43,10 +45,33 @@ const SELECTED_SQUARE = new Style({
   }),
   zIndex: 1,
 });
-const LINK = new Style({ stroke: new Stroke({ color: "#fff", width: 1 }) });
+const LINK_STROKE = new Stroke({ color: "#fff", width: 1 });
+const HEAD_RADIUS_PX = 4;
+
+/** A residual arrow: the line, and a head at its end pointing away from the surveyed point. */
+function arrowStyle(feature: { getGeometry: () => unknown }): Style[] {
+  const coords = (feature.getGeometry() as LineString).getCoordinates();
+  const [a, b] = [coords[0]!, coords[coords.length - 1]!];
+  const styles = [new Style({ stroke: LINK_STROKE })];
+  if (Math.hypot(b[0]! - a[0]!, b[1]! - a[1]!) > 0) {
+    const angle = Math.atan2(b[1]! - a[1]!, b[0]! - a[0]!);
+    styles.push(
+      new Style({
+        geometry: new Point(b),
+        image: new RegularShape({
+          points: 3,
+          radius: HEAD_RADIUS_PX,
+          rotation: Math.PI / 2 - angle,
+          fill: new Fill({ color: "#fff" }),
+        }),
+      }),
+    );
+  }
+  return styles;
+}
 const MOVED_EPS_M = 1e-6;
 
-export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId, onMove }: Props) {
+export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId, exaggeration, onMove }: Props) {
   const sources = useRef({ squares: new VectorSource<Feature<Point>>(), links: new VectorSource() });
   const moveRef = useLatest(onMove);
 
@@ -75,8 +100,9 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId,
       for (const f of e.features.getArray()) {
         const link = f.get("link") as Feature<LineString> | undefined;
         const pose = f.get("pose") as number[] | undefined;
+        const factor = f.get("exaggeration") as number;
         const at = (f.getGeometry() as Point).getCoordinates();
-        if (link && pose) link.getGeometry()?.setCoordinates([at, pose]);
+        if (link && pose) link.getGeometry()?.setCoordinates([at, arrowEnd(at, pose, factor)]);
       }
     });
     translate.on("translateend", (e) => {
@@ -115,15 +141,16 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId,
       const pose = poses.get(`${g.driveId}#${g.frame}`);
       if (pose) {
         const local = ctx.origin.toLocal(...pose);
-        const link = new Feature(new LineString([at, local]));
-        link.setStyle(LINK);
+        const link = new Feature(new LineString([at, arrowEnd(at, local, exaggeration)]));
+        link.setStyle(arrowStyle);
         links.addFeature(link);
         square.set("link", link);
         square.set("pose", local);
+        square.set("exaggeration", exaggeration);
       }
       squares.addFeature(square);
     }
-  }, [ctx, groundings, poses, selectedId]);
+  }, [ctx, groundings, poses, selectedId, exaggeration]);
 
   return null;
 }

@@ -1,4 +1,5 @@
-// The plan view every page shares: survey layers (WebGL when available), pan/zoom, the pointer's readout (plan
+// The plan view every page shares: survey layers (WebGL when available) with their text labels (scaled with the
+// zoom, decluttered), pan/zoom, the pointer's readout (plan
 // metres; with the site's coordinates the mine grid and longitude/latitude too), scale bar, fit-to-site. Pages add their own layers through ``overlay``, which gets the map and the local origin.
 import { useEffect, useRef, useState, type ReactNode } from "react";
 import { useLatest } from "../lib/useLatest";
@@ -10,7 +11,8 @@ import VectorImageLayer from "ol/layer/VectorImage";
 import WebGLVectorLayer from "ol/layer/WebGLVector";
 import ScaleLine from "ol/control/ScaleLine";
 import { defaults as defaultControls } from "ol/control/defaults";
-import { Stroke, Style } from "ol/style";
+import { Fill, Stroke, Style, Text } from "ol/style";
+import Point from "ol/geom/Point";
 import type BaseLayer from "ol/layer/Base";
 import type { Geometry } from "ol/geom";
 import Feature from "ol/Feature";
@@ -22,6 +24,7 @@ import { wallRingsOf, type WallRings } from "../lib/placement";
 import { serverZoomFor } from "../lib/surveyZoom";
 import { mark } from "../lib/perf";
 import { flattenLines } from "../lib/surveyLines";
+import { labelFontPx, labelsOf } from "../lib/surveyLabels";
 import { chooseSurveyRenderer, webglRenderer } from "../lib/surveyRenderer";
 import { mineGrid } from "./projection";
 import { useSiteCoordinates } from "./siteCrs";
@@ -51,7 +54,35 @@ interface Props {
 interface SurveyLayer {
   name: string;
   layer: BaseLayer;
+  /** The layer's text labels, when it has any; shown and hidden with it. */
+  labels: BaseLayer | null;
+  labelCount: number;
   features: number;
+}
+
+/** A plan label's style at ``resolution`` (metres per pixel): its lettering scaled with the zoom. */
+function labelStyle(colour: string): (feature: unknown, resolution: number) => Style | undefined {
+  const cache = new Map<string, Style>();
+  return (feature, resolution) => {
+    const px = labelFontPx(resolution, (feature as Feature).get("heightM") as number);
+    if (px === null) return undefined;
+    const text = (feature as Feature).get("text") as string;
+    const key = `${px}|${text}`;
+    let style = cache.get(key);
+    if (!style) {
+      style = new Style({
+        text: new Text({
+          text,
+          font: `${px}px system-ui, sans-serif`,
+          fill: new Fill({ color: colour }),
+          stroke: new Stroke({ color: "#0b0e12", width: 3 }),
+          overflow: true,
+        }),
+      });
+      cache.set(key, style);
+    }
+    return style;
+  };
 }
 
 export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) {
@@ -118,7 +149,23 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
           layer.set("surveyLayer", name);
           map.addLayer(layer);
           added.push(layer);
-          made.push({ name, layer, features: countOf(collection) });
+          const texts = labelsOf(collection, origin.x0, origin.y0);
+          let labels: VectorLayer | null = null;
+          if (texts.length > 0) {
+            const labelFeatures = texts.map(
+              (t) => new Feature({ geometry: new Point([t.x, t.y]), text: t.text, heightM: t.heightM }),
+            );
+            labels = new VectorLayer({
+              source: new VectorSource({ features: labelFeatures }),
+              style: labelStyle(colour),
+              declutter: true,
+              zIndex: 5,
+            });
+            labels.set("surveyLabels", name);
+            map.addLayer(labels);
+            added.push(labels);
+          }
+          made.push({ name, layer, labels, labelCount: texts.length, features: countOf(collection) });
         });
         setLayers(made);
         setVisible(Object.fromEntries(made.map((l) => [l.name, true])));
@@ -178,7 +225,10 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
   }, [siteId, renderer, clickRef, originRef]);
 
   useEffect(() => {
-    for (const l of layers) l.layer.setVisible(visible[l.name] ?? true);
+    for (const l of layers) {
+      l.layer.setVisible(visible[l.name] ?? true);
+      l.labels?.setVisible(visible[l.name] ?? true);
+    }
   }, [layers, visible]);
 
   const fit = () => {
@@ -194,6 +244,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
         data-ready={ctx ? "yes" : "no"}
         data-renderer={renderer}
         data-placing={placing ? "yes" : "no"}
+        data-labels={layers.reduce((n, l) => n + l.labelCount, 0)}
       />
       {layers.length > 0 && (
         <div className="overlay-box layers" data-testid="layer-panel">

@@ -1,7 +1,10 @@
 // Vehicles on the plan, in confidence bands (lib/confidence.ts): an arrow along the heading (a dot while the
 // heading is unknown), a dashed ring with "?" when lost, grey when stale; the name; the trail of the last
 // minutes, coloured by the band of each position and cut where the vehicle jumped (lib/trail.ts). Markers
-// glide to each new estimate (lib/interpolate.ts) on the animation frame.
+// glide to each new estimate (lib/interpolate.ts) on the animation frame. Names are decluttered (an overlapped
+// name is left out, never the marker; the selected vehicle's name always shows). With ``follow`` the map stays
+// centred on that vehicle (the map element's ``data-follow-offset`` says how far off, metres) until the user
+// drags the map.
 import { useEffect, useRef } from "react";
 import { useLatest } from "../lib/useLatest";
 import Feature from "ol/Feature";
@@ -27,6 +30,10 @@ interface Props {
   onSelect: (id: number) => void;
   /** Whether a click on a marker selects its vehicle (off while a click means something else). */
   selectable: boolean;
+  /** The vehicle the map stays centred on, or null. */
+  follow: number | null;
+  /** The user dragged the map: following ends. */
+  onFollowEnd: () => void;
 }
 
 const ARROW_PX = 26; // drawn size on screen
@@ -68,16 +75,23 @@ function markerImage(band: ConfidenceBand, yaw: number | null, selected: boolean
       radius: 10,
       fill: new Fill({ color: "rgba(214, 51, 168, 0.25)" }),
       stroke: new Stroke({ color: colour, width: 3, lineDash: [4, 3] }),
+      declutterMode: "obstacle",
     });
   }
   if (yaw === null) {
-    return new Circle({ radius: 7, fill: new Fill({ color: colour }), stroke: new Stroke({ color: outline, width }) });
+    return new Circle({
+      radius: 7,
+      fill: new Fill({ color: colour }),
+      stroke: new Stroke({ color: outline, width }),
+      declutterMode: "obstacle",
+    });
   }
   return new Icon({
     img: arrowCanvas(colour, outline, width),
     scale: 0.5,
     rotation: yawToRotation(yaw),
     rotateWithView: true,
+    declutterMode: "obstacle",
   });
 }
 
@@ -96,6 +110,7 @@ function markerStyle(feature: FeatureLike): Style[] {
         font: "600 12px system-ui, sans-serif",
         fill: new Fill({ color: stale ? "#9aa3ad" : "#e3e8ee" }),
         stroke: new Stroke({ color: "#0b0e12", width: 3 }),
+        declutterMode: selected ? "none" : "declutter", // markers are obstacles: a name never covers one
       }),
     }),
   ];
@@ -103,7 +118,12 @@ function markerStyle(feature: FeatureLike): Style[] {
     styles.push(
       new Style({
         zIndex: 2,
-        text: new Text({ text: "?", font: "700 13px system-ui, sans-serif", fill: new Fill({ color: "#fff" }) }),
+        text: new Text({
+          text: "?",
+          font: "700 13px system-ui, sans-serif",
+          fill: new Fill({ color: "#fff" }),
+          declutterMode: "none",
+        }),
       }),
     );
   }
@@ -125,14 +145,22 @@ function trailStyles(runs: { band: ConfidenceBand; coords: number[][] }[], selec
   );
 }
 
-export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }: Props) {
+export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, follow, onFollowEnd }: Props) {
   const source = useRef(new VectorSource());
   const glides = useRef(new Map<number, { glide: Glide; marker: Feature<Point>; trail: Feature<MultiLineString> }>());
   const selectRef = useLatest(onSelect);
   const selectableRef = useLatest(selectable);
+  const followRef = useLatest(follow);
+  const followEndRef = useLatest(onFollowEnd);
 
   useEffect(() => {
-    const layer = new VectorLayer({ source: source.current, zIndex: 10, updateWhileAnimating: true });
+    const layer = new VectorLayer({
+      source: source.current,
+      zIndex: 10,
+      updateWhileAnimating: true,
+      updateWhileInteracting: true,
+      declutter: true,
+    });
     ctx.map.addLayer(layer);
     let frame = 0;
     const tick = () => {
@@ -143,6 +171,16 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }
         marker.getGeometry()!.setCoordinates([x, y]);
         marker.set("yaw", p.yaw, true);
       }
+      const target = ctx.map.getTargetElement();
+      const followed = followRef.current === null ? undefined : glides.current.get(followRef.current);
+      if (followed) {
+        const at = followed.marker.getGeometry()!.getCoordinates();
+        const view = ctx.map.getView();
+        const centre = view.getCenter();
+        if (!centre || centre[0] !== at[0] || centre[1] !== at[1]) view.setCenter(at);
+        const now = view.getCenter()!;
+        if (target) target.dataset.followOffset = Math.hypot(now[0]! - at[0]!, now[1]! - at[1]!).toFixed(2);
+      } else if (target) delete target.dataset.followOffset;
       source.current.changed();
       frame = requestAnimationFrame(tick);
     };
@@ -162,12 +200,16 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable }
         { layerFilter: (l) => l === layer, hitTolerance: 6 },
       );
     });
+    const drag = ctx.map.on("pointerdrag", () => {
+      if (followRef.current !== null) followEndRef.current();
+    });
     return () => {
       cancelAnimationFrame(frame);
       ctx.map.un("singleclick", click.listener);
+      ctx.map.un("pointerdrag", drag.listener);
       ctx.map.removeLayer(layer);
     };
-  }, [ctx, selectRef, selectableRef]);
+  }, [ctx, selectRef, selectableRef, followRef, followEndRef]);
 
   useEffect(() => {
     const now = performance.now();

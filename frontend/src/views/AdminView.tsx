@@ -1,10 +1,13 @@
-// Admin: users (AdminUsers), vehicles (a new vehicle's token is shown once; delete after a confirmation), sites.
+// Admin: users (AdminUsers), vehicles (a new vehicle's token is shown once, with a copy button; when each was
+// last seen; delete after a confirmation), sites, and uploads of plans and drives (Uploads).
 // The add forms sit above their tables, so a new row never moves a button under the pointer.
 import { useCallback, useEffect, useState, type FormEvent } from "react";
 import { AdminUsers } from "./AdminUsers";
 import { ConfirmDialog } from "./Dialog";
 import { useErrors } from "./useErrors";
-import { formatTime } from "../lib/time";
+import { Uploads } from "./Uploads";
+import { ageOf, formatAge, formatTime } from "../lib/time";
+import { useNow } from "../lib/useNow";
 import { apiDelete, apiGet, apiPost, type Schemas } from "../api/client";
 
 export function AdminView({
@@ -22,6 +25,7 @@ export function AdminView({
       <AdminUsers meId={meId} />
       <Vehicles sites={sites} />
       <Sites sites={sites} onChanged={onSitesChanged} />
+      <Uploads sites={sites} />
     </div>
   );
 }
@@ -32,8 +36,20 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
   const [siteId, setSiteId] = useState<number | null>(null);
   const [token, setToken] = useState<{ name: string; token: string } | null>(null);
   const [deleting, setDeleting] = useState<Schemas["VehicleRead"] | null>(null);
+  const [seen, setSeen] = useState<Map<number, string>>(new Map());
+  const [copied, setCopied] = useState<string | null>(null);
   const [error, run] = useErrors();
-  const load = useCallback(async () => setVehicles(await apiGet("/api/vehicles")), []);
+  const now = useNow(5000);
+  const load = useCallback(async () => {
+    const [list, latest] = await Promise.all([apiGet("/api/vehicles"), apiGet("/api/positions/latest")]);
+    setVehicles(list);
+    setSeen(new Map(latest.flatMap((l) => (l.position ? [[l.vehicle_id, l.position.received_at] as const] : []))));
+  }, []);
+  const copy = (text: string) =>
+    void navigator.clipboard.writeText(text).then(
+      () => setCopied("copied"),
+      () => setCopied("could not copy: select the token and copy it by hand"),
+    );
   useEffect(() => void run(load), [run, load]);
   const site = siteId ?? sites[0]?.id ?? null;
   const siteName = (id: number) => sites.find((s) => s.id === id)?.name ?? String(id);
@@ -43,6 +59,7 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
     void run(async () => {
       const v = await apiPost("/api/vehicles", {}, { name, site_id: site });
       setToken({ name: v.name, token: v.token });
+      setCopied(null);
       setName("");
       await load();
     });
@@ -51,6 +68,7 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
     void run(async () => {
       const v = await apiPost("/api/vehicles/{vehicle_id}/token", { vehicle_id: id });
       setToken({ name: vehicleName, token: v.token });
+      setCopied(null);
     });
   return (
     <section className="card" data-testid="admin-vehicles">
@@ -78,6 +96,7 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
           <tr>
             <th>Name</th>
             <th>Site</th>
+            <th>Last seen</th>
             <th />
           </tr>
         </thead>
@@ -86,6 +105,7 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
             <tr key={v.id} data-testid={`admin-vehicle-${v.name}`}>
               <td>{v.name}</td>
               <td>{siteName(v.site_id)}</td>
+              <LastSeen at={seen.get(v.id) ?? null} now={now} name={v.name} />
               <td className="row" style={{ margin: 0 }}>
                 <button onClick={() => rotate(v.id, v.name)}>New token</button>
                 <button className="danger" data-testid={`vehicle-delete-${v.name}`} onClick={() => setDeleting(v)}>
@@ -102,7 +122,18 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
             Token for <b>{token.name}</b> — copy it now, it is not shown again:
           </p>
           <div className="token">{token.token}</div>
-          <button onClick={() => setToken(null)}>Done</button>
+          <div className="row">
+            <button className="primary" data-testid="copy-token" onClick={() => copy(token.token)}>
+              Copy token
+            </button>
+            {copied && (
+              <span className="muted" data-testid="copy-token-state">
+                {copied}
+              </span>
+            )}
+            <span className="spacer" />
+            <button onClick={() => setToken(null)}>Done</button>
+          </div>
         </div>
       )}
       {error && <p className="error">{error}</p>}
@@ -128,6 +159,15 @@ function Vehicles({ sites }: { sites: Schemas["SiteRead"][] }) {
         </ConfirmDialog>
       )}
     </section>
+  );
+}
+
+/** When a vehicle's last position arrived: its age, the clock time in the title. */
+function LastSeen({ at, now, name }: { at: string | null; now: number; name: string }) {
+  return (
+    <td data-testid={`admin-last-seen-${name}`} title={at ? `Last position received ${formatTime(at)}` : "Never seen"}>
+      {at ? `${formatAge(ageOf(at, now))} ago` : "never"}
+    </td>
   );
 }
 

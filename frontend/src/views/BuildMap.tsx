@@ -1,7 +1,13 @@
-// The grounding panel's header: the map version shown and, for surveyors, "Build map", which starts a map
-// build job and shows its progress until it ends; ``onBuilt`` runs when the new version is stored.
-import { useEffect, useState } from "react";
+// The grounding panel's header: the map version shown and, for surveyors, "Build map" with a choice of preset
+// (each explained in a line), which starts a map build job and shows its overall progress and the time left
+// until it ends; a build of the site already queued or running (anyone's) is shown the same way when the panel
+// opens, and a refusal (such a build started meanwhile) is said under the button, that build then shown.
+// ``onBuilt`` runs when the new version is stored.
+import { useCallback, useEffect, useState } from "react";
 import { ApiError, apiGet, apiPost, type Schemas } from "../api/client";
+import { PRESETS, overallProgress, progressText, secondsLeft, type Preset } from "../lib/buildProgress";
+import { serverDate } from "../lib/time";
+import { useNow } from "../lib/useNow";
 
 type Job = Schemas["JobRead"];
 
@@ -18,13 +24,37 @@ interface Props {
 
 export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props) {
   const [job, setJob] = useState<Job | null>(null);
+  const [preset, setPreset] = useState<Preset["name"]>("paper");
+  const [refused, setRefused] = useState<string | null>(null);
   const running = job !== null && !ENDED.includes(job.status);
+  const now = useNow(POLL_MS);
+
+  /** Show the site's build that is running or queued, if any. */
+  const attach = useCallback(async () => {
+    for (const status of ["running", "queued"] as const) {
+      const page = await apiGet("/api/jobs", {}, { site_id: siteId, kind: "map.build", status, limit: 1 });
+      if (page.items[0]) {
+        setJob(page.items[0]);
+        return;
+      }
+    }
+  }, [siteId]);
+
+  useEffect(() => {
+    // attach sets state only after its requests resolve
+    // eslint-disable-next-line react-hooks/set-state-in-effect
+    void attach().catch(() => undefined);
+  }, [attach]);
 
   const build = async () => {
+    setRefused(null);
     try {
-      setJob(await apiPost("/api/sites/{site_id}/maps", { site_id: siteId }, { preset: "fast" }));
+      setJob(await apiPost("/api/sites/{site_id}/maps", { site_id: siteId }, { preset }));
     } catch (e) {
-      onError(e instanceof ApiError ? e.message : String(e));
+      const text = e instanceof ApiError ? e.message : String(e);
+      setRefused(text);
+      onError(text);
+      if (e instanceof ApiError && e.status === 409) await attach();
     }
   };
 
@@ -38,6 +68,11 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
     return () => clearTimeout(timer);
   }, [job, onBuilt]);
 
+  const chosen = PRESETS.find((p) => p.name === preset) ?? PRESETS[0]!;
+  const done = job ? overallProgress(job.status, job.stage, job.progress) : 0;
+  const elapsedS = job?.started_at ? (now - serverDate(job.started_at).getTime()) / 1000 : 0;
+  const left = job && job.status === "running" ? secondsLeft(done, elapsedS) : null;
+  const jobPreset = typeof job?.args.preset === "string" ? job.args.preset : "";
   return (
     <>
       <div className="row">
@@ -46,19 +81,47 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
         <span className="muted" data-testid="map-version">
           {version === null ? "no map yet" : `map v${version}`}
         </span>
-        {editable && (
-          <button className="primary" data-testid="build-map" onClick={() => void build()} disabled={running}>
-            Build map
-          </button>
-        )}
       </div>
+      {editable && (
+        <>
+          <div className="row">
+            <label>
+              preset{" "}
+              <select
+                data-testid="build-preset"
+                value={preset}
+                disabled={running}
+                onChange={(e) => setPreset(e.target.value as Preset["name"])}
+              >
+                {PRESETS.map((p) => (
+                  <option key={p.name} value={p.name}>
+                    {p.label}
+                  </option>
+                ))}
+              </select>
+            </label>
+            <span className="spacer" />
+            <button className="primary" data-testid="build-map" onClick={() => void build()} disabled={running}>
+              Build map
+            </button>
+          </div>
+          <div className="muted small" data-testid="build-preset-explanation">
+            {chosen.explanation}
+          </div>
+        </>
+      )}
+      {refused && (
+        <div className="error" data-testid="build-refused">
+          {refused}
+        </div>
+      )}
       {job && (
-        <div data-testid="build-job" data-status={job.status}>
+        <div data-testid="build-job" data-status={job.status} data-progress={done.toFixed(3)} data-preset={jobPreset}>
           <div className="progress">
-            <div style={{ width: `${Math.round(job.progress * 100)}%` }} />
+            <div style={{ width: `${Math.round(done * 100)}%` }} />
           </div>
           <span className="muted">
-            job {job.id}: {job.status} {job.stage} {Math.round(job.progress * 100)}%
+            job {job.id} ({jobPreset}): {progressText(job.status, job.stage, done, left)}
           </span>
           {job.error && <div className="error">{job.error}</div>}
         </div>

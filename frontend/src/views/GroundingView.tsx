@@ -10,10 +10,20 @@ import { apiGet, apiPatch, type Schemas } from "../api/client";
 import { MineMap, type MapCtx } from "../map/MineMap";
 import { TrajectoryLayer, poseIndex, type Closure, type Poses } from "../map/TrajectoryLayer";
 import { GroundingMarkers } from "../map/GroundingMarkers";
-import { filterByDrive, joinResiduals, sortRows, type SortDir, type SortKey } from "../lib/residuals";
+import { keyframesOf, pageOf, stepFrame } from "../lib/frameNav";
+import {
+  EXAGGERATIONS,
+  filterByDrive,
+  joinResiduals,
+  sortRows,
+  type GroundingRow,
+  type SortDir,
+  type SortKey,
+} from "../lib/residuals";
 import { snapPoint } from "../lib/snap";
 import { BuildMap } from "./BuildMap";
 import { CompareVersions } from "./CompareVersions";
+import { FrameView } from "./FrameView";
 import { GroundingsCsv } from "./GroundingsCsv";
 import { MapExport } from "./MapExport";
 import { GroundingsTable, ShortcutHelp } from "./GroundingsTable";
@@ -50,6 +60,8 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const [snapOn, setSnapOn] = useState(false);
   const [playing, setPlaying] = useState(false);
   const [help, setHelp] = useState(false);
+  const [exaggeration, setExaggeration] = useState<number>(1);
+  const [large, setLarge] = useState(false);
   const version = versions.length > 0 ? Math.max(...versions) : null;
 
   const loadGroundings = useCallback(async () => {
@@ -99,14 +111,18 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
   const edits = useGroundingEdits({ groundings, reload: loadGroundings, say: setMessage });
 
   const drive = drives.find((d) => d.id === driveId) ?? null;
-  const keyframes = useMemo(() => {
-    if (!drive) return [];
-    if (poses) {
-      const frames = poses.frame.filter((_, i) => poses.drive_id[i] === drive.id);
-      return frames.filter((_, i) => i % KEYFRAME_STRIDE === 0);
-    }
-    return Array.from({ length: Math.ceil(drive.frame_count / KEYFRAME_STRIDE) }, (_, i) => i * KEYFRAME_STRIDE);
-  }, [drive, poses]);
+  /** The keyframes of drive ``id``: every KEYFRAME_STRIDE-th frame of the map's poses, else of its frames. */
+  const keyframesFor = useCallback(
+    (id: number): number[] => {
+      if (poses) {
+        const frames = poses.frame.filter((_, i) => poses.drive_id[i] === id);
+        return frames.filter((_, i) => i % KEYFRAME_STRIDE === 0);
+      }
+      return keyframesOf(drives.find((d) => d.id === id)?.frame_count ?? 0, KEYFRAME_STRIDE);
+    },
+    [poses, drives],
+  );
+  const keyframes = useMemo(() => (drive ? keyframesFor(drive.id) : []), [drive, keyframesFor]);
   const pageCount = Math.max(1, Math.ceil(keyframes.length / STRIP_PAGE));
   const stripFrames = keyframes.slice(page * STRIP_PAGE, (page + 1) * STRIP_PAGE);
 
@@ -130,15 +146,21 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     [groundings, driveId],
   );
 
+  /** Select frame ``f`` of the drive shown (any frame, not only a keyframe); the strip turns to its page. */
+  const show = useCallback(
+    (f: number) => {
+      setFrame(f);
+      setPage(pageOf(keyframes, f, STRIP_PAGE));
+    },
+    [keyframes],
+  );
+
   const step = useCallback(
     (delta: number) => {
-      if (keyframes.length === 0) return;
-      const i = frame === null ? 0 : keyframes.indexOf(frame);
-      const next = keyframes[Math.min(keyframes.length - 1, Math.max(0, (i < 0 ? 0 : i) + delta))]!;
-      setFrame(next);
-      setPage(Math.floor(keyframes.indexOf(next) / STRIP_PAGE));
+      const next = stepFrame(keyframes, frame, delta);
+      if (next !== null) show(next);
     },
-    [frame, keyframes],
+    [frame, keyframes, show],
   );
 
   useEffect(() => {
@@ -192,13 +214,17 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
         : edits.move(t.groundingId, x, y),
   });
 
-  /** Select a keyframe (and the strip page that shows it). */
+  /** Select frame ``f`` of drive ``id`` (and the strip page that shows it). */
   const select = (id: number, f: number) => {
     setDriveId(id);
     setFrame(f);
-    const frames = poses ? poses.frame.filter((_, i) => poses.drive_id[i] === id) : [];
-    const i = frames.filter((_, k) => k % KEYFRAME_STRIDE === 0).indexOf(f);
-    if (i >= 0) setPage(Math.floor(i / STRIP_PAGE));
+    setPage(pageOf(keyframesFor(id), f, STRIP_PAGE));
+  };
+
+  /** A residual-table row: the plan flies to its surveyed point and its keyframe opens. */
+  const openRow = (row: GroundingRow) => {
+    flyTo(row.x, row.y);
+    select(row.driveId, row.frame);
   };
 
   /** A click on the plan: places in the placing mode, else selects the grounding whose square it hits. */
@@ -250,6 +276,9 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
 
   return (
     <>
+      {large && drive && frame !== null && (
+        <FrameView driveId={drive.id} driveName={drive.name} frame={frame} onClose={() => setLarge(false)} />
+      )}
       <MineMap
         key={siteId}
         siteId={siteId}
@@ -265,6 +294,20 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
                 onChange={(e) => setShowClosures(e.target.checked)}
               />{" "}
               loop closures ({closures.length})
+            </label>
+            <label title="Residual arrows drawn this many times their length">
+              residuals ×{" "}
+              <select
+                data-testid="residual-exaggeration"
+                value={exaggeration}
+                onChange={(e) => setExaggeration(Number(e.target.value))}
+              >
+                {EXAGGERATIONS.map((f) => (
+                  <option key={f} value={f}>
+                    {f}
+                  </option>
+                ))}
+              </select>
             </label>
             {editable && (
               <label title="Snap groundings to DXF vertices, else to centrelines">
@@ -296,6 +339,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
               poses={poseAt}
               editable={editable}
               selectedId={selectedGrounding?.id ?? null}
+              exaggeration={exaggeration}
               onMove={(id, x, y) => void moveGrounding(id, x, y)}
             />
           </>
@@ -315,12 +359,13 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           }}
           frames={stripFrames}
           frame={frame}
-          onFrame={setFrame}
+          onFrame={show}
           page={page}
           pageCount={pageCount}
           onPage={setPage}
           playing={playing}
           onPlay={() => setPlaying((p) => !p)}
+          onLarge={() => setLarge(true)}
           editable={editable}
           grounded={groundedFrames}
         />
@@ -373,7 +418,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           onSort={setSort}
           editable={editable}
           selectedId={selectedGrounding?.id ?? null}
-          onFly={flyTo}
+          onOpen={openRow}
           onDelete={(id) => void edits.remove(id)}
           onEnable={(id, enabled) => void setEnabled(id, enabled)}
         />

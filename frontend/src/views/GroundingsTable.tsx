@@ -13,13 +13,14 @@ interface Props {
   editable: boolean;
   /** The selected keyframe's grounding (its row is highlighted). */
   selectedId: number | null;
-  onFly: (x: number, y: number) => void;
+  /** A row clicked: fly to its surveyed point and open its keyframe. */
+  onOpen: (row: GroundingRow) => void;
   onDelete: (id: number) => void;
   /** Enable or disable a grounding for map builds. */
   onEnable: (id: number, enabled: boolean) => void;
 }
 
-export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFly, onDelete, onEnable }: Props) {
+export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onOpen, onDelete, onEnable }: Props) {
   const header = (key: SortKey, label: string, num = true) => (
     <th
       className={`sortable ${num ? "num" : ""}`}
@@ -52,7 +53,8 @@ export function GroundingsTable({ rows, sort, onSort, editable, selectedId, onFl
             data-testid={`grounding-row-${r.id}`}
             data-frame={r.frame}
             data-drive={r.drive}
-            onClick={() => onFly(r.x, r.y)}
+            onClick={() => onOpen(r)}
+            title="Open this keyframe"
             style={{ cursor: "pointer" }}
           >
             <td>{r.drive}</td>

@@ -57,6 +57,7 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
   const [connection, setConnection] = useState<ConnectionState>("connecting");
   const [selectedId, setSelectedId] = useState<number | null>(null);
   const [replay, setReplay] = useState<ReplaySession | null>(null);
+  const [follow, setFollow] = useState(false);
   const [events] = useState(() => new EventLog());
   const [sound, setSound] = useEventSound();
   const alarm = useLatest({ sound, siteId }); // read by the socket's handler, set up once
@@ -134,6 +135,8 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
               selectedId={selectedId}
               onSelect={setSelectedId}
               selectable={!setStart.placing}
+              follow={follow && !replay?.follow ? selectedId : null}
+              onFollowEnd={() => setFollow(false)}
             />
             <StartLayer ctx={ctx} start={placedStart} placing={setStart.placing} />
             {replay && <ReplayLayer ctx={ctx} session={replay} />}
@@ -145,6 +148,16 @@ export function MonitorView({ siteId, editable }: { siteId: number; editable: bo
         <div className="row">
           <h2 style={{ margin: 0 }}>Vehicles</h2>
           <span className="spacer" />
+          <label title="Keep the map centred on the selected vehicle (a drag of the map stops it)">
+            <input
+              type="checkbox"
+              data-testid="follow-toggle"
+              checked={follow}
+              disabled={selected === null}
+              onChange={(e) => setFollow(e.target.checked)}
+            />{" "}
+            follow
+          </label>
           <span className={`conn ${connection}`} data-testid="live-connection">
             {connection === "open" ? "live" : connection}
           </span>
