@@ -87,11 +87,14 @@ imports: $(VENV)/.installed-dev
 # Every test on the embedded SQLite default, then again on PostgreSQL (a private server) the tests of the server
 # side that touch the database (marked `db` by tests/conftest.py): store, services, API, jobs and live. The CLI,
 # the reports and the browser tests call those same services, so one database is enough for them; the topology
-# test (tests/topology) always runs on PostgreSQL + Redis. Each run prints its 15 slowest steps.
+# test (tests/topology) always runs on PostgreSQL + Redis. Each run spreads its test files over TEST_PROCESSES
+# processes (pytest-xdist; most of a test's time is spent waiting on servers, browsers and workers, so more
+# processes than cores pay) and prints its 15 slowest steps.
 PG_TESTS := tests/store tests/services tests/api tests/jobs tests/live
+TEST_PROCESSES ?= 3
 pytest: $(VENV)/.installed-dev frontend system-packages
-	$(BIN)/pytest -q --durations=15 --database sqlite
-	$(BIN)/pytest -q --durations=15 --database postgresql -m db $(PG_TESTS)
+	$(BIN)/pytest -q -n $(TEST_PROCESSES) --dist loadfile --durations=15 --database sqlite
+	$(BIN)/pytest -q -n $(TEST_PROCESSES) --dist loadfile --durations=15 --database postgresql -m db $(PG_TESTS)
 
 test: lint typecheck imports frontend-lint frontend-test pytest
 

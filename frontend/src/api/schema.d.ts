@@ -1007,7 +1007,8 @@ export interface paths {
         put?: never;
         /**
          * Build Map
-         * @description Start building the next map version from the site's mapping drives and groundings (a job).
+         * @description Start building the next map version from the site's mapping drives and groundings (a job); 409 while
+         *     another build of the site is queued or running.
          */
         post: operations["build_map_api_sites__site_id__maps_post"];
         delete?: never;
