@@ -25,7 +25,6 @@ from driftmap.api.schemas_maps import (
 )
 from driftmap.api.sites import site_by_id
 from driftmap.services import deletion, map_views, residuals
-from driftmap.services import jobs as job_service
 from driftmap.services import maps as map_service
 from driftmap.store.models import MapVersion
 
@@ -49,11 +48,7 @@ def build_map(
     """Start building the next map version from the site's mapping drives and groundings (a job); 409 while
     another build of the site is queued or running."""
     site = site_by_id(session, site_id)
-    map_service.ensure_buildable(session, site)
-    map_service.ensure_no_build_running(session, site)
-    job = job_service.submit(
-        session, queue.enqueue, "map.build", body.model_dump(), site_id=site.id, created_by=user.name
-    )
+    job = map_service.submit_build(session, queue.enqueue, site, body.model_dump(), user.name)
     return accepted(request, response, job)
 
 

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy import func, insert, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from driftmap.core.mapping.pipeline import (
@@ -26,6 +27,8 @@ from driftmap.core.topomap.model import TopoMap
 from driftmap.core.types import ProgressFn
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
+from driftmap.services import jobs as job_service
+from driftmap.services.jobs import Enqueue
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_in_processes
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.job_models import Job
@@ -293,13 +296,18 @@ def ensure_buildable(session: Session, site: Site) -> None:
         )
 
 
-def ensure_no_build_running(session: Session, site: Site) -> None:
-    """Refuse a second build of ``site`` while one is queued or running (it would build the same version
-    number from the same drives twice over).
+def submit_build(
+    session: Session, enqueue: Enqueue, site: Site, args: dict[str, Any], created_by: str
+) -> Job:
+    """Queue a ``map.build`` job of ``site`` (see :func:`driftmap.services.jobs.submit`).
 
     Raises:
-        ConflictError: naming the job already building the site's map.
+        BadInputError: the site cannot be built (:func:`ensure_buildable`).
+        ConflictError: a build of the site is already queued or running, naming its job; of two requests
+            that race, the jobs table's one-unfinished-build-per-site index refuses the second (the session
+            must then be rolled back).
     """
+    ensure_buildable(session, site)
     busy = session.scalar(
         select(Job)
         .where(
@@ -311,11 +319,14 @@ def ensure_no_build_running(session: Session, site: Site) -> None:
         .order_by(Job.id)
         .limit(1)
     )
+    refusal = f"site {site.name!r} is already building its map"
+    advice = "wait for it to end or cancel it"
     if busy is not None:
-        raise ConflictError(
-            f"site {site.name!r} is already building its map (job {busy.id}, {busy.status}); "
-            "wait for it to end or cancel it"
-        )
+        raise ConflictError(f"{refusal} (job {busy.id}, {busy.status}); {advice}")
+    try:
+        return job_service.submit(session, enqueue, "map.build", args, site_id=site.id, created_by=created_by)
+    except IntegrityError:  # the session's transaction is spoilt: the caller rolls it back
+        raise ConflictError(f"{refusal} (a build was queued at the same moment); {advice}") from None
 
 
 @dataclass(frozen=True)

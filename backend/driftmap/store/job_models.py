@@ -9,13 +9,16 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import JSON, Float, ForeignKey, Integer, String, Text
+from sqlalchemy import JSON, Float, ForeignKey, Index, Integer, String, Text, text
 from sqlalchemy.orm import Mapped, mapped_column
 
 from driftmap.store.models import Base, UtcDateTime, utc_now
 
 JOB_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
 """Every value of :attr:`Job.status`; the last three are final."""
+
+ACTIVE_SITE_BUILD = text("kind = 'map.build' AND parent_id IS NULL AND status IN ('queued', 'running')")
+"""The rows the index ``uq_jobs_site_id_active_build`` covers: a site's map build that has not ended."""
 
 
 class Job(Base):
@@ -27,10 +30,20 @@ class Job(Base):
     ``progress`` runs from 0 to 1 within the named ``stage``; ``attempts`` counts how many times a worker
     started it; ``heartbeat_at`` is refreshed by the running worker so that a stale one can be re-queued.
     A cancel request on a running job sets ``cancel_requested_at``; the worker stops at its next progress
-    report.
+    report. A site has at most one ``map.build`` that is queued or running (a partial unique index).
     """
 
     __tablename__ = "jobs"
+    __table_args__ = (
+        # one unfinished map build per site, even when two requests race past the service's check
+        Index(
+            "uq_jobs_site_id_active_build",
+            "site_id",
+            unique=True,
+            sqlite_where=ACTIVE_SITE_BUILD,
+            postgresql_where=ACTIVE_SITE_BUILD,
+        ),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     kind: Mapped[str] = mapped_column(String(50), index=True)
