@@ -25,8 +25,9 @@ from driftmap.config import get_settings
 from driftmap.errors import BadInputError, DriftmapError
 from driftmap.store.storage import Storage
 
-console = Console()
-err_console = Console(stderr=True)
+# soft_wrap: a message is never broken into lines (a terminal wraps it; a file path stays whole for a pipe)
+console = Console(soft_wrap=True)
+err_console = Console(stderr=True, soft_wrap=True)
 
 
 DOMAIN_ERROR_EXIT = 1
