@@ -1,5 +1,6 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status and alert, the vehicle's latest frame and following it on the map, placing a
+the camera-obscured status and alert, the vehicle's latest frame, each vehicle in its own colour (swatch and
+trail) and following it on the map, placing a
 vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
 showing so on another's, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
@@ -214,11 +215,12 @@ class TestLatestFrame:
     def test_the_panel_shows_exactly_the_selected_vehicles_latest_frame(
         self, server: Server, page: PageWithLog, tiny_site_dir: Path
     ) -> None:
-        frames = recorded_frames(localisation_drive(tiny_site_dir), 9)
+        frames = recorded_frames(localisation_drive(tiny_site_dir), 12)
         names = ("cam-1", "cam-2", "cam-3")
         last_t = {}
+        vehicles = {}
         for k, name in enumerate(names):  # each on its own clock, so a frame's time tells whose it is
-            vehicle = Vehicle(server, name)
+            vehicle = vehicles[name] = Vehicle(server, name)
             for i in range(3):
                 last_t[name] = 3000.0 + 100.0 * k + FRAME_PERIOD_S * i
                 assert vehicle.post(last_t[name], frames[3 * k + i].data)["status"] == "processed"
@@ -258,12 +260,36 @@ class TestLatestFrame:
         p.mouse.up()
         expect(follow).not_to_be_checked()
         expect(plan).not_to_have_attribute("data-follow-offset", re.compile(".*"))
+
+        # one colour per vehicle: its swatch in the list and the details, and its trail on the plan
+        swatches = {
+            n: _rgb(p.get_by_test_id(f"vehicle-row-{n}").get_by_test_id("vehicle-colour")) for n in names
+        }
+        assert len(set(swatches.values())) == len(names), swatches
+        assert _rgb(details.get_by_test_id("vehicle-colour")) == swatches["cam-2"]
+        for k, name in enumerate(names):  # one more position each with the page open: a trail of two
+            vehicles[name].post(last_t[name] + FRAME_PERIOD_S, frames[3 * k + 3].data)
+        expect(plan).to_have_attribute(
+            "data-trail-colours", re.compile('^(?=.*"cam-1")(?=.*"cam-2")(?=.*"cam-3")')
+        )
+        trails = json.loads(plan.get_attribute("data-trail-colours") or "{}")
+        assert {n: _channels(trails[n]) for n in names} == swatches, (trails, swatches)
         assert page.errors == []
 
 
 def _confidence_text(confidence: float) -> str:
     """The UI's percentage: rounded down, so the text and the band always agree."""
     return f"{min(100, max(0, math.floor(confidence * 100 + 1e-9)))} %"
+
+
+def _channels(css: str) -> tuple[int, ...]:
+    """The red, green and blue of a CSS ``rgb()`` or ``rgba()`` colour (alpha left out)."""
+    return tuple(int(c) for c in re.findall(r"\d+", css)[:3])
+
+
+def _rgb(swatch: Locator) -> tuple[int, ...]:
+    """The colour a vehicle swatch shows."""
+    return _channels(swatch.get_attribute("data-colour") or "")
 
 
 def _band(position: dict[str, Any]) -> str:
