@@ -39,6 +39,8 @@ from tests.e2e.map_helpers import distance_to_lines, inside_walls, layer_lines, 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
 DEADLINE_S = 60.0
+# the vehicles of the latest-frame test drive on from these frames of the drive (after its standing start)
+TRAIL_FROM, TRAIL_APART, TRAIL_STRIDE = 40, 100, 4
 FRAME_PERIOD_S = 0.1
 REPLAY_FRAMES = 40
 START_FRAMES = 100  # ten seconds of the drive: it stands for one, then drives about ten metres
@@ -215,7 +217,7 @@ class TestLatestFrame:
     def test_the_panel_shows_exactly_the_selected_vehicles_latest_frame(
         self, server: Server, page: PageWithLog, tiny_site_dir: Path
     ) -> None:
-        frames = recorded_frames(localisation_drive(tiny_site_dir), 12)
+        frames = recorded_frames(localisation_drive(tiny_site_dir))
         names = ("cam-1", "cam-2", "cam-3")
         last_t = {}
         vehicles = {}
@@ -240,6 +242,24 @@ class TestLatestFrame:
             expect(details.get_by_test_id("latest-frame-caption")).to_contain_text(
                 f"+0:{int(last_t[name]) // 60 % 60:02d}:"
             )
+        # one colour per vehicle: its swatch in the list and the details, and its trail on the plan
+        swatches = {
+            n: _rgb(p.get_by_test_id(f"vehicle-row-{n}").get_by_test_id("vehicle-colour")) for n in names
+        }
+        assert len(set(swatches.values())) == len(names), swatches
+        assert _rgb(details.get_by_test_id("vehicle-colour")) == swatches["cam-2"]
+        for k, name in enumerate(names):  # then each drives on elsewhere, the page open: a trail each
+            for i in range(1, 5):
+                drove = frames[TRAIL_FROM + TRAIL_APART * k + TRAIL_STRIDE * i]
+                seq = vehicles[name].post(last_t[name] + FRAME_PERIOD_S * i, drove.data)["seq"]
+            expect(p.get_by_test_id(f"vehicle-row-{name}")).to_have_attribute("data-seq", str(seq))
+        plan = p.get_by_test_id("map")
+        expect(plan).to_have_attribute(
+            "data-trail-colours", re.compile('^(?=.*"cam-1")(?=.*"cam-2")(?=.*"cam-3")')
+        )
+        trails = json.loads(plan.get_attribute("data-trail-colours") or "{}")
+        assert {n: _channels(trails[n]) for n in names} == swatches, (trails, swatches)
+        screenshot(p, "ui_monitoring_colours")
         # full size on a click, Escape closes it
         details.get_by_test_id("latest-frame").click()
         full = p.get_by_test_id("frame-full")
@@ -249,7 +269,7 @@ class TestLatestFrame:
         expect(full).to_have_count(0)
 
         # follow: the map centres on the selected vehicle until the user drags the map
-        plan, follow = p.get_by_test_id("map"), p.get_by_test_id("follow-toggle")
+        follow = p.get_by_test_id("follow-toggle")
         follow.check()
         expect(plan).to_have_attribute("data-follow-offset", "0.00")
         box = plan.bounding_box()
@@ -261,19 +281,6 @@ class TestLatestFrame:
         expect(follow).not_to_be_checked()
         expect(plan).not_to_have_attribute("data-follow-offset", re.compile(".*"))
 
-        # one colour per vehicle: its swatch in the list and the details, and its trail on the plan
-        swatches = {
-            n: _rgb(p.get_by_test_id(f"vehicle-row-{n}").get_by_test_id("vehicle-colour")) for n in names
-        }
-        assert len(set(swatches.values())) == len(names), swatches
-        assert _rgb(details.get_by_test_id("vehicle-colour")) == swatches["cam-2"]
-        for k, name in enumerate(names):  # one more position each with the page open: a trail of two
-            vehicles[name].post(last_t[name] + FRAME_PERIOD_S, frames[3 * k + 3].data)
-        expect(plan).to_have_attribute(
-            "data-trail-colours", re.compile('^(?=.*"cam-1")(?=.*"cam-2")(?=.*"cam-3")')
-        )
-        trails = json.loads(plan.get_attribute("data-trail-colours") or "{}")
-        assert {n: _channels(trails[n]) for n in names} == swatches, (trails, swatches)
         assert page.errors == []
 
 
