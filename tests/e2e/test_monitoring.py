@@ -1,5 +1,6 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status and alert, the vehicle's latest frame and following it on the map, placing a
+the camera-obscured status and alert, the vehicle's latest frame, each vehicle in its own colour (swatch and
+trail) and following it on the map, placing a
 vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
 showing so on another's, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
@@ -38,6 +39,8 @@ from tests.e2e.map_helpers import distance_to_lines, inside_walls, layer_lines, 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
 DEADLINE_S = 60.0
+# the vehicles of the latest-frame test drive on from these frames of the drive (after its standing start)
+TRAIL_FROM, TRAIL_APART, TRAIL_STRIDE = 40, 100, 4
 FRAME_PERIOD_S = 0.1
 REPLAY_FRAMES = 40
 START_FRAMES = 100  # ten seconds of the drive: it stands for one, then drives about ten metres
@@ -214,11 +217,12 @@ class TestLatestFrame:
     def test_the_panel_shows_exactly_the_selected_vehicles_latest_frame(
         self, server: Server, page: PageWithLog, tiny_site_dir: Path
     ) -> None:
-        frames = recorded_frames(localisation_drive(tiny_site_dir), 9)
+        frames = recorded_frames(localisation_drive(tiny_site_dir))
         names = ("cam-1", "cam-2", "cam-3")
         last_t = {}
+        vehicles = {}
         for k, name in enumerate(names):  # each on its own clock, so a frame's time tells whose it is
-            vehicle = Vehicle(server, name)
+            vehicle = vehicles[name] = Vehicle(server, name)
             for i in range(3):
                 last_t[name] = 3000.0 + 100.0 * k + FRAME_PERIOD_S * i
                 assert vehicle.post(last_t[name], frames[3 * k + i].data)["status"] == "processed"
@@ -238,6 +242,24 @@ class TestLatestFrame:
             expect(details.get_by_test_id("latest-frame-caption")).to_contain_text(
                 f"+0:{int(last_t[name]) // 60 % 60:02d}:"
             )
+        # one colour per vehicle: its swatch in the list and the details, and its trail on the plan
+        swatches = {
+            n: _rgb(p.get_by_test_id(f"vehicle-row-{n}").get_by_test_id("vehicle-colour")) for n in names
+        }
+        assert len(set(swatches.values())) == len(names), swatches
+        assert _rgb(details.get_by_test_id("vehicle-colour")) == swatches["cam-2"]
+        for k, name in enumerate(names):  # then each drives on elsewhere, the page open: a trail each
+            for i in range(1, 5):
+                drove = frames[TRAIL_FROM + TRAIL_APART * k + TRAIL_STRIDE * i]
+                seq = vehicles[name].post(last_t[name] + FRAME_PERIOD_S * i, drove.data)["seq"]
+            expect(p.get_by_test_id(f"vehicle-row-{name}")).to_have_attribute("data-seq", str(seq))
+        plan = p.get_by_test_id("map")
+        expect(plan).to_have_attribute(
+            "data-trail-colours", re.compile('^(?=.*"cam-1")(?=.*"cam-2")(?=.*"cam-3")')
+        )
+        trails = json.loads(plan.get_attribute("data-trail-colours") or "{}")
+        assert {n: _channels(trails[n]) for n in names} == swatches, (trails, swatches)
+        screenshot(p, "ui_monitoring_colours")
         # full size on a click, Escape closes it
         details.get_by_test_id("latest-frame").click()
         full = p.get_by_test_id("frame-full")
@@ -247,7 +269,7 @@ class TestLatestFrame:
         expect(full).to_have_count(0)
 
         # follow: the map centres on the selected vehicle until the user drags the map
-        plan, follow = p.get_by_test_id("map"), p.get_by_test_id("follow-toggle")
+        follow = p.get_by_test_id("follow-toggle")
         follow.check()
         expect(plan).to_have_attribute("data-follow-offset", "0.00")
         box = plan.bounding_box()
@@ -258,12 +280,23 @@ class TestLatestFrame:
         p.mouse.up()
         expect(follow).not_to_be_checked()
         expect(plan).not_to_have_attribute("data-follow-offset", re.compile(".*"))
+
         assert page.errors == []
 
 
 def _confidence_text(confidence: float) -> str:
     """The UI's percentage: rounded down, so the text and the band always agree."""
     return f"{min(100, max(0, math.floor(confidence * 100 + 1e-9)))} %"
+
+
+def _channels(css: str) -> tuple[int, ...]:
+    """The red, green and blue of a CSS ``rgb()`` or ``rgba()`` colour (alpha left out)."""
+    return tuple(int(c) for c in re.findall(r"\d+", css)[:3])
+
+
+def _rgb(swatch: Locator) -> tuple[int, ...]:
+    """The colour a vehicle swatch shows."""
+    return _channels(swatch.get_attribute("data-colour") or "")
 
 
 def _band(position: dict[str, Any]) -> str:

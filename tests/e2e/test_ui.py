@@ -549,6 +549,7 @@ class TestGrounding:
             expect(job).to_have_attribute("data-status", "queued")  # the build under way is shown instead
             expect(job).to_contain_text(f"job {queued.json()['id']} (fast): queued: waiting for a worker")
             expect(p.get_by_test_id("build-map")).to_be_disabled()
+            screenshot(p, "ui_build_presets")
             p.reload()  # a panel opened later shows it too
             expect(job).to_have_attribute("data-status", "queued")
         finally:
@@ -718,6 +719,7 @@ class TestAdmin:
         p.get_by_test_id("upload-video-send").click()  # sent, and the server's reason shown
         expect(p.get_by_test_id("upload-video")).to_have_attribute("data-state", "refused")
         expect(p.get_by_test_id("upload-video")).to_contain_text("calibration must be a JSON object")
+        screenshot(p, "ui_uploads")
         # the browser logs the two refused requests, and nothing else
         assert [e for e in page.errors if "Failed to load resource" not in e] == [], page.errors
 

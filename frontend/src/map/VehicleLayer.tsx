@@ -1,10 +1,11 @@
-// Vehicles on the plan, in confidence bands (lib/confidence.ts): an arrow along the heading (a dot while the
-// heading is unknown), a dashed ring with "?" when lost, grey when stale; the name; the trail of the last
-// minutes, coloured by the band of each position and cut where the vehicle jumped (lib/trail.ts). Markers
+// Vehicles on the plan: the marker in its confidence band (lib/confidence.ts): an arrow along the heading (a dot
+// while the heading is unknown), a dashed ring with "?" when lost, grey when stale; the name and the trail of the
+// last minutes in the vehicle's own colour (lib/vehicleColours.ts), the trail dashed by the band of each position
+// (solid only when confident, grey when stale) and cut where the vehicle jumped (lib/trail.ts). Markers
 // glide to each new estimate (lib/interpolate.ts) on the animation frame. Names are decluttered (an overlapped
 // name is left out, never the marker; the selected vehicle's name always shows). With ``follow`` the map stays
 // centred on that vehicle (the map element's ``data-follow-offset`` says how far off, metres) until the user
-// drags the map.
+// drags the map. The map element's ``data-trail-colours`` lists each drawn trail's colour by vehicle name.
 import { useEffect, useRef } from "react";
 import { useLatest } from "../lib/useLatest";
 import Feature from "ol/Feature";
@@ -20,6 +21,7 @@ import { Glide } from "../lib/interpolate";
 import { bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
 import { yawToRotation } from "../lib/motion";
 import { isJump, trailRuns } from "../lib/trail";
+import { trailStroke, vehicleCss } from "../lib/vehicleColours";
 import type { VehicleState } from "../lib/liveState";
 import type { MapCtx } from "./MineMap";
 
@@ -108,7 +110,7 @@ function markerStyle(feature: FeatureLike): Style[] {
         text: feature.get("name") as string,
         offsetY: -20,
         font: "600 12px system-ui, sans-serif",
-        fill: new Fill({ color: stale ? "#9aa3ad" : "#e3e8ee" }),
+        fill: new Fill({ color: stale ? "#9aa3ad" : (feature.get("colour") as string) }),
         stroke: new Stroke({ color: "#0b0e12", width: 3 }),
         declutterMode: selected ? "none" : "declutter", // markers are obstacles: a name never covers one
       }),
@@ -130,19 +132,19 @@ function markerStyle(feature: FeatureLike): Style[] {
   return styles;
 }
 
-/** One style per run of the trail (its band's colour; lost dashed); ``runs`` in local map coordinates. */
-function trailStyles(runs: { band: ConfidenceBand; coords: number[][] }[], selected: boolean): Style[] {
-  return runs.map(
-    ({ band, coords }) =>
-      new Style({
-        geometry: new LineString(coords),
-        stroke: new Stroke({
-          color: bandCss(band, band === "stale" ? 0.5 : 0.85),
-          width: selected ? 4 : 2.5,
-          lineDash: band === "lost" ? [6, 4] : undefined,
-        }),
-      }),
-  );
+/** One style per run of the trail (the vehicle's colour, dashed by band); ``runs`` in local map coordinates. */
+function trailStyles(
+  vehicleId: number,
+  runs: { band: ConfidenceBand; coords: number[][] }[],
+  selected: boolean,
+): Style[] {
+  return runs.map(({ band, coords }) => {
+    const { colour, dash } = trailStroke(vehicleId, band);
+    return new Style({
+      geometry: new LineString(coords),
+      stroke: new Stroke({ color: colour, width: selected ? 4 : 2.5, lineDash: dash }),
+    });
+  });
 }
 
 export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, follow, onFollowEnd }: Props) {
@@ -214,6 +216,7 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, 
   useEffect(() => {
     const now = performance.now();
     const seen = new Set<number>();
+    const trailColours: Record<string, string> = {};
     for (const v of vehicles) {
       if (!v.position) continue;
       seen.add(v.id);
@@ -241,6 +244,7 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, 
         {
           vehicleId: v.id,
           name: v.name,
+          colour: vehicleCss(v.id),
           band: confidenceBand(v.position.confidence, v.position.lost, v.stale),
           selected,
         },
@@ -252,8 +256,11 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, 
       }));
       entry.trail.getGeometry()!.setCoordinates(runs.map((r) => r.coords));
       entry.trail.setProperties({ vehicleId: v.id, points: v.trail.length }, true);
-      entry.trail.setStyle(trailStyles(runs, selected));
+      entry.trail.setStyle(trailStyles(v.id, runs, selected));
+      if (runs.length > 0) trailColours[v.name] = trailStroke(v.id, runs[runs.length - 1]!.band).colour;
     }
+    const target = ctx.map.getTargetElement();
+    if (target) target.dataset.trailColours = JSON.stringify(trailColours);
     for (const [id, entry] of glides.current) {
       if (!seen.has(id)) {
         source.current.removeFeatures([entry.marker, entry.trail]);

@@ -1,5 +1,6 @@
 // Live monitoring: REST snapshot, then the /api/live WebSocket (auto-reconnect with resume); vehicles on the
-// plan and in a list in confidence bands (with a legend); alerts for lost vehicles and obscured cameras; the
+// plan and in a list, each in its own colour (name, trail, swatch) with its confidence in bands (marker, list;
+// a legend of both); alerts for lost vehicles and obscured cameras; the
 // server's event log to acknowledge (EventsPanel, a beep on new events when turned on); click
 // one for its details (VehicleDetails), place its known start (SetStart, surveyors and admins), replay any
 // time range of it (ReplayPanel, ReplayLayer) and export position history (PositionsExport).
@@ -13,6 +14,7 @@ import { ReplayLayer } from "../map/ReplayLayer";
 import { ReplayPanel, type ReplaySession } from "./ReplayPanel";
 import { LiveSocket, type ConnectionState } from "../lib/liveSocket";
 import { BAND_LABELS } from "../lib/confidence";
+import { TRAIL_DASH, TRAIL_LABELS } from "../lib/vehicleColours";
 import { HISTORY_S, VehicleDetails } from "./VehicleDetails";
 import { SetStartPanel, useSetStart } from "./SetStart";
 import { BandDot, VehicleList } from "./VehicleList";
@@ -35,14 +37,32 @@ function authMessage(): string | null {
   return token ? JSON.stringify({ type: "auth", token }) : null;
 }
 
-/** The bands' colours and meaning, on the map. */
+/** A short line in a trail's dash (neutral colour): the legend's sample. */
+function DashSample({ dash }: { dash: number[] | undefined }) {
+  return (
+    <svg className="dash-sample" width="22" height="8" aria-hidden="true">
+      <line x1="1" y1="4" x2="21" y2="4" strokeWidth="2.5" strokeDasharray={dash?.join(" ")} />
+    </svg>
+  );
+}
+
+/** On the map: the markers' confidence bands and the trails' vehicle colours and dashes. */
 function ConfidenceLegend() {
   return (
     <div className="overlay-box legend" data-testid="confidence-legend">
-      <div className="muted">Position confidence</div>
+      <div className="muted">Marker: position confidence</div>
       {BAND_LABELS.map(([band, label]) => (
         <div key={band} data-band={band}>
           <BandDot band={band} />
+          {label}
+        </div>
+      ))}
+      <div className="muted" data-testid="trail-legend">
+        Name and trail: the vehicle&apos;s colour
+      </div>
+      {TRAIL_LABELS.map(([band, label]) => (
+        <div key={band} data-trail-band={band}>
+          <DashSample dash={TRAIL_DASH[band]} />
           {label}
         </div>
       ))}

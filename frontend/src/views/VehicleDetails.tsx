@@ -10,6 +10,7 @@ import { formatFrameTime, formatTime } from "../lib/time";
 import { LatestFrame } from "./LatestFrame";
 import { PointReadout } from "../map/PointReadout";
 import type { SiteCoordinates } from "../lib/siteCoordinates";
+import { VehicleSwatch } from "./VehicleList";
 
 export const HISTORY_S = 300; // the history: the last five minutes of frame time
 
@@ -68,6 +69,7 @@ export function VehicleDetails({ v, actions, children, coords = null }: Props) {
   return (
     <section data-testid="vehicle-details">
       <h3>
+        <VehicleSwatch id={v.id} />
         {v.name} {p && <AppearanceOnlyBadge odometry={p.odometry} />}
       </h3>
       {p ? (

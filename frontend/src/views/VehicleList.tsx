@@ -1,10 +1,11 @@
-// The monitoring view's list of the site's vehicles: name (with the confidence band's swatch and the
-// appearance-only badge under it), status, confidence, position (easting over northing, one column), and how
+// The monitoring view's list of the site's vehicles: name (with the vehicle's own colour, as its trail and name
+// on the plan, and the appearance-only badge under it), status, confidence, position (easting over northing, one column), and how
 // long ago the server last heard from it: narrow enough for the side panel at 1366 px with mine-grid numbers.
 import { statusOf, type VehicleState } from "../lib/liveState";
 import { bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
 import { ageOf, formatAge, formatTime } from "../lib/time";
 import { useNow } from "../lib/useNow";
+import { vehicleCss } from "../lib/vehicleColours";
 import { AppearanceOnlyBadge, Confidence } from "./VehicleDetails";
 
 const TICK_MS = 1000; // "last seen" counts up this often between messages
@@ -14,6 +15,20 @@ export function BandDot({ band }: { band: ConfidenceBand }) {
   const lost = band === "lost";
   const style = lost ? { borderColor: bandCss(band) } : { background: bandCss(band) };
   return <span className={lost ? "dot ring" : "dot"} style={style} />;
+}
+
+/** A vehicle's own colour (its trail and name on the plan): a small square, unlike the bands' round dots. */
+export function VehicleSwatch({ id }: { id: number }) {
+  const colour = vehicleCss(id);
+  return (
+    <span
+      className="swatch"
+      style={{ background: colour }}
+      data-testid="vehicle-colour"
+      data-colour={colour}
+      title="This vehicle's colour on the plan"
+    />
+  );
 }
 
 interface Props {
@@ -74,7 +89,7 @@ function VehicleRow({ v, now, selected, onClick }: RowProps) {
       data-trail={v.trail.length}
     >
       <td className="name">
-        <BandDot band={band} />
+        <VehicleSwatch id={v.id} />
         {v.name}
         {p && <AppearanceOnlyBadge odometry={p.odometry} />}
       </td>
