@@ -436,6 +436,40 @@ class TestGrounding:
         assert not mine()
         assert page.errors == []
 
+    def test_a_point_snapped_to_a_plan_label_takes_its_station(
+        self, server: Server, page: PageWithLog
+    ) -> None:
+        before = groundings(server)
+        p = page.page
+        log_in(p, server, "admin", ADMIN_PASSWORD)
+        p.get_by_test_id("nav-grounding").click()
+        drive_id, frame, _ = pick_ungrounded_keyframe(p, server, before)
+        layers = server.api("GET", "/api/sites/1/survey/layers").json()["layers"]
+        labels = [f for f in layers["LABELS"]["features"] if f["properties"].get("text", "").strip()]
+        label, at = next(
+            (f, at) for f in labels if plain_map_at(p, *(at := pixel_of(p, *f["geometry"]["coordinates"])))
+        )
+        station = label["properties"]["text"].strip()
+
+        p.get_by_test_id("toggle-snap").check()
+        p.get_by_test_id("place-button").click()
+        p.mouse.move(*at)
+        expect(p.get_by_test_id("place-station")).to_contain_text(f"snaps to station {station}")
+        p.mouse.click(*at)
+        dialog = p.get_by_test_id("confirm-dialog")
+        message = p.get_by_test_id("grounding-message")
+        expect(dialog.or_(message)).to_be_visible()
+        if dialog.is_visible():  # the label may lie far from the keyframe's estimate or outside the walls
+            expect(p.get_by_test_id("pending-station")).to_contain_text(station)
+            p.get_by_test_id("confirm-ok").click()
+        expect(message).to_contain_text(f"at station {station}")
+        (placed,) = [g for g in groundings(server) if (g["drive_id"], g["frame"]) == (drive_id, frame)]
+        assert placed["station"] == station
+        assert (placed["x_m"], placed["y_m"]) == pytest.approx(label["geometry"]["coordinates"], abs=1e-6)
+        expect(p.get_by_test_id(f"grounding-row-{placed['id']}")).to_contain_text(station)
+        assert server.api("DELETE", f"/api/groundings/{placed['id']}").status_code == 204
+        assert page.errors == []
+
     def test_drag_a_grounding_to_adjust_it_then_undo(self, server: Server, page: PageWithLog) -> None:
         def stored(grounding_id: int) -> tuple[float, float]:
             items = server.api("GET", "/api/sites/1/groundings").json()["items"]

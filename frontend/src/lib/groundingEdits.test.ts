@@ -41,5 +41,8 @@ group("grounding edits", () => {
   it("describes edits for the status line", () => {
     expect(describe(moved, "east")).toBe("moved the grounding of east frame 40 to E 12.50 N 19.00");
     expect(describe(inverse(created), "east")).toBe("removed the grounding of east frame 40");
+    expect(describe({ ...created, at: { x: 1, y: 2 }, station: "STN-104" }, "east")).toBe(
+      "grounded east frame 40 at station STN-104, E 1.00 N 2.00",
+    );
   });
 });

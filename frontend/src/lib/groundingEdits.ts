@@ -67,7 +67,7 @@ export function describe(edit: GroundingEdit, driveName: string): string {
   const where = (p: GridPoint) => `E ${p.x.toFixed(2)} N ${p.y.toFixed(2)}`;
   switch (edit.kind) {
     case "create":
-      return `grounded ${driveName} frame ${edit.frame} at ${where(edit.at)}`;
+      return `grounded ${driveName} frame ${edit.frame} at ${edit.station ? `station ${edit.station}, ` : ""}${where(edit.at)}`;
     case "delete":
       return `removed the grounding of ${driveName} frame ${edit.frame}`;
     case "move":

@@ -180,11 +180,13 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     return () => unByKey(key);
   }, [ctx]);
 
+  /** The point a click at (x, y) means: snapped to the plan when snapping is on, with a label's station. */
   const snapped = useCallback(
-    (x: number, y: number) => {
+    (x: number, y: number): { x: number; y: number; station?: string } => {
       if (!snapOn || !ctx?.snap.current) return { x, y };
       const tolerance = SNAP_TOLERANCE_PX * (ctx.map.getView().getResolution() ?? 0);
-      return snapPoint(ctx.snap.current, x, y, tolerance);
+      const to = snapPoint(ctx.snap.current, x, y, tolerance);
+      return to.kind === "label" ? { x: to.x, y: to.y, station: to.station } : { x: to.x, y: to.y };
     },
     [snapOn, ctx],
   );
@@ -208,11 +210,26 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
     target,
     walls: () => ctx?.walls.current ?? null,
     snap: snapped,
-    write: (t: PlacementTarget, x: number, y: number) =>
+    write: (t: PlacementTarget, x: number, y: number, station?: string) =>
       t.groundingId === null
-        ? edits.create(t.driveId, t.frame, x, y, driveName ?? String(t.driveId))
+        ? edits.create(t.driveId, t.frame, x, y, driveName ?? String(t.driveId), station)
         : edits.move(t.groundingId, x, y),
   });
+
+  // the plan point under the pointer as state while placing, so that the placing panel can name the station a
+  // click there would take
+  const [placingAt, setPlacingAt] = useState<[number, number] | null>(null);
+  useEffect(() => {
+    if (!ctx || !placement.placing) return;
+    const key = ctx.map.on("pointermove", (ev) => {
+      setPlacingAt(ctx.origin.toWorld(ev.coordinate[0]!, ev.coordinate[1]!));
+    });
+    return () => {
+      unByKey(key);
+      setPlacingAt(null);
+    };
+  }, [ctx, placement.placing]);
+  const stationUnder = placement.placing && placingAt ? (snapped(...placingAt).station ?? null) : null;
 
   /** Select frame ``f`` of drive ``id`` (and the strip page that shows it). */
   const select = (id: number, f: number) => {
@@ -310,7 +327,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
               </select>
             </label>
             {editable && (
-              <label title="Snap groundings to DXF vertices, else to centrelines">
+              <label title="Snap groundings to DXF vertices, points and text labels (a label names the station), else to centrelines">
                 <input
                   type="checkbox"
                   data-testid="toggle-snap"
@@ -373,6 +390,7 @@ export function GroundingView({ siteId, editable }: { siteId: number; editable: 
           <PlacingPanel
             placement={placement}
             frame={frame}
+            stationUnder={stationUnder}
             grounding={selectedGrounding}
             onDelete={(id) => void edits.remove(id)}
           />

@@ -1,6 +1,6 @@
 // The selected keyframe's grounding controls: "Place" arms the placing mode (or "Move" when the keyframe is
 // grounded already, which selects its grounding: move it, or delete it), the hint while placing, and the
-// confirmation a doubtful point waits for.
+// confirmation a doubtful point waits for; both name the survey station of a plan label the point snaps to.
 import type { Schemas } from "../api/client";
 import { FAR_FROM_ESTIMATE_M } from "../lib/placement";
 import { ConfirmDialog } from "./Dialog";
@@ -9,11 +9,13 @@ import type { usePlacement } from "./usePlacement";
 interface Props {
   placement: ReturnType<typeof usePlacement>;
   frame: number;
+  /** While placing, the station of the plan label a click under the pointer would snap to. */
+  stationUnder: string | null;
   grounding: Schemas["GroundingRead"] | null;
   onDelete: (id: number) => void;
 }
 
-export function PlacingPanel({ placement, frame, grounding, onDelete }: Props) {
+export function PlacingPanel({ placement, frame, stationUnder, grounding, onDelete }: Props) {
   const { placing, pending } = placement;
   return (
     <section data-testid="placing" data-placing={placing ? "yes" : "no"}>
@@ -54,6 +56,12 @@ export function PlacingPanel({ placement, frame, grounding, onDelete }: Props) {
           {FAR_FROM_ESTIMATE_M} m from its current estimate or outside the walls is confirmed first.
         </p>
       )}
+      {placing && stationUnder !== null && (
+        <p data-testid="place-station">
+          snaps to station <strong>{stationUnder}</strong>
+          {grounding ? " (a move keeps the grounding's station)" : ""}
+        </p>
+      )}
       {pending && (
         <ConfirmDialog
           title={`${pending.target.groundingId === null ? "Ground" : "Move"} frame ${pending.target.frame} here?`}
@@ -62,6 +70,9 @@ export function PlacingPanel({ placement, frame, grounding, onDelete }: Props) {
           onCancel={placement.dismiss}
         >
           <p>
+            {pending.station !== undefined && pending.target.groundingId === null && (
+              <span data-testid="pending-station">station {pending.station}, </span>
+            )}
             E {pending.x.toFixed(2)} N {pending.y.toFixed(2)} is:
           </p>
           <ul data-testid="placement-warnings">

@@ -87,8 +87,8 @@ export function useGroundingEdits({ groundings, reload, say }: Options) {
     await settle(said);
   };
 
-  const create = (driveId: number, frame: number, x: number, y: number, driveName: string) =>
-    perform({ kind: "create", driveId, frame, at: { x, y } }, driveName);
+  const create = (driveId: number, frame: number, x: number, y: number, driveName: string, station?: string) =>
+    perform({ kind: "create", driveId, frame, at: { x, y }, ...(station ? { station } : {}) }, driveName);
   const remove = (id: number) => {
     const g = current.current.find((r) => r.id === id);
     if (!g) return Promise.resolve(false);

@@ -1,7 +1,8 @@
 // The grounding workstation's placing mode: nothing on the plan is written by a plain click. "Place" (or g)
 // arms it for the selected keyframe, with a crosshair; the next click (or g again, under the pointer) grounds
 // the keyframe there, or moves its grounding when it has one; Escape leaves. A point far from the keyframe's
-// current estimate or outside the plan's walls (lib/placement.ts) waits for a confirmation first.
+// current estimate or outside the plan's walls (lib/placement.ts) waits for a confirmation first. A point snapped
+// to a plan label carries the label's text as the grounding's survey station.
 import { useEffect, useState } from "react";
 import { checkPlacement, type WallRings } from "../lib/placement";
 
@@ -18,6 +19,8 @@ export interface PendingPlacement {
   target: PlacementTarget;
   x: number;
   y: number;
+  /** The survey station of the plan label the point snapped to. */
+  station?: string;
   warnings: string[];
 }
 
@@ -25,10 +28,10 @@ interface Options {
   enabled: boolean;
   target: PlacementTarget | null;
   walls: () => WallRings | null;
-  /** The point a click means (snapped to the plan when snapping is on). */
-  snap: (x: number, y: number) => { x: number; y: number };
-  /** Write the placement: a new grounding, or the keyframe's grounding moved. */
-  write: (target: PlacementTarget, x: number, y: number) => Promise<unknown>;
+  /** The point a click means (snapped to the plan when snapping is on) and the station of a label it snapped to. */
+  snap: (x: number, y: number) => { x: number; y: number; station?: string };
+  /** Write the placement: a new grounding (named ``station`` when given), or the keyframe's grounding moved. */
+  write: (target: PlacementTarget, x: number, y: number, station?: string) => Promise<unknown>;
 }
 
 export function usePlacement({ enabled, target, walls, snap, write }: Options) {
@@ -48,18 +51,18 @@ export function usePlacement({ enabled, target, walls, snap, write }: Options) {
   /** A click on the plan at survey (x, y): places when armed, else nothing. Returns whether it placed. */
   const place = (clickX: number, clickY: number): boolean => {
     if (!armed || target === null) return false;
-    const { x, y } = snap(clickX, clickY);
+    const { x, y, station } = snap(clickX, clickY);
     setPlacing(false);
     const { warnings } = checkPlacement(x, y, target.estimate, walls());
-    if (warnings.length > 0) setPending({ target, x, y, warnings });
-    else void write(target, x, y);
+    if (warnings.length > 0) setPending({ target, x, y, station, warnings });
+    else void write(target, x, y, station);
     return true;
   };
 
   const confirm = () => {
     if (pending === null) return;
     setPending(null);
-    void write(pending.target, pending.x, pending.y);
+    void write(pending.target, pending.x, pending.y, pending.station);
   };
 
   return {
