@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from driftmap.config import get_settings
+from driftmap.jobs.metrics import serve_metrics
 from driftmap.jobs.worker import WorkerTimings, run_worker
 
 
@@ -29,10 +30,23 @@ def worker(
         int | None,
         typer.Option(help="Stop (as on SIGTERM) when process PARENT is gone; driftmap serve passes its pid."),
     ] = None,
+    metrics_port: Annotated[
+        int | None,
+        typer.Option(
+            min=1, max=65535, help="Serve this worker's Prometheus metrics on http://0.0.0.0:PORT/metrics."
+        ),
+    ] = None,
 ) -> None:
     """Run a job worker until interrupted (Ctrl-C lets running jobs finish; SIGTERM re-queues them)."""
     if stale_after <= 2 * heartbeat:
         raise typer.BadParameter("must exceed two heartbeats", param_hint="--stale-after")
+    if metrics_port is not None:
+        try:
+            serve_metrics(metrics_port)
+        except OSError as exc:
+            raise typer.BadParameter(
+                f"cannot serve on port {metrics_port}: {exc.strerror}", param_hint="--metrics-port"
+            ) from None
     if parent is not None:
         threading.Thread(
             target=_stop_with_parent, args=(parent,), name="driftmap-parent", daemon=True

@@ -18,6 +18,7 @@ import logging
 import os
 import socket
 import threading
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -28,6 +29,7 @@ from sqlalchemy.orm import Session
 
 from driftmap.config import Settings
 from driftmap.errors import DriftmapError
+from driftmap.jobs.metrics import observe_job
 from driftmap.services import jobs as job_service
 from driftmap.store.job_models import Job
 from driftmap.store.storage import Storage
@@ -116,18 +118,26 @@ def run_job(runtime: JobRuntime, task: TaskFn, kind: str, job_id: int, enqueue: 
     )
     context = JobContext(runtime, job, worker_id, reporter, enqueue)
     log.info("job %s (%s) attempt %d on %s", job_id, kind, job.attempts, worker_id)
+    started, outcome = time.monotonic(), "succeeded"
     with heartbeat(runtime, job_id, worker_id):
         try:
             task(context)
         except job_service.JobCancelled:
+            outcome = "cancelled"
             _end(runtime, job_id, worker_id, "cancelled")
         except job_service.JobLost:
+            outcome = "lost"
             log.warning("job %s was taken from %s; its output was rolled back", job_id, worker_id)
         except DriftmapError as exc:
+            outcome = "failed"
             _end(runtime, job_id, worker_id, "failed", str(exc))
         except Exception as exc:
+            outcome = "failed"
             log.exception("job %s (%s) hit an unexpected error", job_id, kind)
             if job_service.release_for_retry(
                 runtime.storage.db, job_id, worker_id, f"{type(exc).__name__}: {exc}"
             ):
+                outcome = "retried"
                 raise  # huey runs the task again after its retry delay
+        finally:
+            observe_job(kind, outcome, time.monotonic() - started)
