@@ -2,7 +2,8 @@
 
 The API's ``GET /metrics`` counts jobs by status from the database (every process sees the same rows); what only
 the worker knows is how long each job ran and how it ended, observed here for every job this process ran, and
-when its loop last looked for work (a worker that stopped doing so is stuck, whatever its process state).
+when the process started (a restart shows as a jump). Whether any worker is alive is the API's to say
+(``GET /api/health``, from the workers' heartbeats); the port answering only says this process runs.
 """
 
 from __future__ import annotations
