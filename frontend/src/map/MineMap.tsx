@@ -97,6 +97,13 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
     chooseSurveyRenderer(webglRenderer(), new URLSearchParams(location.search).get("renderer")),
   );
   const clickRef = useLatest(onMapClick);
+  // When the map became clickable (performance.now()): OpenLayers fires a click ~250 ms late (it waits to rule
+  // out a double click), so a click made before a mode began must not land in the mode.
+  const clickableSince = useRef(0);
+  const clickable = onMapClick !== undefined;
+  useEffect(() => {
+    if (clickable) clickableSince.current = performance.now();
+  }, [clickable]);
   const originRef = useLatest<LocalOrigin | null>(ctx?.origin ?? null);
 
   useEffect(() => {
@@ -210,7 +217,7 @@ export function MineMap({ siteId, overlay, onMapClick, tools, placing }: Props) 
     });
     map.on("singleclick", (ev) => {
       const o = originRef.current;
-      if (!o || !clickRef.current) return;
+      if (!o || !clickRef.current || ev.originalEvent.timeStamp < clickableSince.current) return;
       const [x, y] = o.toWorld(ev.coordinate[0]!, ev.coordinate[1]!);
       clickRef.current(x, y);
     });
