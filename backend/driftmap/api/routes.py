@@ -12,6 +12,7 @@ from fastapi import APIRouter
 from driftmap.api import (
     auth,
     cameras,
+    drive_frames,
     drives,
     events,
     exports,
@@ -37,6 +38,7 @@ ROUTERS: list[APIRouter] = [
     events.router,
     sites.router,
     drives.router,
+    drive_frames.router,
     groundings.router,
     maps.router,
     exports.router,
