@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import itertools
 import os
 import socket
@@ -27,6 +28,7 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -99,6 +101,38 @@ def free_port() -> int:
         sock.bind(("127.0.0.1", 0))
         port: int = sock.getsockname()[1]
         return port
+
+
+@contextlib.contextmanager
+def serving(data: Path, work: Path, *options: str) -> Iterator[tuple[str, int]]:
+    """``driftmap serve`` on ``data`` at a free loopback port, logging to ``work/serve.log``; yields its base
+    URL and process id once ``/api/health`` answers 200, and terminates it on leaving."""
+    port = free_port()
+    env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data)}
+    log = work / "serve.log"
+    with log.open("wb") as sink:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *options],
+            env=env,
+            stdout=sink,
+            stderr=sink,
+        )
+    try:
+        base = f"http://127.0.0.1:{port}"
+        deadline = time.monotonic() + 120.0
+        while True:
+            try:
+                if httpx.get(f"{base}/api/health").status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            if time.monotonic() > deadline or server.poll() is not None:
+                sys.exit(f"server did not start:\n{log.read_text()}")
+            time.sleep(0.2)
+        yield base, server.pid
+    finally:
+        server.terminate()
+        server.wait(30)
 
 
 async def drive_vehicle(
@@ -181,32 +215,8 @@ def main() -> None:
         data, frames, args.camera = prepare(Path(tmp), args.size)
         print(f"{args.size} site simulated, imported and mapped in {time.perf_counter() - t0:.0f} s")
         base_ms = baseline_ms(data, frames, 100, args.camera)
-        port = free_port()
-        env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data)}
-        log = Path(tmp) / "serve.log"
-        with log.open("wb") as sink:
-            server = subprocess.Popen(
-                [sys.executable, "-m", "driftmap", "serve", "--port", str(port), "--no-worker"],
-                env=env,
-                stdout=sink,
-                stderr=sink,
-            )
-        try:
-            base = f"http://127.0.0.1:{port}"
-            deadline = time.monotonic() + 120.0
-            while True:
-                try:
-                    if httpx.get(f"{base}/api/health").status_code == 200:
-                        break
-                except httpx.TransportError:
-                    pass
-                if time.monotonic() > deadline or server.poll() is not None:
-                    sys.exit(f"server did not start:\n{log.read_text()}")
-                time.sleep(0.2)
+        with serving(data, Path(tmp), "--no-worker") as (base, _pid):
             asyncio.run(load(base, frames, args))
-        finally:
-            server.terminate()
-            server.wait(30)
         print(f"baseline (in-process decode + step + store, one vehicle): {base_ms:.1f} ms/frame")
         print(f"ratio HTTP p50 / baseline: {args.p50 / base_ms:.2f}")
 
