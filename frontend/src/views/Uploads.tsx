@@ -37,6 +37,13 @@ function Progress({ id, state }: { id: string; state: State }) {
   );
 }
 
+/** A file picker that hands the chosen file (or null when cleared) to ``onFile``. */
+function FileInput({ testId, accept, onFile }: { testId: string; accept: string; onFile: (f: File | null) => void }) {
+  return (
+    <input type="file" accept={accept} data-testid={testId} onChange={(e) => onFile(e.target.files?.[0] ?? null)} />
+  );
+}
+
 function Field({ label, children }: { label: string; children: ReactNode }) {
   return (
     <label className="row" style={{ margin: "2px 0" }}>
@@ -125,12 +132,7 @@ export function Uploads({ sites }: { sites: Schemas["SiteRead"][] }) {
       </Field>
       <h3>Survey plan (DXF)</h3>
       <div className="row">
-        <input
-          type="file"
-          accept=".dxf"
-          data-testid="upload-plan-file"
-          onChange={(e) => setPlan(e.target.files?.[0] ?? null)}
-        />
+        <FileInput testId="upload-plan-file" accept=".dxf" onFile={setPlan} />
         <button data-testid="upload-plan-send" disabled={busy} onClick={uploadPlan}>
           Upload plan
         </button>
@@ -138,12 +140,7 @@ export function Uploads({ sites }: { sites: Schemas["SiteRead"][] }) {
       <Progress id="plan" state={planState} />
       <h3>Drive (zipped folder)</h3>
       <div className="row">
-        <input
-          type="file"
-          accept=".zip"
-          data-testid="upload-zip-file"
-          onChange={(e) => setZip(e.target.files?.[0] ?? null)}
-        />
+        <FileInput testId="upload-zip-file" accept=".zip" onFile={setZip} />
         <button data-testid="upload-zip-send" disabled={busy} onClick={uploadZip}>
           Upload drive
         </button>
@@ -151,20 +148,10 @@ export function Uploads({ sites }: { sites: Schemas["SiteRead"][] }) {
       <Progress id="zip" state={zipState} />
       <h3>Drive (video)</h3>
       <Field label="Video">
-        <input
-          type="file"
-          accept=".mp4,.avi,.mov,.mkv,video/*"
-          data-testid="upload-video-file"
-          onChange={(e) => setVideo(e.target.files?.[0] ?? null)}
-        />
+        <FileInput testId="upload-video-file" accept=".mp4,.avi,.mov,.mkv,video/*" onFile={setVideo} />
       </Field>
       <Field label="Calibration">
-        <input
-          type="file"
-          accept=".json"
-          data-testid="upload-video-calibration"
-          onChange={(e) => setCalibration(e.target.files?.[0] ?? null)}
-        />
+        <FileInput testId="upload-video-calibration" accept=".json" onFile={setCalibration} />
       </Field>
       <Field label="or profile">
         <select
