@@ -52,13 +52,16 @@ from driftmap.store.storage import Storage
 TARGET_P99_MS = 150.0
 
 
-def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]], dict[str, Any]]:
-    """A data dir with the simulated site and its map; the localisation drive's (t, PNG bytes) and camera
-    block (the vehicles are given it, so they are localised with odometry, as the product's default)."""
+def prepare(
+    work: Path, size: str, database_url: str | None = None
+) -> tuple[Path, list[tuple[float, bytes]], dict[str, Any]]:
+    """A data dir with the simulated site and its map (in ``database_url``'s database if given, else the
+    embedded SQLite one); the localisation drive's (t, PNG bytes) and camera block (the vehicles are given
+    it, so they are localised with odometry, as the product's default)."""
     site_dir = work / "site"
     simulate_site(site_dir, seed=3, size=size, obscurants=False)
     data = work / "data"
-    storage = Storage.open(Settings(data_dir=data))
+    storage = Storage.open(Settings(data_dir=data, database_url=database_url))
     with storage.blobs.batch() as batch, storage.db.session() as session:
         site = site_service.create_site(session, "bench")
         site_service.add_survey_map(
@@ -78,9 +81,15 @@ def prepare(work: Path, size: str) -> tuple[Path, list[tuple[float, bytes]], dic
     return data, [(row.t_s, blob) for row, blob in iter_frame_images(loc)], camera_to_json(loc.meta.camera)
 
 
-def baseline_ms(data: Path, frames: list[tuple[float, bytes]], count: int, camera: dict[str, Any]) -> float:
+def baseline_ms(
+    data: Path,
+    frames: list[tuple[float, bytes]],
+    count: int,
+    camera: dict[str, Any],
+    database_url: str | None = None,
+) -> float:
     """Median ms per frame localised in-process (decode, odometry and step, database write), one vehicle."""
-    storage = Storage.open(Settings(data_dir=data))
+    storage = Storage.open(Settings(data_dir=data, database_url=database_url))
     with storage.db.session() as session:
         vehicle, _token = vehicle_service.create_vehicle(session, "baseline", 1)
         vehicle_service.set_camera(session, vehicle, camera)
@@ -104,11 +113,14 @@ def free_port() -> int:
 
 
 @contextlib.contextmanager
-def serving(data: Path, work: Path, *options: str) -> Iterator[tuple[str, int]]:
-    """``driftmap serve`` on ``data`` at a free loopback port, logging to ``work/serve.log``; yields its base
-    URL and process id once ``/api/health`` answers 200, and terminates it on leaving."""
+def serving(
+    data: Path, work: Path, *options: str, env: dict[str, str] | None = None
+) -> Iterator[tuple[str, int]]:
+    """``driftmap serve`` on ``data`` at a free loopback port (``env``: more of its environment), logging to
+    ``work/serve.log``; yields its base URL and process id once ``/api/health`` answers 200, and terminates
+    it on leaving."""
     port = free_port()
-    env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data)}
+    env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data), **(env or {})}
     log = work / "serve.log"
     with log.open("wb") as sink:
         server = subprocess.Popen(

@@ -2,7 +2,7 @@
 
 A synthetic 2,000-node map (a 50 x 40 grid of tunnels, 5 m spacing, 3 frames a node, 64x32 patch-normalised
 thumbnails, reference positions 1 m apart and every grid line as a mapped path with a pose every 0.5 m, as
-a stored map has) is localised against a drive of a few hundred frames at 10 Hz snaking along the grid (about
+a stored map has; ``--grid 200x100`` for 20,000 nodes) is localised against a drive of a few hundred frames at 10 Hz snaking along the grid (about
 6 m/s), starting with a global (unknown) belief. Prints the median and 95th-percentile milliseconds per
 frame and the fraction of frames on the right node for the filter as driftmap runs it (top ``n_t`` prior
 states plus probes) and for the full-comparison baseline (every node, every frame, no pruning), and the
@@ -16,7 +16,7 @@ bytes and is decoded, SESAME-masked and localised with the simulator camera's gr
 floor region shows a textured floor moving with the vehicle); its time per frame is split into decode,
 odometry and the rest. Target: median <= 15 ms per frame.
 
-Usage: ``.venv/bin/python bench/bench_localise.py [--frames 300] [--baseline-frames 60]``
+Usage: ``.venv/bin/python bench/bench_localise.py [--frames 300] [--baseline-frames 60] [--grid 50x40]``
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from driftmap.core.sesame.masks import SESAME_DEFAULT  # noqa: E402
 from driftmap.core.topomap.distances import shortest_paths  # noqa: E402
 from driftmap.sim.rig import CameraRig  # noqa: E402
 
-COLS, ROWS = 50, 40  # grid nodes: 2,000
+GRID = (50, 40)  # columns, rows: 2,000 nodes (--grid)
 SPACING_M = 5.0
 FRAMES_PER_NODE = 3
 DT_S = 0.1  # 10 Hz
@@ -51,33 +51,34 @@ FRAMES_PER_NODE_STEP = 8  # the vehicle moves one node every 8 frames: 6.25 m/s
 NOISE = 12.0  # query noise, grey levels (textures have std 40)
 
 
-def grid_map(rng: np.random.Generator) -> tuple[LocaliserMap, NDArray[np.float32]]:
-    """The synthetic map and the (M, 32, 64) raw textures its thumbnails were made from."""
-    m = COLS * ROWS
+def grid_map(rng: np.random.Generator, cols: int, rows: int) -> tuple[LocaliserMap, NDArray[np.float32]]:
+    """The synthetic map of a ``cols`` x ``rows`` grid and the (M, 32, 64) raw textures its thumbnails were
+    made from (M = cols * rows)."""
+    m = cols * rows
     raw = rng.normal(0.0, 1.0, (m, 32, 64)).astype(np.float32)
     tex = np.stack([cv2.GaussianBlur(r, (0, 0), 1.2) for r in raw])
     tex = np.asarray(128 + 40 * tex / tex.std(axis=(1, 2), keepdims=True), dtype=np.float32)
     views = tex[:, None] + rng.normal(0.0, NOISE, (m, FRAMES_PER_NODE, 32, 64)).astype(np.float32)
     thumbs = patch_normalise(views.reshape(-1, 32, 64))
-    ids = np.arange(m).reshape(ROWS, COLS)
+    ids = np.arange(m).reshape(rows, cols)
     edges = np.concatenate(
         [
             np.stack([ids[:, :-1].ravel(), ids[:, 1:].ravel()], 1),
             np.stack([ids[:-1].ravel(), ids[1:].ravel()], 1),
         ]
     ).astype(np.int64)
-    col, row = np.divmod(np.arange(m), COLS)[::-1]
+    col, row = np.divmod(np.arange(m), cols)[::-1]
     centres = np.column_stack([col * SPACING_M, row * SPACING_M]).astype(np.float64)
     along = (np.arange(FRAMES_PER_NODE) - (FRAMES_PER_NODE - 1) / 2) * 1.0  # references 1 m apart along x
     # mapped paths like a stored map's: every grid line driven once, a pose every 0.5 m
     lines = [
-        np.column_stack([np.arange(0.0, (COLS - 1) * SPACING_M + 1e-9, 0.5), np.full_like(xs, r * SPACING_M)])
-        for r in range(ROWS)
-        for xs in [np.arange(0.0, (COLS - 1) * SPACING_M + 1e-9, 0.5)]
+        np.column_stack([np.arange(0.0, (cols - 1) * SPACING_M + 1e-9, 0.5), np.full_like(xs, r * SPACING_M)])
+        for r in range(rows)
+        for xs in [np.arange(0.0, (cols - 1) * SPACING_M + 1e-9, 0.5)]
     ] + [
         np.column_stack([np.full_like(ys, c * SPACING_M), ys])
-        for c in range(COLS)
-        for ys in [np.arange(0.0, (ROWS - 1) * SPACING_M + 1e-9, 0.5)]
+        for c in range(cols)
+        for ys in [np.arange(0.0, (rows - 1) * SPACING_M + 1e-9, 0.5)]
     ]
     path_xy_m, path_segments = mapped_paths(
         np.concatenate(lines), np.r_[0, np.cumsum([len(line) for line in lines])].astype(np.int64)
@@ -97,12 +98,12 @@ def grid_map(rng: np.random.Generator) -> tuple[LocaliserMap, NDArray[np.float32
     return lmap, tex
 
 
-def snake(n_nodes: int) -> list[int]:
-    """Nodes of a drive along the grid rows, turning at the ends (boustrophedon)."""
+def snake(n_nodes: int, cols: int, rows: int) -> list[int]:
+    """Nodes of a drive along the rows of a ``cols`` x ``rows`` grid, turning at the ends (boustrophedon)."""
     out: list[int] = []
-    for r in range(ROWS):
-        cols = range(COLS) if r % 2 == 0 else range(COLS - 1, -1, -1)
-        out.extend(r * COLS + c for c in cols)
+    for r in range(rows):
+        along = range(cols) if r % 2 == 0 else range(cols - 1, -1, -1)
+        out.extend(r * cols + c for c in along)
         if len(out) >= n_nodes:
             break
     return out[:n_nodes]
@@ -115,11 +116,12 @@ def raw_frame(tex: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.
 
 
 def drive(
-    loc: Localiser, tex: NDArray[np.float32], frames: int, seed: int, raw: bool = False
+    loc: Localiser, tex: NDArray[np.float32], grid: tuple[int, int], frames: int, seed: int, raw: bool = False
 ) -> tuple[list[float], float]:
-    """Per-frame milliseconds (first, global frame excluded) and the fraction of frames on the right node."""
+    """Per-frame milliseconds (first, global frame excluded) and the fraction of frames on the right node,
+    driving along the rows of the ``grid`` (columns, rows)."""
     rng = np.random.default_rng(seed)
-    path = snake(frames // FRAMES_PER_NODE_STEP + 1)
+    path = snake(frames // FRAMES_PER_NODE_STEP + 1, *grid)
     ms, right = [], 0
     for k in range(frames):
         node = path[k // FRAMES_PER_NODE_STEP]
@@ -142,11 +144,11 @@ def floor_strip(rng: np.random.Generator, length_px: int) -> NDArray[np.uint8]:
 
 
 def drive_with_odometry(
-    loc: Localiser, tex: NDArray[np.float32], frames: int, seed: int
+    loc: Localiser, tex: NDArray[np.float32], grid: tuple[int, int], frames: int, seed: int
 ) -> tuple[dict[str, list[float]], float]:
     """Per-frame milliseconds of JPEG decode, odometry and the rest, and the fraction on the right node."""
     rng = np.random.default_rng(seed)
-    path = snake(frames // FRAMES_PER_NODE_STEP + 1)
+    path = snake(frames // FRAMES_PER_NODE_STEP + 1, *grid)
     camera = CameraRig().camera_model
     feed = OdometryFeed(camera)
     x, y, w, h = camera.ground_roi_px
@@ -178,12 +180,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--frames", type=int, default=300, help="frames localised by the pruned filter")
     parser.add_argument("--baseline-frames", type=int, default=60, help="frames for the full comparison")
+    parser.add_argument(
+        "--grid",
+        default="x".join(map(str, GRID)),
+        help="COLSxROWS of the synthetic map (200x100: 20,000 nodes)",
+    )
     args = parser.parse_args()
+    cols, rows = (int(v) for v in args.grid.split("x"))
     cv2.setNumThreads(1)
-    lmap, tex = grid_map(np.random.default_rng(0))
+    lmap, tex = grid_map(np.random.default_rng(0), cols, rows)
     m = lmap.n_nodes
     print(
-        f"{m} nodes x {FRAMES_PER_NODE} frames, 64x32 thumbnails, {COLS}x{ROWS} grid, {SPACING_M:g} m spacing"
+        f"{m} nodes x {FRAMES_PER_NODE} frames, 64x32 thumbnails, {cols}x{rows} grid, {SPACING_M:g} m spacing"
     )
     full = hmm.HmmParams(n_t=m, n_probe=0, lost_frames=0)
     runs = {  # name: (params, frames, raw camera frames, SESAME)
@@ -201,13 +209,13 @@ def main() -> None:
     print(f"{'filter':>30} {'frames':>6} {'median ms':>9} {'p95 ms':>7} {'on node':>7}")
     for name, (params, frames, raw, sesame) in runs.items():
         loc = Localiser(lmap, params, sesame=SESAME_DEFAULT if sesame else None)
-        ms, right = drive(loc, tex, frames, seed=1, raw=raw)
+        ms, right = drive(loc, tex, (cols, rows), frames, seed=1, raw=raw)
         med = statistics.median(ms)
         medians.append(med)
         p95 = float(np.percentile(ms, 95))
         print(f"{name:>30} {frames:>6} {med:>9.2f} {p95:>7.2f} {right:>7.1%}")
     loc = Localiser(lmap, sesame=SESAME_DEFAULT)
-    parts, right = drive_with_odometry(loc, tex, args.frames, seed=1)
+    parts, right = drive_with_odometry(loc, tex, (cols, rows), args.frames, seed=1)
     med = statistics.median(parts["total"])
     p95 = float(np.percentile(parts["total"], 95))
     print(f"{'JPEG + SESAME + odometry':>30} {args.frames:>6} {med:>9.2f} {p95:>7.2f} {right:>7.1%}")

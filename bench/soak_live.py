@@ -25,7 +25,7 @@ import json
 import statistics
 import tempfile
 import time
-from collections import Counter, defaultdict
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,60 +33,11 @@ import httpx
 import websockets
 
 from bench_live import prepare, serving  # bench/ is the script's folder, first on sys.path
+from proc_tree import tree_rss_mb
 
 SAMPLE_EVERY_S = 15.0
 QUERY_EVERY_S = 30.0
 TARGET_GROWTH = 0.05
-
-
-def _children() -> dict[int, list[int]]:
-    """Each live process's children, from ``/proc/*/stat``."""
-    kids: dict[int, list[int]] = defaultdict(list)
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            text = stat.read_text()
-        except OSError:  # the process ended while being listed
-            continue
-        ppid = int(text[text.rindex(")") + 2 :].split()[1])
-        kids[ppid].append(int(stat.parent.name))
-    return kids
-
-
-def _rss_mb(pid: int) -> float | None:
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        return None
-    return None
-
-
-def _role(pid: int) -> str:
-    """A process's role from its command line: server, worker or localiser."""
-    try:
-        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-    except OSError:
-        return "gone"
-    text = b" ".join(argv).decode(errors="replace")
-    if " serve" in text:
-        return "server"
-    if " worker" in text:
-        return "job worker"
-    return "localiser processes"
-
-
-def tree_rss_mb(root: int) -> dict[str, float]:
-    """RSS in MB of ``root`` and its descendants, summed per role."""
-    kids, todo = _children(), [root]
-    out: dict[str, float] = defaultdict(float)
-    while todo:
-        pid = todo.pop()
-        todo.extend(kids.get(pid, []))
-        rss = _rss_mb(pid)
-        if rss is not None:
-            out["server" if pid == root else _role(pid)] += rss
-    return dict(out)
 
 
 @dataclass

@@ -76,6 +76,11 @@ class PostgresServer:
         if shutil.which("setpriv"):  # the server stops with the test process, even when that is killed
             self._as_user = [*(self._as_user or ["setpriv"]), "--pdeathsig=INT"]  # INT: fast shutdown
 
+    @property
+    def pid(self) -> int | None:
+        """The server's process id while it runs (its backends are its children)."""
+        return self._process.pid if self._process is not None else None
+
     def url(self, database: str = "postgres") -> str:
         """SQLAlchemy URL of ``database`` on this server (psycopg 3 driver)."""
         return f"postgresql+psycopg://{USER}@127.0.0.1:{self.port}/{database}"
