@@ -9,7 +9,8 @@ server and each of its descendant processes (localiser processes, the job worker
 
 Prints the memory at the end of the warm-up (``--warmup`` minutes: maps loaded, caches filled) and at the end
 (medians of the samples in the minute before each), the growth between them per process and in all, and the
-acknowledged positions lost: a frame answered ``processed`` whose position is not in the stored history.
+acknowledged positions lost: a frame answered ``processed`` whose position is not in the stored history, and
+the answers by kind (``not sent``: dropped by the vehicle while 8 frames waited for an answer).
 The baseline is the warm-up's own memory. Target (issue 25): growth under 5 %, 0 lost positions.
 ``--plot FILE`` draws the memory over time (docs/evaluation/soak_live.png).
 
@@ -38,6 +39,7 @@ from proc_tree import tree_rss_mb
 SAMPLE_EVERY_S = 15.0
 QUERY_EVERY_S = 30.0
 TARGET_GROWTH = 0.05
+MAX_IN_FLIGHT = 8  # frames a vehicle keeps waiting for an answer
 
 
 @dataclass
@@ -53,46 +55,56 @@ class Soak:
 
 
 async def vehicle(
-    client: httpx.AsyncClient,
+    base: str,
     admin: dict[str, str],
     k: int,
     frames: list[tuple[float, bytes]],
     args: argparse.Namespace,
     soak: Soak,
 ) -> tuple[int, set[float]]:
-    """Stream frames as vehicle ``k`` until the run ends; returns its id and the ``t`` answered processed."""
-    made = (
-        await client.post("/api/vehicles", json={"name": f"soak-{k}", "site_id": 1}, headers=admin)
-    ).json()
-    await client.put(f"/api/vehicles/{made['id']}/camera", json=args.camera, headers=admin)
-    headers = {"Authorization": f"Bearer {made['token']}", "Content-Type": "image/png"}
-    url = f"/api/vehicles/{made['id']}/frames"
-    processed: set[float] = set()
-    running: set[asyncio.Task[None]] = set()
+    """Stream frames as vehicle ``k`` until the run ends; returns its id and the ``t`` answered processed.
 
-    async def post(t_s: float, blob: bytes) -> None:
-        t0 = time.perf_counter()
-        try:
-            response = await client.post(url, params={"t": t_s}, content=blob, headers=headers)
-            status = response.json().get("status", str(response.status_code))
-        except httpx.HTTPError as e:
-            status = type(e).__name__
-        soak.latencies_ms.append((time.perf_counter() - t0) * 1e3)
-        soak.statuses[status] += 1
-        if status == "processed":
-            processed.add(t_s)
+    Like a vehicle computer, it keeps at most ``MAX_IN_FLIGHT`` frames waiting for an answer and drops a new
+    frame while that many wait (counted as ``not sent``): a client that queued without bound would measure
+    its own backlog, not the server."""
+    async with httpx.AsyncClient(
+        base_url=base, timeout=120.0, limits=httpx.Limits(max_connections=MAX_IN_FLIGHT)
+    ) as client:
+        made = (
+            await client.post("/api/vehicles", json={"name": f"soak-{k}", "site_id": 1}, headers=admin)
+        ).json()
+        await client.put(f"/api/vehicles/{made['id']}/camera", json=args.camera, headers=admin)
+        headers = {"Authorization": f"Bearer {made['token']}", "Content-Type": "image/png"}
+        url = f"/api/vehicles/{made['id']}/frames"
+        processed: set[float] = set()
+        running: set[asyncio.Task[None]] = set()
 
-    n = int(args.minutes * 60 * args.fps)
-    start = time.perf_counter() + 0.1 * k / args.vehicles
-    for i in range(n):
-        delay = start + i / args.fps - time.perf_counter()
-        if delay > 0:
-            await asyncio.sleep(delay)
-        t_s = round(i / args.fps, 3)
-        task = asyncio.create_task(post(t_s, frames[(i + 37 * k) % len(frames)][1]))
-        running.add(task)
-        task.add_done_callback(running.discard)
-    await asyncio.gather(*running)
+        async def post(t_s: float, blob: bytes) -> None:
+            t0 = time.perf_counter()
+            try:
+                response = await client.post(url, params={"t": t_s}, content=blob, headers=headers)
+                status = response.json().get("status", str(response.status_code))
+            except httpx.HTTPError as e:
+                status = type(e).__name__
+            soak.latencies_ms.append((time.perf_counter() - t0) * 1e3)
+            soak.statuses[status] += 1
+            if status == "processed":
+                processed.add(t_s)
+
+        n = int(args.minutes * 60 * args.fps)
+        start = time.perf_counter() + 0.1 * k / args.vehicles
+        for i in range(n):
+            delay = start + i / args.fps - time.perf_counter()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            if len(running) >= MAX_IN_FLIGHT:
+                soak.statuses["not sent"] += 1
+                continue
+            t_s = round(i / args.fps, 3)
+            task = asyncio.create_task(post(t_s, frames[(i + 37 * k) % len(frames)][1]))
+            running.add(task)
+            task.add_done_callback(running.discard)
+        await asyncio.gather(*running)
     return int(made["id"]), processed
 
 
@@ -154,7 +166,7 @@ async def run(base: str, pid: int, frames: list[tuple[float, bytes]], args: argp
             *(asyncio.create_task(watcher(base, token, stop, soak)) for _ in range(2)),
         ]
         fleet = await asyncio.gather(
-            *(vehicle(client, admin, k, frames, args, soak) for k in range(args.vehicles))
+            *(vehicle(base, admin, k, frames, args, soak) for k in range(args.vehicles))
         )
         stop.set()
         await asyncio.gather(*side)
