@@ -8,7 +8,8 @@ loopback, the tiny simulated site imported and mapped into the database, and ``d
 per vehicle (min/max: fair scheduling), the frame endpoint's p50/p99 latency, the CPU seconds per processed
 frame of the server's processes and of PostgreSQL, and whether any processed frame is missing from the stored
 history. Frames a machine cannot keep up with are answered ``skipped`` (the newest frame of a vehicle wins),
-so saturation shows as a falling processed share, not as errors.
+so saturation shows as a falling processed share, not as errors; a vehicle keeps at most 8 frames waiting for
+an answer and drops new ones meanwhile (``not sent``).
 
 The baseline is the same frames localised in this process without HTTP (decode + odometry + localiser step +
 database write on the same PostgreSQL), one vehicle: the machine's capacity is about cores / that cost, and the
@@ -27,7 +28,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import httpx
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' PostgreSQL and Redis servers
@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' Postg
 from tests.postgres_server import PostgresServer, postgres_bin_dir
 from tests.redis_server import running_redis
 
-from bench_live import baseline_ms, drive_vehicle, prepare, serving
+from bench_live import baseline_ms, drive_vehicle, log_in, prepare, serving
 from proc_tree import tree_cpu_s
 
 API_PROCESSES = 2
@@ -45,14 +45,10 @@ async def fleet(
     base: str, frames: list[tuple[float, bytes]], vehicles: int, first: int, args: argparse.Namespace
 ) -> dict[str, float]:
     """Stream ``vehicles`` vehicles (numbered from ``first``) at once; their figures."""
-    async with httpx.AsyncClient(
-        base_url=base, timeout=120.0, limits=httpx.Limits(max_connections=400)
-    ) as client:
-        login = await client.post("/api/auth/login", json={"username": "bench", "password": "bench-password"})
-        admin = {"Authorization": f"Bearer {login.json()['access_token']}"}
-        results = await asyncio.gather(
-            *(drive_vehicle(client, admin, first + k, frames, args) for k in range(vehicles))
-        )
+    admin = await log_in(base)
+    results = await asyncio.gather(
+        *(drive_vehicle(base, admin, first + k, frames, args) for k in range(vehicles))
+    )
     latencies = np.array([x for r in results for x in r[0]])
     shares = [r[1].count("processed") / r[3] for r in results]
     processed = sum(r[1].count("processed") for r in results)
@@ -62,7 +58,8 @@ async def fleet(
         "fairness": min(shares) / max(shares) if max(shares) > 0 else 0.0,
         "p50": float(np.median(latencies)),
         "p99": float(np.percentile(latencies, 99)),
-        "errors": sum(1 for r in results for s in r[1] if str(s).isdigit() and int(s) >= 500),
+        "not_sent": sum(r[1].count("not sent") for r in results),
+        "errors": sum(1 for r in results for s in r[1] if s.isdigit() and int(s) >= 500),
         "history_ok": float(all(r[2] for r in results)),
     }
 
@@ -110,7 +107,7 @@ def run(
         f"{args.fps:g} frames/s per vehicle for {args.seconds:g} s"
     )
     print(
-        f"{'vehicles':>8} {'offered/s':>9} {'processed/s':>11} {'share':>6} {'fair':>5} {'p50 ms':>7} "
+        f"{'vehicles':>8} {'offered/s':>9} {'not sent':>8} {'processed/s':>11} {'share':>6} {'fair':>5} {'p50 ms':>7} "
         f"{'p99 ms':>7} {'server CPU ms/frame':>19} {'x baseline':>10} {'PostgreSQL':>10} {'5xx':>4} {'history':>7}"
     )
     first = 0
@@ -121,7 +118,8 @@ def run(
         first += vehicles
         done = max(figures["processed"], 1.0)
         print(
-            f"{vehicles:>8} {figures['offered'] / args.seconds:>9.0f} {figures['processed'] / args.seconds:>11.1f} "
+            f"{vehicles:>8} {figures['offered'] / args.seconds:>9.0f} {figures['not_sent'] / figures['offered']:>8.0%} "
+            f"{figures['processed'] / args.seconds:>11.1f} "
             f"{figures['processed'] / figures['offered']:>6.0%} {figures['fairness']:>5.2f} {figures['p50']:>7.1f} "
             f"{figures['p99']:>7.1f} {(cpu1 - cpu0) / done * 1e3:>19.1f} {(cpu1 - cpu0) / done * 1e3 / base_ms:>10.2f} "
             f"{(pg1 - pg0) / done * 1e3:>10.1f} "
