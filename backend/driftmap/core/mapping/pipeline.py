@@ -38,6 +38,7 @@ from driftmap.core.mapping.prepare import (
     join_segments,
     prepare_drives,
     prepare_segment,
+    restride_segment,
     variant,
 )
 from driftmap.core.topomap.build import build_topomap
@@ -64,6 +65,7 @@ __all__ = [
     "join_segments",
     "prepare_drives",
     "prepare_segment",
+    "restride_segment",
     "solve_map",
     "variant",
 ]
