@@ -107,7 +107,9 @@ class TestMapping:
         built = runner.invoke(app, ["map", "build", "tiny", "--preset", "fast"])
         assert built.exit_code == 0, built.output
         assert "map version 1" in built.output
-        again = runner.invoke(app, ["map", "build", "tiny", "--preset", "fast"])  # nothing changed: all reused
+        again = runner.invoke(
+            app, ["map", "build", "tiny", "--preset", "fast"]
+        )  # nothing changed: all reused
         assert again.exit_code == 0, again.output
         assert "map version 2" in again.output and "odometry of 3 of 3 drive segments reused" in again.output
 

@@ -22,6 +22,8 @@ from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, Frame, MapPiece, MapPose, MapVersion, Site, SurveyMap
 from driftmap.store.storage import Storage
 
+UNFINISHED = ("queued", "running")
+
 
 def _version_blobs(version: MapVersion) -> set[str]:
     shas = {version.topomap_sha256}
@@ -116,7 +118,11 @@ def referenced(session: Session, shas: Iterable[str]) -> set[str]:
         extra = (stats or {}).get(LOCALISER_DB_KEY)
         if extra in wanted:
             found.add(extra)
-    found |= _named_blobs(session.execute(select(Job.args, Job.result)).all()) & wanted
+    finished = select(Job.id).where(Job.status.not_in(UNFINISHED))
+    naming = select(Job.args, Job.result).where(  # a finished build's pieces are held by map_pieces, if kept
+        ~((Job.kind == "map.drive") & Job.parent_id.in_(finished))
+    )
+    found |= _named_blobs(session.execute(naming).all()) & wanted
     return found
 
 
