@@ -1,8 +1,9 @@
 """Incremental map builds as jobs: the odometry pieces a build keeps, reused by the next build of the site.
 
 On the mini site (two mapping drives of 100 frames, one segment each) on a real database: a build after no
-change prepares nothing; a build after a new mapping drive prepares only it and equals a full build; a moved
-grounding re-solves the graph from the kept odometry; a full build prepares everything and replaces the kept
+change prepares nothing and gives the same map (its pose graph started from the last version's poses); a
+build after a new mapping drive prepares only it and equals a full build; a moved grounding re-solves the
+graph from the kept odometry; a full build prepares everything and replaces the kept
 pieces; deleting the site leaves no piece and no blob.
 """
 
@@ -27,6 +28,8 @@ from tests.jobs.mini_site import drive_folders
 
 POSE_TOLERANCE_M = 0.1
 """Largest distance between an incremental build's pose and a full build's (the issue's target)."""
+SAME_M = 1e-6
+"""Largest change of a pose between two builds of unchanged data (the warm-started solver's tolerance)."""
 GROUNDING_SHIFT_M = 5.0
 """How far the test moves a surveyed point: far beyond the graph's noise."""
 
@@ -94,7 +97,8 @@ class TestIncrementalBuild:
         assert len(kept) == 2 and all(storage.blobs.exists(sha) for sha in kept.values())
         second, subtasks = _build(storage, queue)
         assert _reuse(second) == (2, 0) and not any(j.kind == "map.drive" for j in subtasks)
-        np.testing.assert_array_equal(_poses(storage, second), _poses(storage, first))
+        assert (first.stats["graph_warm_drives"], second.stats["graph_warm_drives"]) == (0, 2)
+        np.testing.assert_allclose(_poses(storage, second), _poses(storage, first), rtol=0, atol=SAME_M)
         assert _kept(storage) == kept
 
     def test_a_new_drive_is_the_only_one_prepared_and_the_map_equals_a_full_build(
@@ -107,10 +111,12 @@ class TestIncrementalBuild:
         _import(storage, mini_site, folders[1:], create=False)
         grown, subtasks = _build(storage, queue)
         assert _reuse(alone) == (0, 1) and _reuse(grown) == (1, 1)
+        assert grown.stats["graph_warm_drives"] == 1  # the kept drive starts where version 1 left it
         assert [j.args["drive_id"] for j in subtasks if j.kind == "map.drive"] == [max(_drive_ids(storage))]
         kept = _kept(storage)
         full, subtasks = _build(storage, queue, full=True)
         assert _reuse(full) == (0, 2) and sum(j.kind == "map.drive" for j in subtasks) == 2
+        assert full.stats["graph_warm_drives"] == 0
         incremental, rebuilt = _poses(storage, grown), _poses(storage, full)
         assert incremental.shape == rebuilt.shape == (200, 3)
         assert np.linalg.norm(incremental[:, :2] - rebuilt[:, :2], axis=1).max() <= POSE_TOLERANCE_M

@@ -9,8 +9,8 @@ transaction. The parent joins each drive's segments, then searches loop closures
 ``map.loops`` subtasks, one per block of query keyframes (:mod:`driftmap.jobs.loop_tasks`), and decides
 them. The pose graph, topological map and new map version happen once, in the parent's final
 transaction, which also keeps the pieces for the next build (:mod:`driftmap.services.map_pieces`: a
-segment whose piece is kept gets no subtask; args ``full`` prepares every segment again); the
-loop-closure blobs are then dropped. A parent re-run (its worker died; the reaper
+segment whose piece is kept gets no subtask; args ``full`` prepares every segment again) and starts the
+pose graph from the latest version's poses (not with ``full``); the loop-closure blobs are then dropped. A parent re-run (its worker died; the reaper
 re-queued it) reuses the subtasks already finished; a subtask whose worker died is re-queued by the
 reaper of any live worker and taken by whoever is free, the waiting parent included. Cancelling the
 parent cancels its subtasks; a failed subtask fails the parent and the parent cancels the rest. The
@@ -178,7 +178,12 @@ def map_build(ctx: JobContext) -> None:
         site = _site(ctx, session)
         loaded = _site_drives(ctx, session, drives)
         prepared = join_drives(pieces, loaded.inputs, params, ctx.report, odometry_s, loops)
-        build = solve_map(prepared, loaded.inputs, params, ctx.report)
+        warm = (
+            None
+            if full
+            else map_pieces.previous_solution(session, site.id, [d for d, _n in drives], loaded.frame_ids)
+        )
+        build = solve_map(prepared, loaded.inputs, params, ctx.report, warm)
         build.stats.update(map_service.reuse_stats(len(keys) - len(ids), len(keys)))
         dropped = map_pieces.keep_pieces(session, [d for d, _n in drives], segments)
         version = map_service.store_map_version(session, batch, site, loaded, build, params, label)

@@ -209,14 +209,17 @@ def build_site_map(
     workers: int = 1,
     *,
     full: bool = False,
+    warm_start: bool = True,
     stale: set[str] | None = None,
 ) -> tuple[MapVersion, MapBuild]:
     """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
 
     Segments whose stage-1 piece an earlier build kept are loaded, the rest prepared (with ``workers`` > 1 in
     that many worker processes that open the same database and blob store) and kept; ``full`` prepares
-    every segment again. The results are bit-identical either way. ``stale``, when given, receives the blobs
-    of the pieces this build dropped: :func:`driftmap.services.map_pieces.drop_stale` them once committed.
+    every segment again. The results are bit-identical either way. Unless ``full`` or not ``warm_start``,
+    the pose graph starts from the latest version's poses of the drives it has (the same map to the solver's
+    tolerance). ``stale``, when given, receives the blobs of the pieces this build dropped:
+    :func:`driftmap.services.map_pieces.drop_stale` them once committed.
     """
     loaded = load_site_drives(session, blobs, site)
     start = time.perf_counter()
@@ -232,7 +235,10 @@ def build_site_map(
         progress,
     )
     prepared = join_drives(stage.pieces, loaded.inputs, params, progress, time.perf_counter() - start)
-    build = solve_map(prepared, loaded.inputs, params, progress)
+    warm = None
+    if warm_start and not full:
+        warm = map_pieces.previous_solution(session, site.id, ids, loaded.frame_ids)
+    build = solve_map(prepared, loaded.inputs, params, progress, warm)
     build.stats.update(reuse_stats(stage.reused, len(stage.segments)))
     dropped = map_pieces.keep_pieces(session, ids, stage.segments)
     if stale is not None:
