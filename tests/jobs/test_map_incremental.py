@@ -9,12 +9,15 @@ pieces; deleting the site leaves no piece and no blob.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from sqlalchemy import select
 
+from driftmap.core.mapping.pipeline import MAP_PRESETS, MAPPING_FAST
 from driftmap.jobs.queue import JobQueue
 from driftmap.services import deletion
 from driftmap.services import drives as drive_service
@@ -143,6 +146,20 @@ class TestIncrementalBuild:
         full, _subtasks = _build(storage, queue, full=True)
         gap = np.linalg.norm(_poses(storage, after)[:, :2] - _poses(storage, full)[:, :2], axis=1)
         assert gap.max() <= POSE_TOLERANCE_M
+
+    def test_other_stage_one_parameters_prepare_every_drive_and_replace_the_kept_pieces(
+        self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        _import(storage, mini_site, drive_folders(mini_site, "map"), create=True)
+        _build(storage, queue)
+        before = _kept(storage)
+        database = replace(MAPPING_FAST.database, view_spacing_m=2.0)  # in the pieces' key, cheap to change
+        monkeypatch.setitem(MAP_PRESETS, "fast", replace(MAPPING_FAST, database=database))
+        other, subtasks = _build(storage, queue)
+        assert _reuse(other) == (0, 2) and sum(j.kind == "map.drive" for j in subtasks) == 2
+        kept = _kept(storage)
+        assert len(kept) == 2 and not kept.keys() & before.keys()
+        assert not any(storage.blobs.exists(sha) for sha in before.values())
 
     def test_deleting_the_site_leaves_no_kept_piece_and_no_blob(
         self, storage: Storage, queue: JobQueue, mini_site: Path
