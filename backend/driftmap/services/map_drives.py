@@ -216,7 +216,7 @@ class StageOne:
     pieces: list[PreparedDrive]
     """Per drive, its joined piece."""
     segments: list[tuple[int, tuple[int, int], str, str]]
-    """Per segment: (drive id, ``(first, stop)``, piece key, blob SHA-256), for :func:`keep_pieces`."""
+    """Per segment: (drive id, ``(first, stop)``, piece key, blob SHA-256), for :func:`~driftmap.services.map_pieces.keep_pieces`."""
     reused: int
     """Segments whose kept piece was loaded."""
 
