@@ -107,6 +107,11 @@ class TestMapping:
         built = runner.invoke(app, ["map", "build", "tiny", "--preset", "fast"])
         assert built.exit_code == 0, built.output
         assert "map version 1" in built.output
+        again = runner.invoke(
+            app, ["map", "build", "tiny", "--preset", "fast"]
+        )  # nothing changed: all reused
+        assert again.exit_code == 0, again.output
+        assert "map version 2" in again.output and "odometry of 3 of 3 drive segments reused" in again.output
 
         shown = runner.invoke(app, ["map", "show", "tiny"])
         assert shown.exit_code == 0, shown.output

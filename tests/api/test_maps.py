@@ -3,18 +3,20 @@ comparison of two versions, deletion."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from sqlalchemy import select
 
 from driftmap.formats.csv_exports import LOCALISATION_HEADER
 from driftmap.store.job_models import Job
-from driftmap.store.models import MapVersion
+from driftmap.store.models import MapPiece, MapVersion
 from tests.api.data_helpers import ApiUsers
 
 
-def build(users: ApiUsers, site_id: int) -> dict[str, object]:
-    """Start a FAST build; returns the finished job (immediate mode)."""
+def build(users: ApiUsers, site_id: int, full: bool = False) -> dict[str, Any]:
+    """Start a FAST build (``full``: no odometry reused); returns the finished job (immediate mode)."""
     response = users.client.post(
-        f"/api/sites/{site_id}/maps", json={"preset": "fast"}, headers=users.auth("surveyor")
+        f"/api/sites/{site_id}/maps", json={"preset": "fast", "full": full}, headers=users.auth("surveyor")
     )
     assert response.status_code == 202, response.text
     job = users.job(response.json()["id"])
@@ -98,6 +100,8 @@ class TestCompareAndDelete:
         build(users, site_id)
         same = build(users, site_id)
         assert same["result"]["version"] == 2
+        reused = same["result"]["stats"]
+        assert (reused["segments_reused"], reused["segments_prepared"]) == (2, 0)  # no drive changed
         unchanged = users.get(f"/api/sites/{site_id}/maps/compare", params={"a": 1, "b": 2})
         assert unchanged["frames"] == 200 and unchanged["max_m"] < 1e-6
         grounding = users.get(f"/api/sites/{site_id}/groundings")["items"][0]
@@ -107,7 +111,15 @@ class TestCompareAndDelete:
             headers=users.auth("surveyor"),
         )
         assert moved.status_code == 200
-        build(users, site_id)
+        third = build(users, site_id)["result"]["stats"]
+        assert (third["segments_reused"], third["segments_prepared"]) == (
+            2,
+            0,
+        )  # the graph alone solved again
+        full = build(users, site_id, full=True)["result"]["stats"]
+        assert (full["segments_reused"], full["segments_prepared"]) == (0, 2)
+        same_map = users.get(f"/api/sites/{site_id}/maps/compare", params={"a": 3, "b": 4})
+        assert same_map["max_m"] < 1e-6
         compared = users.get(f"/api/sites/{site_id}/maps/compare", params={"a": 2, "b": 3})
         assert compared["frames"] == 200 and (compared["only_in_a"], compared["only_in_b"]) == (0, 0)
         assert compared["max_m"] > 1.0 and compared["p95_m"] <= compared["max_m"]
@@ -126,6 +138,8 @@ class TestCompareAndDelete:
         assert blocked.status_code == 409 and "map version(s) 1" in blocked.json()["detail"]
         with users.storage.db.session() as session:
             sha = session.scalars(select(MapVersion.topomap_sha256)).one()
+            pieces = set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.drive_id == drive_id)))
+        assert pieces and all(users.storage.blobs.exists(p) for p in pieces)
         assert users.storage.blobs.exists(sha)
         assert (
             users.client.delete(f"/api/sites/{site_id}/maps/1", headers=users.auth("surveyor")).status_code
@@ -138,6 +152,7 @@ class TestCompareAndDelete:
         assert users.get(f"/api/sites/{site_id}/maps")["total"] == 0
         assert not users.storage.blobs.exists(sha)
         assert users.client.delete(f"/api/drives/{drive_id}", headers=users.auth("admin")).status_code == 204
+        assert not any(users.storage.blobs.exists(p) for p in pieces)  # its kept odometry went with it
 
 
 class TestLocalise:

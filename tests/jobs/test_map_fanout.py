@@ -26,7 +26,7 @@ from driftmap.services import jobs as job_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
-from driftmap.store.models import Frame, MapNode, MapPose, MapVersion
+from driftmap.store.models import Frame, MapNode, MapPiece, MapPose, MapVersion
 from driftmap.store.storage import Storage
 from tests.sim_site import import_site
 
@@ -88,9 +88,15 @@ class TestFanOut:
         np.testing.assert_array_equal(centres, alone.topomap.centres_m)
         figures = {k: v for k, v in alone.stats.items() if not k.endswith("_s")}
         assert {k: version.stats[k] for k in figures} == pytest.approx(figures, rel=0, abs=0)
-        for job in subtasks:  # the blobs handed over were dropped once the version was stored
+        with storage.db.session() as session:
+            kept = set(session.scalars(select(MapPiece.blob_sha256)))
+        for job in subtasks:  # once the version was stored: the loop search's blobs dropped, the pieces kept
             shas = [v for d in (job.args, job.result or {}) for k, v in d.items() if k.endswith("_sha256")]
-            assert shas and not any(storage.blobs.exists(sha) for sha in shas)
+            if job.kind == "map.drive":
+                assert shas and all(sha in kept and storage.blobs.exists(sha) for sha in shas)
+            else:
+                assert shas and not any(storage.blobs.exists(sha) for sha in shas)
+        assert (version.stats["segments_reused"], version.stats["segments_prepared"]) == (0, 4)
 
     def test_one_worker_alone_runs_every_subtask_itself(
         self, storage: Storage, runtime: JobRuntime, stored_queue: JobQueue, mini_site: Path

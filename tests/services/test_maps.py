@@ -108,8 +108,8 @@ class TestWorkerProcesses:
         for workers in (1, 2):  # 2: two spawned processes open the same SQLite file and blob store
             with storage.blobs.batch() as batch, storage.db.session() as session:
                 site = site_service.get_site(session, "tiny")
-                version, build = map_service.build_site_map(
-                    session, storage.blobs, batch, site, MAPPING_FAST, workers=workers
+                version, build = map_service.build_site_map(  # full: the second prepares every drive again
+                    session, storage.blobs, batch, site, MAPPING_FAST, workers=workers, full=True
                 )
                 versions.append((version.id, build))
         with storage.db.session() as session:

@@ -15,6 +15,11 @@ class MapBuildCreate(BaseModel):
     """Start a ``map.build`` job of the site's mapping drives and groundings."""
 
     preset: Literal["paper", "fast"] = "paper"
+    full: bool = Field(
+        default=False,
+        description="Prepare every drive's odometry again instead of reusing what earlier builds kept for "
+        "drives that did not change (the version's stats count segments_reused and segments_prepared).",
+    )
 
 
 class MapVersionRead(BaseModel):

@@ -21,6 +21,7 @@ from driftmap.formats.csv_exports import PoseRow, write_poses_csv
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
 from driftmap.reports.mapping_report import run_mapping_report
+from driftmap.services import map_pieces
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.services.residuals import ResidualSummary, summarise
@@ -84,19 +85,33 @@ def map_build(
     preset: PresetOption = "paper",
     workers: WorkersOption = DEFAULT_WORKERS,
     as_json: JsonOption = False,
+    full: Annotated[
+        bool, typer.Option("--full", help="Prepare every drive again instead of reusing the kept odometry.")
+    ] = False,
 ) -> None:
-    """Build a new immutable map version from the site's mapping drives and groundings."""
+    """Build a new immutable map version from the site's mapping drives and groundings (the odometry of
+    drives unchanged since the last build reused)."""
     storage = open_storage()
     with user_errors():
         params = _preset(preset)
+        stale: set[str] = set()
         with storage.blobs.batch() as batch, storage.db.session() as session:
             record = site_service.get_site(session, site)
             map_service.ensure_buildable(session, record)
             with stage_progress("map build") as report:
                 version, build = map_service.build_site_map(
-                    session, storage.blobs, batch, record, params, report, workers=workers
+                    session,
+                    storage.blobs,
+                    batch,
+                    record,
+                    params,
+                    report,
+                    workers=workers,
+                    full=full,
+                    stale=stale,
                 )
             number = version.version
+        map_pieces.drop_stale(storage, stale)
     if as_json:
         print_json({"site": site, "version": number, "stats": map_service.json_safe(build.stats)})
         return
@@ -106,7 +121,11 @@ def map_build(
 def _stats_line(stats: dict[str, float | int]) -> str:
     keys = ("frames", "keyframes", "closures_found", "closures_accepted", "groundings", "nodes")
     seconds = sum(float(v) for k, v in stats.items() if k.endswith("_s"))
-    return ", ".join(f"{k.replace('_', ' ')} {stats.get(k, 0)}" for k in keys) + f"; {seconds:.1f} s"
+    line = ", ".join(f"{k.replace('_', ' ')} {stats.get(k, 0)}" for k in keys) + f"; {seconds:.1f} s"
+    if "segments_reused" in stats:
+        reused, prepared = stats["segments_reused"], stats.get("segments_prepared", 0)
+        line += f"; odometry of {reused} of {reused + prepared} drive segments reused"
+    return line
 
 
 @map_app.command("show")

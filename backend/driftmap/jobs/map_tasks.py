@@ -8,7 +8,9 @@ A ``map.drive`` job stores its piece (visual odometry, thumbnails, frame statist
 transaction. The parent joins each drive's segments, then searches loop closures in
 ``map.loops`` subtasks, one per block of query keyframes (:mod:`driftmap.jobs.loop_tasks`), and decides
 them. The pose graph, topological map and new map version happen once, in the parent's final
-transaction; the subtasks' blobs are then dropped. A parent re-run (its worker died; the reaper
+transaction, which also keeps the pieces for the next build (:mod:`driftmap.services.map_pieces`: a
+segment whose piece is kept gets no subtask; args ``full`` prepares every segment again) and starts the
+pose graph from the latest version's poses (not with ``full``); the loop-closure blobs are then dropped. A parent re-run (its worker died; the reaper
 re-queued it) reuses the subtasks already finished; a subtask whose worker died is re-queued by the
 reaper of any live worker and taken by whoever is free, the waiting parent included. Cancelling the
 parent cancels its subtasks; a failed subtask fails the parent and the parent cancels the rest. The
@@ -49,7 +51,7 @@ from driftmap.jobs.subtasks import (
     submit_subtasks,
 )
 from driftmap.services import jobs as job_service
-from driftmap.services import map_drives
+from driftmap.services import map_drives, map_pieces
 from driftmap.services import maps as map_service
 from driftmap.store.models import Drive, MapVersion, Site
 
@@ -80,6 +82,7 @@ def map_drive(ctx: JobContext) -> None:
     with storage.blobs.batch() as batch, storage.db.session() as session:
         result = {
             "drive_id": drive.id,
+            "piece_key": str(ctx.args.get("piece_key", "")),
             "first": span[0],
             "stop": span[1],
             "piece_sha256": batch.put(data),
@@ -90,11 +93,21 @@ def map_drive(ctx: JobContext) -> None:
 
 
 def _segment_subtasks(
-    ctx: JobContext, drives: list[tuple[int, int]], preset: str, params: MappingParams
+    ctx: JobContext,
+    drives: list[tuple[int, int]],
+    preset: str,
+    params: MappingParams,
+    keys: list[str],
+    kept: dict[str, str],
 ) -> list[int]:
-    """Ids of this build's ``map.drive`` jobs, one per segment of each (drive id, frames), submitted unless
-    they exist."""
+    """Ids of this build's ``map.drive`` jobs, one per segment of each (drive id, frames) whose piece key
+    (``keys``, in segment order) is not ``kept``, submitted unless they exist."""
     total, offsets = sum(n for _d, n in drives), np.cumsum([0] + [n for _d, n in drives]).tolist()
+    spans = [
+        (k, drive_id, first, stop)
+        for k, (drive_id, n) in enumerate(drives)
+        for first, stop in drive_segments(n, params.segment_frames)
+    ]
     args = [
         {
             "drive_id": drive_id,
@@ -103,9 +116,10 @@ def _segment_subtasks(
             "preset": preset,
             "offset": offsets[k],
             "total": total,
+            "piece_key": key,
         }
-        for k, (drive_id, n) in enumerate(drives)
-        for first, stop in drive_segments(n, params.segment_frames)
+        for (k, drive_id, first, stop), key in zip(spans, keys, strict=True)
+        if key not in kept
     ]
     earlier = existing_subtasks(ctx, "map.drive")
     if earlier:
@@ -113,12 +127,14 @@ def _segment_subtasks(
         if [[a[k] for k in key] for _i, a in earlier] != [[a[k] for k in key] for a in args]:
             raise ConflictError("the site's mapping drives changed while its map was being built")
         return [i for i, _a in earlier]
-    return submit_subtasks(ctx, "map.drive", args)
+    return submit_subtasks(ctx, "map.drive", args) if args else []
 
 
 def map_build(ctx: JobContext) -> None:
-    """Build the next map version of the job's site from ``map.drive`` subtasks. Args: ``preset``."""
+    """Build the next map version of the job's site, the odometry of segments no earlier build kept in
+    ``map.drive`` subtasks. Args: ``preset``; ``full`` (bool): prepare every segment again."""
     preset, params = preset_params(ctx.args)
+    full = bool(ctx.args.get("full", False))
     label = f"{ctx.job.created_by or 'api'} via job {ctx.job.id}"
     storage = ctx.runtime.storage
     ctx.report("loading drives", 0.0)
@@ -129,18 +145,22 @@ def map_build(ctx: JobContext) -> None:
         )
         if version is None:  # the normal case; a version of this job exists only if it already succeeded
             map_service.ensure_buildable(session, site)
-            drives = [(d.id, d.frame_count) for d in map_drives.mapping_drives(session, site)]
+            loaded = map_service.load_site_drives(session, storage.blobs, site)
+            drives = [(d.id, d.frame_count) for d in loaded.drives]
+            keys = map_pieces.segment_keys([d for d, _n in drives], loaded.contents, loaded.inputs, params)
+            kept = {} if full else map_pieces.kept_pieces(session, storage.blobs, keys)
     if version is not None:
         with storage.db.session() as session:
             ctx.succeed(session, _result(version))
         return
     try:
-        ids = _segment_subtasks(ctx, drives, preset, params)
+        ids = _segment_subtasks(ctx, drives, preset, params, keys, kept)
         start = time.monotonic()
         results = await_subtasks(ctx, ids, "odometry", map_drive)
+        shas = kept | {str(r["piece_key"]): str(r["piece_sha256"]) for r in results}
         with storage.db.session() as session:
             inputs = _site_drives(ctx, session, drives).inputs
-        pieces = _pieces(ctx, results, params, inputs)
+        pieces = _pieces(ctx, [shas[k] for k in keys], params, inputs)
         odometry_s = time.monotonic() - start
         loops: tuple[tuple[LoopMatch, ...], float] | None = None
         loop_blobs: list[str] = []
@@ -150,14 +170,26 @@ def map_build(ctx: JobContext) -> None:
     except (DriftmapError, job_service.JobCancelled):
         stop_subtasks(ctx)
         raise
+    segments = [
+        (drives[k][0], span, key, shas[key])
+        for (k, span), key in zip(build_segments(inputs, params), keys, strict=True)
+    ]
     with storage.blobs.batch() as batch, storage.db.session() as session:
         site = _site(ctx, session)
         loaded = _site_drives(ctx, session, drives)
         prepared = join_drives(pieces, loaded.inputs, params, ctx.report, odometry_s, loops)
-        build = solve_map(prepared, loaded.inputs, params, ctx.report)
+        warm = (
+            None
+            if full
+            else map_pieces.previous_solution(session, site.id, [d for d, _n in drives], loaded.frame_ids)
+        )
+        build = solve_map(prepared, loaded.inputs, params, ctx.report, warm)
+        build.stats.update(map_service.reuse_stats(len(keys) - len(ids), len(keys)))
+        dropped = map_pieces.keep_pieces(session, [d for d, _n in drives], segments)
         version = map_service.store_map_version(session, batch, site, loaded, build, params, label)
         ctx.succeed(session, _result(version))  # no progress report from here: this transaction writes
-    drop_blobs(ctx, [str(r["piece_sha256"]) for r in results] + loop_blobs)
+    drop_blobs(ctx, loop_blobs)
+    map_pieces.drop_stale(storage, dropped)
 
 
 def _site_drives(ctx: JobContext, session: Session, drives: list[tuple[int, int]]) -> map_service.SiteDrives:
@@ -181,17 +213,18 @@ def _result(version: MapVersion) -> dict[str, Any]:
 
 
 def _pieces(
-    ctx: JobContext, results: list[dict[str, Any]], params: MappingParams, drives: list[MappingDrive]
+    ctx: JobContext, shas: list[str], params: MappingParams, drives: list[MappingDrive]
 ) -> list[PreparedDrive]:
-    """Each drive's piece, joined from its segments' blobs (``results`` in segment order)."""
+    """Each drive's piece, joined from its segments' blobs (``shas`` in segment order), kept ones given this
+    build's frame sample (:func:`driftmap.services.map_drives.piece_from_bytes`)."""
     flats = flat_offsets(drives)
     segments: list[list[PreparedSegment]] = [[] for _d in drives]
-    for result, (k, (first, _stop)) in zip(results, build_segments(drives, params), strict=True):
-        sha = str(result["piece_sha256"])
+    for sha, (k, (first, _stop)) in zip(shas, build_segments(drives, params), strict=True):
         if not ctx.runtime.storage.blobs.exists(sha):
             raise NotFoundError(
-                f"job {ctx.job.id}: the odometry of drive {result['drive_id']} (blob {sha}) is gone"
+                f"job {ctx.job.id}: the odometry of drive {drives[k].name!r} (blob {sha}) is gone"
             )
         flat = (flats[k][0] + first, flats[k][1])
-        segments[k].append(map_drives.piece_from_bytes(ctx.runtime.storage.blobs.get(sha), params, flat))
+        data = ctx.runtime.storage.blobs.get(sha)
+        segments[k].append(map_drives.piece_from_bytes(data, params, flat, drives[k]))
     return [join_segments(d, s, params) for d, s in zip(drives, segments, strict=True)]

@@ -1,9 +1,9 @@
 """Deleting sites, drives and map versions with their rows, then the blobs nothing refers to any more.
 
 Rows go inside the caller's transaction (foreign keys cascade in the database); the blobs they referred to
-are returned as candidates (for a site also those its jobs name in their args and results, keys ending in
-``_sha256``: uploads waiting for import, odometry pieces and loop-closure blocks of failed builds,
-localisation CSVs), and :func:`delete_unreferenced_blobs` removes those still unreferenced once the
+are returned as candidates (for a drive and a site also their kept map-build pieces; for a site also those
+its jobs name in their args and results, keys ending in ``_sha256``: uploads waiting for import, odometry
+pieces and loop-closure blocks of failed builds, localisation CSVs), and :func:`delete_unreferenced_blobs` removes those still unreferenced once the
 caller has committed, so a rolled-back delete never loses a blob.
 """
 
@@ -19,8 +19,10 @@ from driftmap.errors import ConflictError
 from driftmap.services.localisation import LOCALISER_DB_KEY
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, Frame, MapPose, MapVersion, Site, SurveyMap
+from driftmap.store.models import Drive, Frame, MapPiece, MapPose, MapVersion, Site, SurveyMap
 from driftmap.store.storage import Storage
+
+UNFINISHED = ("queued", "running")
 
 
 def _version_blobs(version: MapVersion) -> set[str]:
@@ -67,6 +69,7 @@ def delete_drive(session: Session, drive: Drive) -> set[str]:
         listed = ", ".join(str(v) for v in versions)
         raise ConflictError(f"drive {drive.name!r} is part of map version(s) {listed}; delete those first")
     candidates = set(session.scalars(select(Frame.blob_sha256).distinct().where(Frame.drive_id == drive.id)))
+    candidates |= set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.drive_id == drive.id)))
     session.execute(delete(Drive).where(Drive.id == drive.id))
     return candidates
 
@@ -82,6 +85,13 @@ def delete_site(session: Session, site: Site) -> set[str]:
         )
     )
     candidates |= set(session.scalars(select(SurveyMap.dxf_sha256).where(SurveyMap.site_id == site.id)))
+    candidates |= set(
+        session.scalars(
+            select(MapPiece.blob_sha256)
+            .join(Drive, MapPiece.drive_id == Drive.id)
+            .where(Drive.site_id == site.id)
+        )
+    )
     for version in session.scalars(select(MapVersion).where(MapVersion.site_id == site.id)):
         candidates |= _version_blobs(version)
     candidates |= _named_blobs(
@@ -92,7 +102,7 @@ def delete_site(session: Session, site: Site) -> set[str]:
 
 
 def referenced(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` that a frame, a survey map, a map version or a job still refers to."""
+    """Those of ``shas`` that a frame, a survey map, a map version, a kept map piece or a job still refers to."""
     wanted = set(shas)
     found: set[str] = set()
     items = sorted(wanted)
@@ -103,11 +113,16 @@ def referenced(session: Session, shas: Iterable[str]) -> set[str]:
         found |= set(
             session.scalars(select(MapVersion.topomap_sha256).where(MapVersion.topomap_sha256.in_(chunk)))
         )
+        found |= set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.blob_sha256.in_(chunk))))
     for stats in session.scalars(select(MapVersion.stats)):
         extra = (stats or {}).get(LOCALISER_DB_KEY)
         if extra in wanted:
             found.add(extra)
-    found |= _named_blobs(session.execute(select(Job.args, Job.result)).all()) & wanted
+    finished = select(Job.id).where(Job.status.not_in(UNFINISHED))
+    naming = select(Job.args, Job.result).where(  # a finished build's pieces are held by map_pieces, if kept
+        ~((Job.kind == "map.drive") & Job.parent_id.in_(finished))
+    )
+    found |= _named_blobs(session.execute(naming).all()) & wanted
     return found
 
 

@@ -2,10 +2,11 @@
 
 A map build's stage 1 (visual odometry, thumbnails, frame statistics, :func:`driftmap.core.mapping.pipeline.prepare_segment`)
 is the bulk of its time and independent per drive segment. A ``map.drive`` job runs one segment of a stored
-drive (:func:`load_mapping_drive` streams just its frames); :func:`prepare_in_processes` runs them all in worker
-processes of this machine (what ``driftmap map build`` does: the odometry is Python-bound, so threads share
-one core); :func:`piece_bytes` and :func:`piece_from_bytes` turn a segment's result into bytes and back for
-the blob store.
+drive (:func:`load_mapping_drive` streams just its frames); :func:`prepare_site_drives` runs those an earlier
+build did not keep (:mod:`driftmap.services.map_pieces`) in this process or in worker processes of this
+machine (what ``driftmap map build`` does: the odometry is Python-bound, so threads share one core);
+:func:`piece_bytes` and :func:`piece_from_bytes` turn a segment's result into bytes and back for the blob
+store.
 """
 
 from __future__ import annotations
@@ -33,12 +34,14 @@ from driftmap.core.mapping.pipeline import (
     flat_offsets,
     join_segments,
     prepare_segment,
+    restride_segment,
 )
 from driftmap.core.types import ProgressFn
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import drive_meta, frame_rows
-from driftmap.store.blobs import BlobStore
+from driftmap.services.map_pieces import drive_content, segment_keys
+from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.db import Database
 from driftmap.store.models import Drive, Grounding, Site
 
@@ -63,6 +66,8 @@ class LoadedDrive:
     """``groundings.id`` in the order of ``input.groundings``."""
     truth: NDArray[np.float64] | None
     """(N, 3) ground truth [x_m, y_m, yaw_rad] when every frame has it, else None."""
+    content_sha256: str = ""
+    """What its stage 1 reads, hashed (:func:`driftmap.services.map_pieces.drive_content`)."""
 
 
 def load_mapping_drive(session: Session, blobs: BlobStore, drive: Drive) -> LoadedDrive:
@@ -94,7 +99,7 @@ def load_mapping_drive(session: Session, blobs: BlobStore, drive: Drive) -> Load
         frame_range=frame_range,
     )
     ids = np.array([f.id for f in frames], dtype=np.int64)
-    return LoadedDrive(drive, mapping, ids, [g.id for g in marks], truth)
+    return LoadedDrive(drive, mapping, ids, [g.id for g in marks], truth, drive_content(drive, frames))
 
 
 def mapping_drives(session: Session, site: Site) -> list[Drive]:
@@ -138,11 +143,20 @@ def piece_bytes(piece: PreparedSegment) -> bytes:
     return arrays_bytes(piece.to_arrays())
 
 
-def piece_from_bytes(data: bytes, params: MappingParams, flat: tuple[int, int]) -> PreparedSegment:
+def piece_from_bytes(
+    data: bytes, params: MappingParams, flat: tuple[int, int], drive: MappingDrive | None = None
+) -> PreparedSegment:
     """The piece :func:`piece_bytes` wrote, for a build of ``params`` (``flat``: flat index of the segment's
-    first frame, frames of the build)."""
+    first frame, frames of the build). With its ``drive``, a piece another build prepared (other drives
+    before it) gets the frame sample this build takes (:func:`restride_segment`)."""
     named = bytes_arrays(data, "a drive segment's prepared piece")
-    return PreparedSegment.from_arrays(named, params.database, params.images, flat[0], flat[1])
+    piece = PreparedSegment.from_arrays(named, params.database, params.images, flat[0], flat[1])
+    if drive is None:
+        return piece
+    sampled = None
+    if "stats_first" in named and "stats_stride" in named:
+        sampled = (int(named["stats_first"]), int(named["stats_stride"]))
+    return restride_segment(piece, drive, params, sampled)
 
 
 def _prepare_in_child(
@@ -171,46 +185,94 @@ def single_threaded_worker() -> None:
     cv2.setNumThreads(1)
 
 
-def prepare_in_processes(
+def _segments_in_processes(
     store: tuple[str, Path],
-    drives: Sequence[tuple[int, MappingDrive]],
+    work: Sequence[tuple[int, tuple[int, int], tuple[int, int]]],
     params: MappingParams,
     workers: int,
+    report: ProgressFn,
+) -> list[bytes]:
+    """Stage 1 of the segments ``work`` ((drive id, flat, span) each) in up to ``workers`` fresh processes
+    (spawned: no inherited connections); their pieces' bytes in order."""
+    context = multiprocessing.get_context("spawn")
+    payload = (store[0], str(store[1]))
+    done: list[bytes] = [b""] * len(work)
+    processes = max(1, min(workers, len(work)))
+    with ProcessPoolExecutor(processes, mp_context=context, initializer=single_threaded_worker) as pool:
+        futures = {
+            pool.submit(_prepare_in_child, payload, drive_id, params, flat, span): n
+            for n, (drive_id, flat, span) in enumerate(work)
+        }
+        for count, future in enumerate(as_completed(futures), start=1):
+            done[futures[future]] = future.result()
+            report("odometry", count / len(work))
+    return done
+
+
+@dataclass(frozen=True, eq=False)
+class StageOne:
+    """Stage 1 of a build's drives, with the pieces it kept and reused."""
+
+    pieces: list[PreparedDrive]
+    """Per drive, its joined piece."""
+    segments: list[tuple[int, tuple[int, int], str, str]]
+    """Per segment: (drive id, ``(first, stop)``, piece key, blob SHA-256), for :func:`~driftmap.services.map_pieces.keep_pieces`."""
+    reused: int
+    """Segments whose kept piece was loaded."""
+
+
+def prepare_site_drives(
+    store: tuple[str, Path],
+    batch: BlobBatch,
+    drives: Sequence[tuple[int, str, MappingDrive]],
+    params: MappingParams,
+    kept: Callable[[list[str]], dict[str, str]],
+    workers: int = 1,
     progress: ProgressFn | None = None,
-) -> list[PreparedDrive]:
-    """Stage 1 of stored drives, segment by segment in up to ``workers`` fresh processes (spawned: no
-    inherited connections), joined per drive here.
+) -> StageOne:
+    """Stage 1 of stored drives: the kept pieces loaded, the other segments prepared (in this process, or in
+    up to ``workers`` worker processes) and stored as blobs; joined per drive.
 
     Args:
         store: (database URL with its password, blob store root) holding the drives.
-        drives: (drive id, the drive as loaded here), in build order.
+        batch: where the new pieces' blobs go (kept once the caller commits).
+        drives: (drive id, :func:`~driftmap.services.map_pieces.drive_content`, the drive as loaded here), in
+            build order.
         params: the build's parameters.
-        workers: processes at most.
-        progress: called with ("odometry", fraction of segments done).
+        kept: piece keys -> the kept pieces among them (key -> blob SHA-256); ``lambda _k: {}`` for a full build.
+        workers: processes at most (1: this process).
+        progress: called with ("odometry", fraction of the segments to prepare done).
 
     Returns:
-        The drives' pieces in order, bit-identical to preparing them in this process.
+        The pieces, bit-identical to preparing every segment in this process.
     """
     report = progress or (lambda _stage, _fraction: None)
     report("odometry", 0.0)
-    inputs = [d for _i, d in drives]
+    inputs = [d for _i, _c, d in drives]
     flats = flat_offsets(inputs)
     segments = build_segments(inputs, params)
-    context = multiprocessing.get_context("spawn")
-    payload = (store[0], str(store[1]))
-    processes = max(1, min(workers, len(segments)))
-    with ProcessPoolExecutor(processes, mp_context=context, initializer=single_threaded_worker) as pool:
-        futures = {
-            pool.submit(_prepare_in_child, payload, drives[k][0], params, flats[k], span): n
-            for n, (k, span) in enumerate(segments)
-        }
-        done: list[PreparedSegment | None] = [None] * len(segments)
-        for count, future in enumerate(as_completed(futures), start=1):
-            n = futures[future]
-            k, (first, _stop) = segments[n]
-            done[n] = piece_from_bytes(future.result(), params, (flats[k][0] + first, flats[k][1]))
-            report("odometry", count / len(segments))
-    return [
-        join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k and s], params)
+    keys = segment_keys([i for i, _c, _d in drives], [c for _i, c, _d in drives], inputs, params)
+    found = kept(keys)
+    todo = [n for n, key in enumerate(keys) if key not in found]
+    work = [(drives[k][0], flats[k], span) for k, span in (segments[n] for n in todo)]
+    if workers > 1 and len(work) > 1:
+        made = _segments_in_processes(store, work, params, workers, report)
+    else:
+        made = []
+        for count, n in enumerate(todo, start=1):
+            k, span = segments[n]
+            made.append(piece_bytes(prepare_segment(inputs[k], params, flats[k], span)))
+            report("odometry", count / len(todo))
+    fresh = {keys[n]: data for n, data in zip(todo, made, strict=True)}
+    shas = dict(found) | {key: batch.put(data) for key, data in fresh.items()}
+    blobs = BlobStore(Path(store[1]))
+    done = []
+    for (k, (first, _stop)), key in zip(segments, keys, strict=True):
+        data = fresh[key] if key in fresh else blobs.get(shas[key])
+        done.append(piece_from_bytes(data, params, (flats[k][0] + first, flats[k][1]), inputs[k]))
+    pieces = [
+        join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k], params)
         for k, d in enumerate(inputs)
     ]
+    rows = [(drives[k][0], span, key, shas[key]) for (k, span), key in zip(segments, keys, strict=True)]
+    return StageOne(pieces, rows, len(segments) - len(todo))

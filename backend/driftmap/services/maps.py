@@ -19,7 +19,6 @@ from driftmap.core.mapping.pipeline import (
     MapBuild,
     MappingDrive,
     MappingParams,
-    build_map,
     join_drives,
     solve_map,
 )
@@ -28,8 +27,9 @@ from driftmap.core.types import ProgressFn
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
 from driftmap.services import jobs as job_service
+from driftmap.services import map_pieces
 from driftmap.services.jobs import Enqueue
-from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_in_processes
+from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_site_drives
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.job_models import Job
 from driftmap.store.models import (
@@ -64,11 +64,13 @@ class SiteDrives:
     """Per drive, ``groundings.id`` in the order of that drive's ``MappingDrive.groundings``."""
     truth: list[NDArray[np.float64] | None]
     """Per drive, (N, 3) ground truth [x_m, y_m, yaw_rad] when every frame has it, else None."""
+    contents: list[str]
+    """Per drive, what its stage 1 reads, hashed (:func:`driftmap.services.map_pieces.drive_content`)."""
 
 
 def load_site_drives(session: Session, blobs: BlobStore, site: Site) -> SiteDrives:
     """The mapping drives of ``site`` with their groundings, frames streamed from the blob store."""
-    out = SiteDrives([], [], [], [], [])
+    out = SiteDrives([], [], [], [], [], [])
     for drive in mapping_drives(session, site):
         one = load_mapping_drive(session, blobs, drive)
         out.drives.append(drive)
@@ -76,6 +78,7 @@ def load_site_drives(session: Session, blobs: BlobStore, site: Site) -> SiteDriv
         out.frame_ids.append(one.frame_ids)
         out.grounding_ids.append(one.grounding_ids)
         out.truth.append(one.truth)
+        out.contents.append(one.content_sha256)
     return out
 
 
@@ -204,28 +207,48 @@ def build_site_map(
     progress: ProgressFn | None = None,
     created_by: str = "cli",
     workers: int = 1,
+    *,
+    full: bool = False,
+    warm_start: bool = True,
+    stale: set[str] | None = None,
 ) -> tuple[MapVersion, MapBuild]:
     """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
 
-    With ``workers`` > 1, that many drive segments are dead-reckoned at once in worker processes that open
-    the same database and blob store (the results are bit-identical to one process).
+    Segments whose stage-1 piece an earlier build kept are loaded, the rest prepared (with ``workers`` > 1 in
+    that many worker processes that open the same database and blob store) and kept; ``full`` prepares
+    every segment again. The results are bit-identical either way. Unless ``full`` or not ``warm_start``,
+    the pose graph starts from the latest version's poses of the drives it has (the same map to the solver's
+    tolerance). ``stale``, when given, receives the blobs of the pieces this build dropped:
+    :func:`driftmap.services.map_pieces.drop_stale` them once committed.
     """
     loaded = load_site_drives(session, blobs, site)
-    if workers > 1:
-        start = time.perf_counter()
-        url = session.get_bind().engine.url.render_as_string(hide_password=False)
-        pieces = prepare_in_processes(
-            (url, blobs.root),
-            [(d.id, m) for d, m in zip(loaded.drives, loaded.inputs, strict=True)],
-            params,
-            workers,
-            progress,
-        )
-        prepared = join_drives(pieces, loaded.inputs, params, progress, time.perf_counter() - start)
-        build = solve_map(prepared, loaded.inputs, params, progress)
-    else:
-        build = build_map(loaded.inputs, params, progress, workers)
+    start = time.perf_counter()
+    url = session.get_bind().engine.url.render_as_string(hide_password=False)
+    ids = [d.id for d in loaded.drives]
+    stage = prepare_site_drives(
+        (url, blobs.root),
+        batch,
+        list(zip(ids, loaded.contents, loaded.inputs, strict=True)),
+        params,
+        (lambda _keys: {}) if full else (lambda keys: map_pieces.kept_pieces(session, blobs, keys)),
+        workers,
+        progress,
+    )
+    prepared = join_drives(stage.pieces, loaded.inputs, params, progress, time.perf_counter() - start)
+    warm = None
+    if warm_start and not full:
+        warm = map_pieces.previous_solution(session, site.id, ids, loaded.frame_ids)
+    build = solve_map(prepared, loaded.inputs, params, progress, warm)
+    build.stats.update(reuse_stats(stage.reused, len(stage.segments)))
+    dropped = map_pieces.keep_pieces(session, ids, stage.segments)
+    if stale is not None:
+        stale |= dropped
     return store_map_version(session, batch, site, loaded, build, params, created_by), build
+
+
+def reuse_stats(reused: int, segments: int) -> dict[str, float | int]:
+    """The figures of a version saying what its build reused of earlier builds."""
+    return {"segments_reused": reused, "segments_prepared": segments - reused}
 
 
 def get_map_version(session: Session, site: Site, version: int | None = None) -> MapVersion:

@@ -232,6 +232,28 @@ class MapVersion(Base):
     created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
 
+class MapPiece(Base):
+    """A map build's stage-1 piece of one drive segment, kept for the next build of the site.
+
+    The piece (odometry steps, thumbnails, frame statistics: an ``.npz`` blob named by ``blob_sha256``)
+    depends only on what ``piece_key`` hashes: the drive's frames and camera, the segment's frames
+    ``[frame_first, frame_stop)``, the parameters stage 1 uses and the code's piece version
+    (:mod:`driftmap.services.map_pieces`). A build whose key matches reuses the blob instead of re-running
+    the odometry; a build replaces its drives' pieces of other keys.
+    """
+
+    __tablename__ = "map_pieces"
+    __table_args__ = (UniqueConstraint("piece_key", name="uq_map_pieces_piece_key"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    drive_id: Mapped[int] = mapped_column(ForeignKey("drives.id", ondelete="CASCADE"), index=True)
+    piece_key: Mapped[str] = mapped_column(String(64))
+    frame_first: Mapped[int] = mapped_column(Integer)
+    frame_stop: Mapped[int] = mapped_column(Integer)
+    blob_sha256: Mapped[str] = mapped_column(String(64), index=True)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+
+
 class MapPose(Base):
     """The optimised pose of one mapping frame in one map version (survey frame, metres, radians)."""
 

@@ -2063,6 +2063,12 @@ export interface components {
              * @enum {string}
              */
             preset: "paper" | "fast";
+            /**
+             * Full
+             * @description Prepare every drive's odometry again instead of reusing what earlier builds kept for drives that did not change (the version's stats count segments_reused and segments_prepared).
+             * @default false
+             */
+            full: boolean;
         };
         /**
          * MapCompareRead

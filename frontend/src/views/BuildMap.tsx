@@ -25,6 +25,7 @@ interface Props {
 export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props) {
   const [job, setJob] = useState<Job | null>(null);
   const [preset, setPreset] = useState<Preset["name"]>("paper");
+  const [full, setFull] = useState(false);
   const [refused, setRefused] = useState<string | null>(null);
   const running = job !== null && !ENDED.includes(job.status);
   const now = useNow(POLL_MS);
@@ -49,7 +50,7 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
   const build = async () => {
     setRefused(null);
     try {
-      setJob(await apiPost("/api/sites/{site_id}/maps", { site_id: siteId }, { preset }));
+      setJob(await apiPost("/api/sites/{site_id}/maps", { site_id: siteId }, { preset, full }));
     } catch (e) {
       const text = e instanceof ApiError ? e.message : String(e);
       setRefused(text);
@@ -99,6 +100,16 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
                   </option>
                 ))}
               </select>
+            </label>
+            <label title="Prepare every drive's odometry again instead of reusing what earlier builds kept for drives that did not change">
+              <input
+                type="checkbox"
+                data-testid="build-full"
+                checked={full}
+                disabled={running}
+                onChange={(e) => setFull(e.target.checked)}
+              />{" "}
+              full rebuild
             </label>
             <span className="spacer" />
             <button className="primary" data-testid="build-map" onClick={() => void build()} disabled={running}>

@@ -211,6 +211,18 @@ class TestIncremental:
         np.testing.assert_allclose(warm.wTi[0], scratch.wTi[0], atol=WARM_TOL_M)
         assert warm.wTi[0][0, 0] == pytest.approx(1000.0, abs=0.5)
 
+    def test_a_graph_warm_started_from_an_earlier_solution_reaches_the_cold_optimum_sooner(self) -> None:
+        truth, chain, closures = loop_world()
+        earlier = optimise_pose_graph([chain], closures, grounded_at(truth, [0, 20]))
+        groundings = grounded_at(truth, [0, 20, 90])  # a grounding added since
+        cold = optimise_pose_graph([chain], closures, groundings)
+        warm = optimise_pose_graph([chain], closures, groundings, warm=[earlier.wTi[0]])
+        np.testing.assert_allclose(warm.wTi[0][:, :2], cold.wTi[0][:, :2], atol=WARM_TOL_M)
+        assert warm.final_error == pytest.approx(cold.final_error, rel=1e-6)
+        assert 0 < warm.iterations < cold.iterations
+        with pytest.raises(BadInputError, match=r"warm\[0\]"):
+            optimise_pose_graph([chain], closures, groundings, warm=[earlier.wTi[0][:-1]])
+
 
 class TestClamping:
     def test_tiny_sigmas_are_clamped_to_the_floor(self) -> None:

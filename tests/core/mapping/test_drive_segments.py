@@ -20,6 +20,7 @@ from driftmap.core.mapping.pipeline import (
     drive_segments,
     join_segments,
     prepare_segment,
+    restride_segment,
 )
 from driftmap.core.odometry.drive import dead_reckon
 from driftmap.core.topomap.database import DATABASE_OFF, STATS_CHUNK, DatabaseParams, FrameStatsPass
@@ -136,3 +137,30 @@ def test_a_lens_camera_gives_thumbnails_and_statistics_of_its_view(circle: np.nd
     one_pass.close()
     assert piece.stats is not None
     np.testing.assert_array_equal(np.concatenate(piece.stats.masks), np.concatenate(one_pass.masks))
+
+
+@pytest.mark.parametrize("flat", [(0, N_FRAMES), (40, N_FRAMES + 40), (97, 3 * N_FRAMES)])
+def test_a_kept_segment_restrided_for_another_build_is_what_that_build_prepares(
+    circle: np.ndarray, flat: tuple[int, int]
+) -> None:
+    drive = MappingDrive(
+        "circle", pinhole_camera(), np.arange(N_FRAMES) * 0.1, lambda: iter(circle),
+        frame_range=lambda begin, stop: iter(circle[begin:stop]),
+    )  # fmt: skip
+    params = replace(MAPPING_PAPER, segment_frames=128, database=DatabaseParams(quality_sources=4))
+    span = (128, 256)
+    kept = prepare_segment(drive, params, (0, N_FRAMES), span).to_arrays()  # prepared alone, kept
+    sampled = (int(kept["stats_first"]), int(kept["stats_stride"]))
+    loaded = PreparedSegment.from_arrays(kept, params.database, params.images, flat[0] + span[0], flat[1])
+    again = restride_segment(loaded, drive, params, sampled)
+    fresh = prepare_segment(drive, params, flat, span)
+    assert again.stats is not None and fresh.stats is not None
+    for name in ("sal", "masks", "feats", "sample", "sample_sal"):
+        np.testing.assert_array_equal(
+            np.concatenate(getattr(again.stats, name)), np.concatenate(getattr(fresh.stats, name)), name
+        )
+    assert (again.stats.seen, again.stats.frames, again.stats.stride) == (
+        fresh.stats.seen,
+        fresh.stats.frames,
+        fresh.stats.stride,
+    )

@@ -143,6 +143,7 @@ def solve_with_calibration(
     graph_params: PoseGraphParams,
     rounds: int,
     window_m: float,
+    warm: Sequence[F64 | None] | None = None,
 ) -> tuple[PoseGraphResult, list[OdometryBias]]:
     """Alternate odometry self-calibration and the pose-graph solve ``rounds`` times after a first solve.
 
@@ -161,6 +162,8 @@ def solve_with_calibration(
             :func:`driftmap.core.graph.posegraph.optimise_pose_graph`.
         rounds: at most this many calibration passes; fewer when the fit settles (0: ``graph`` as it is).
         window_m: travel per fitting window, metres.
+        warm: per chain, poses every solve starts from where given (see
+            :class:`~driftmap.core.graph.posegraph.PoseGraphSession`).
 
     Returns:
         The last solution and each chain's fitted bias (:data:`NO_BIAS` for drives left alone).
@@ -176,7 +179,7 @@ def solve_with_calibration(
     fixed = list(chains)
     for _ in range(rounds):
         loose = [_loosened(chain, LOOSE_ODOMETRY_GAIN) for chain in fixed]
-        fitted = posegraph.optimise_pose_graph(loose, closures, groundings, graph_params)
+        fitted = posegraph.optimise_pose_graph(loose, closures, groundings, graph_params, warm)
         previous = biases
         biases = []
         for k, (chain, wTi, ok) in enumerate(zip(chains, fitted.wTi, informed, strict=True)):
@@ -189,7 +192,7 @@ def solve_with_calibration(
         fixed = [_corrected(chain, bias) for chain, bias in zip(chains, biases, strict=True)]
         if all(_settled(a, b) for a, b in zip(previous, biases, strict=True)):
             break
-    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params), biases
+    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params, warm), biases
 
 
 def _as_vector(bias: OdometryBias) -> F64:

@@ -84,14 +84,18 @@ def _noise_models(
 class PoseGraphSession:
     """A pose graph that keeps its odometry and closures and re-solves after grounding edits.
 
-    The first :meth:`solve` starts from the aligned dead-reckoning; later ones start from the previous
-    solution (LM warm start) unless the gauge anchors changed, which reaches the same optimum faster.
+    The first :meth:`solve` starts from the aligned dead-reckoning, or where ``warm`` gives a chain's
+    poses, from those; later ones start from the previous solution (LM warm start) unless the gauge anchors
+    changed, which reaches the same optimum faster. A warm start changes only where LM starts, never the
+    graph: the placement and the gauge anchors are those of the cold start.
 
     Args:
         chains: the drives' odometry, chain c has N_c frames.
         closures: loop closures between frames of any chains.
         groundings: initial groundings; they get ids 0..G-1.
         params: how to build and solve the graph.
+        warm: per chain, (N_c, 3) poses [x_m, y_m, yaw_rad] in the survey frame to start LM from (an earlier
+            solution of a similar graph), or None (the cold start); no iSAM2 feed then.
     """
 
     def __init__(
@@ -100,9 +104,17 @@ class PoseGraphSession:
         closures: Sequence[LoopConstraint],
         groundings: Sequence[GroundingConstraint] = (),
         params: PoseGraphParams = POSEGRAPH_DEFAULT,
+        warm: Sequence[F64 | None] | None = None,
     ) -> None:
         if not chains:
             raise _fail("a pose graph needs at least one odometry chain", "chains")
+        if warm is not None:
+            if len(warm) != len(chains):
+                raise _fail(f"warm has {len(warm)} entries for {len(chains)} chains", "warm")
+            for c, (w, chain) in enumerate(zip(warm, chains, strict=True)):
+                if w is not None and (np.shape(w) != (chain.num_frames, 3) or not np.all(np.isfinite(w))):
+                    raise _fail(f"warm poses must be ({chain.num_frames}, 3) and finite", f"warm[{c}]")
+        self._warm = None if warm is None or all(w is None for w in warm) else list(warm)
         self.params = params
         self._sizes = [c.num_frames for c in chains]
         self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).astype(np.int64)
@@ -216,6 +228,11 @@ class PoseGraphSession:
         t0 = time.perf_counter()
         if self._previous is not None and gauge == self._previous_gauge:
             start = self._previous  # warm start: only groundings changed
+        elif self._warm is not None:  # warm start: an earlier solution where given
+            start = gtsam.Values()
+            chosen = [p if w is None else w for p, w in zip(poses, self._warm, strict=True)]
+            for key, pose in enumerate(np.concatenate(chosen)):
+                start.insert(key, gtsam.Pose2(*pose))
         else:
             start = self._isam2(graph, initial, anchors) if p.solver == "isam2" else initial
         values, iterations, weights = self._batch(graph, start)
@@ -298,6 +315,7 @@ def optimise_pose_graph(
     closures: Sequence[LoopConstraint],
     groundings: Sequence[GroundingConstraint] = (),
     params: PoseGraphParams = POSEGRAPH_DEFAULT,
+    warm: Sequence[F64 | None] | None = None,
 ) -> PoseGraphResult:
     """Build and solve the pose graph of several drives; see :class:`PoseGraphSession` for the arguments."""
-    return PoseGraphSession(chains, closures, groundings, params).solve()
+    return PoseGraphSession(chains, closures, groundings, params, warm).solve()

@@ -166,7 +166,9 @@ class PreparedSegment:
             "thumbs": self.thumbs,
             "seconds": np.array(self.seconds),
         }
-        if self.stats is not None:
+        if self.stats is not None:  # where the classifier's sample was taken: see restride_segment
+            out["stats_first"] = np.array(self.stats.seen - self.stats.frames)
+            out["stats_stride"] = np.array(self.stats.stride)
             for name in _STATS_LISTS:
                 chunks = getattr(self.stats, name)
                 if chunks:  # one array: concatenating chunks is exact, as finish_frame_stats does

@@ -38,6 +38,7 @@ from driftmap.core.mapping.prepare import (
     join_segments,
     prepare_drives,
     prepare_segment,
+    restride_segment,
     variant,
 )
 from driftmap.core.topomap.build import build_topomap
@@ -64,6 +65,7 @@ __all__ = [
     "join_segments",
     "prepare_drives",
     "prepare_segment",
+    "restride_segment",
     "solve_map",
     "variant",
 ]
@@ -131,11 +133,14 @@ def solve_map(
     drives: Sequence[MappingDrive],
     params: MappingParams = MAPPING_DEFAULT,
     progress: ProgressFn | None = None,
+    warm: Sequence[F64 | None] | None = None,
 ) -> MapBuild:
     """Stages 4-5: the pose graph (with the closures and groundings the params allow) and the map.
 
     Drives that get no grounding (groundings off, or none recorded) start from their ``start_wT``
-    when given; otherwise the pose graph places them through closures or anchors them weakly.
+    when given; otherwise the pose graph places them through closures or anchors them weakly. ``warm``
+    gives, per drive, (N_d, 3) poses of an earlier solution for the solver to start from (or None): the
+    graph is the same, the solution the same to the solver's tolerance.
     """
     report = progress or (lambda _stage, _fraction: None)
     timings = dict(prepared.timings)
@@ -161,7 +166,7 @@ def solve_map(
         if params.use_groundings
         for i, x, y in drive.groundings
     ]
-    graph = posegraph.optimise_pose_graph(chains, closures, groundings, params.graph)
+    graph = posegraph.optimise_pose_graph(chains, closures, groundings, params.graph, warm)
     graph, biases = solve_with_calibration(
         graph,
         chains,
@@ -170,6 +175,7 @@ def solve_map(
         params.graph,
         params.calibration_rounds,
         params.calibration_window_m,
+        warm,
     )
     report("pose graph", 1.0)
     timings["pose_graph_s"] = time.perf_counter() - start
@@ -198,6 +204,8 @@ def solve_map(
         "nodes": topomap.n_nodes,
         "graph_initial_error": graph.initial_error,
         "graph_final_error": graph.final_error,
+        "graph_warm_drives": 0 if warm is None else sum(w is not None for w in warm),
+        "graph_iterations": graph.iterations,
         "calibrated_drives": sum(b != NO_BIAS for b in biases),
         "max_scale_error": max(abs(b.scale - 1.0) for b in biases),
         "max_heading_rate_deg_per_100m": max(abs(np.degrees(b.yaw_rate_rad_per_m)) * 100.0 for b in biases),

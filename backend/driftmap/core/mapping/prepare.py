@@ -9,6 +9,7 @@ one-process build.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -19,7 +20,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.graph.constraints import POSEGRAPH_DEFAULT, OdometryChain, PoseGraphParams
+from driftmap.core.imaging.images import downsample
 from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.imaging.views import undistorted_view
 from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_FAST, LoopParams
 from driftmap.core.loop_closure.search import LoopMatch, detect_loops
 from driftmap.core.mapping import drive as drive_prep
@@ -195,6 +198,51 @@ def join_segments(
     return drive_prep.join_segments(
         drive.name, segments, drive.n_frames, drive.camera, params.odometry, drive.start_wT or (0.0, 0.0, 0.0)
     )
+
+
+def restride_segment(
+    segment: PreparedSegment,
+    drive: MappingDrive,
+    params: MappingParams,
+    sampled: tuple[int, int] | None,
+) -> PreparedSegment:
+    """A segment prepared by another build, its classifier sample retaken as this build takes it.
+
+    Everything in a piece depends on its drive alone except the quality classifier's candidate sample: the
+    frame statistics keep every ``stride``-th frame of the build's flat frame index, the stride set by the
+    build's total frame count (:class:`~driftmap.core.topomap.database.FrameStatsPass`). A piece kept from
+    a build with other drives before it, or another total, sampled other frames; this re-decodes the few
+    frames the sample takes now (about ``4 * quality_sources`` over the whole build) and gives the segment
+    :func:`prepare_segment` would have given.
+
+    Args:
+        segment: the kept piece, loaded with this build's flat offset and total
+            (:meth:`PreparedSegment.from_arrays`).
+        drive: its drive (frames read for the new sample).
+        params: the build's parameters.
+        sampled: (flat index of the segment's first frame, stride) of the build that prepared it; None when
+            unknown (the sample is retaken).
+    """
+    stats = segment.stats
+    if stats is None or not params.database.use_quality:
+        return segment
+    first_flat = stats.seen - stats.frames
+    if sampled == (first_flat, stats.stride):
+        return segment
+    n = int(segment.thumbs.shape[0])
+    pick = np.flatnonzero((first_flat + np.arange(n)) % stats.stride == 0)
+    views = [
+        undistorted_view(
+            next(iter(drive.frames_between(segment.first + i, segment.first + i + 1))), drive.camera.lens
+        )
+        for i in pick.tolist()
+    ]
+    w, h = params.database.quality.feature_size_px
+    sample = downsample(np.stack(views), (w, h)) if views else np.zeros((0, h, w), dtype=np.uint8)
+    sal = np.concatenate(stats.sal) if stats.sal else np.zeros(0, dtype=np.float64)
+    retaken = copy.copy(stats)
+    retaken.sample, retaken.sample_sal = [sample], [sal[pick]]
+    return replace(segment, stats=retaken)
 
 
 def flat_offsets(drives: Sequence[MappingDrive]) -> list[tuple[int, int]]:

@@ -1,0 +1,180 @@
+"""Incremental map builds as jobs: the odometry pieces a build keeps, reused by the next build of the site.
+
+On the mini site (two mapping drives of 100 frames, one segment each) on a real database: a build after no
+change prepares nothing and gives the same map (its pose graph started from the last version's poses); a
+build after a new mapping drive prepares only it and equals a full build; a moved grounding re-solves the
+graph from the kept odometry; a full build prepares everything and replaces the kept
+pieces; deleting the site leaves no piece and no blob.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from sqlalchemy import select
+
+from driftmap.core.mapping.pipeline import MAP_PRESETS, MAPPING_FAST
+from driftmap.jobs.queue import JobQueue
+from driftmap.services import deletion
+from driftmap.services import drives as drive_service
+from driftmap.services import groundings as grounding_service
+from driftmap.services import jobs as job_service
+from driftmap.services import sites as site_service
+from driftmap.store.job_models import Job
+from driftmap.store.models import Drive, Grounding, MapPiece, MapPose, MapVersion
+from driftmap.store.storage import Storage
+from tests.jobs.mini_site import drive_folders
+
+POSE_TOLERANCE_M = 0.1
+"""Largest distance between an incremental build's pose and a full build's (the issue's target)."""
+SAME_M = 1e-6
+"""Largest change of a pose between two builds of unchanged data (the warm-started solver's tolerance)."""
+GROUNDING_SHIFT_M = 5.0
+"""How far the test moves a surveyed point: far beyond the graph's noise."""
+
+
+def _import(storage: Storage, site_dir: Path, folders: list[Path], create: bool) -> None:
+    with storage.blobs.batch() as batch, storage.db.session() as session:
+        if create:
+            site = site_service.create_site(session, "tiny")
+            site_service.add_survey_map(
+                session, batch, site, (site_dir / "survey.dxf").read_bytes(), "survey.dxf"
+            )
+    for folder in folders:
+        with storage.blobs.batch() as batch, storage.db.session() as session:
+            drive_service.import_drive(session, batch, site_service.get_site(session, "tiny"), folder)
+
+
+def _build(storage: Storage, queue: JobQueue, **args: Any) -> tuple[MapVersion, list[Job]]:
+    """Run a ``map.build`` job of the site; its version and subtasks."""
+    with storage.db.session() as session:
+        site_id = site_service.get_site(session, "tiny").id
+        job_id = job_service.submit(
+            session,
+            queue.enqueue,
+            "map.build",
+            {"preset": "fast", **args},
+            site_id=site_id,
+            created_by="test",
+        ).id
+    with storage.db.session() as session:
+        job = job_service.get_job(session, job_id)
+        assert job.status == "succeeded", job.error
+        version = session.get(MapVersion, job.result["map_version_id"])
+        assert version is not None
+        return version, job_service.children(session, job_id)
+
+
+def _poses(storage: Storage, version: MapVersion) -> np.ndarray:
+    """(F, 3) [x_m, y_m, yaw_rad] of the version, frame by frame."""
+    with storage.db.session() as session:
+        rows = session.execute(
+            select(MapPose.x_m, MapPose.y_m, MapPose.yaw_rad)
+            .where(MapPose.map_version_id == version.id)
+            .order_by(MapPose.frame_id)
+        ).all()
+    return np.array(rows, dtype=np.float64)
+
+
+def _kept(storage: Storage) -> dict[str, str]:
+    with storage.db.session() as session:
+        return {k: s for k, s in session.execute(select(MapPiece.piece_key, MapPiece.blob_sha256))}
+
+
+def _reuse(version: MapVersion) -> tuple[int, int]:
+    return int(version.stats["segments_reused"]), int(version.stats["segments_prepared"])
+
+
+class TestIncrementalBuild:
+    def test_a_build_after_no_change_prepares_nothing_and_gives_the_same_map(
+        self, storage: Storage, queue: JobQueue, mini_site: Path
+    ) -> None:
+        _import(storage, mini_site, drive_folders(mini_site, "map"), create=True)
+        first, subtasks = _build(storage, queue)
+        assert _reuse(first) == (0, 2) and sum(j.kind == "map.drive" for j in subtasks) == 2
+        kept = _kept(storage)
+        assert len(kept) == 2 and all(storage.blobs.exists(sha) for sha in kept.values())
+        second, subtasks = _build(storage, queue)
+        assert _reuse(second) == (2, 0) and not any(j.kind == "map.drive" for j in subtasks)
+        assert (first.stats["graph_warm_drives"], second.stats["graph_warm_drives"]) == (0, 2)
+        np.testing.assert_allclose(_poses(storage, second), _poses(storage, first), rtol=0, atol=SAME_M)
+        assert _kept(storage) == kept
+
+    def test_a_new_drive_is_the_only_one_prepared_and_the_map_equals_a_full_build(
+        self, storage: Storage, queue: JobQueue, mini_site: Path
+    ) -> None:
+        folders = drive_folders(mini_site, "map")
+        assert len(folders) == 2
+        _import(storage, mini_site, folders[:1], create=True)
+        alone, _subtasks = _build(storage, queue)
+        _import(storage, mini_site, folders[1:], create=False)
+        grown, subtasks = _build(storage, queue)
+        assert _reuse(alone) == (0, 1) and _reuse(grown) == (1, 1)
+        assert grown.stats["graph_warm_drives"] == 1  # the kept drive starts where version 1 left it
+        assert [j.args["drive_id"] for j in subtasks if j.kind == "map.drive"] == [max(_drive_ids(storage))]
+        kept = _kept(storage)
+        full, subtasks = _build(storage, queue, full=True)
+        assert _reuse(full) == (0, 2) and sum(j.kind == "map.drive" for j in subtasks) == 2
+        assert full.stats["graph_warm_drives"] == 0
+        incremental, rebuilt = _poses(storage, grown), _poses(storage, full)
+        assert incremental.shape == rebuilt.shape == (200, 3)
+        assert np.linalg.norm(incremental[:, :2] - rebuilt[:, :2], axis=1).max() <= POSE_TOLERANCE_M
+        for name in ("closures_found", "closures_accepted", "nodes", "reference_frames"):
+            assert grown.stats[name] == full.stats[name], name
+        replaced = _kept(storage)  # the full build's pieces replace the kept ones, whose blobs are gone
+        assert replaced.keys() == kept.keys()
+        assert all(storage.blobs.exists(sha) for sha in replaced.values())
+        assert not any(storage.blobs.exists(sha) for sha in set(kept.values()) - set(replaced.values()))
+
+    def test_a_moved_grounding_re_solves_the_graph_from_the_kept_odometry(
+        self, storage: Storage, queue: JobQueue, mini_site: Path
+    ) -> None:
+        _import(storage, mini_site, drive_folders(mini_site, "map"), create=True)
+        before, _subtasks = _build(storage, queue)
+        with storage.db.session() as session:
+            grounding = session.scalars(select(Grounding).order_by(Grounding.id)).first()
+            assert grounding is not None
+            grounding_service.update_grounding(session, grounding, x_m=grounding.x_m + GROUNDING_SHIFT_M)
+        after, subtasks = _build(storage, queue)
+        assert _reuse(after) == (2, 0) and not any(j.kind == "map.drive" for j in subtasks)
+        moved = np.linalg.norm(_poses(storage, after)[:, :2] - _poses(storage, before)[:, :2], axis=1)
+        assert moved.max() > 1.0  # the graph was solved again with the new surveyed point
+        full, _subtasks = _build(storage, queue, full=True)
+        gap = np.linalg.norm(_poses(storage, after)[:, :2] - _poses(storage, full)[:, :2], axis=1)
+        assert gap.max() <= POSE_TOLERANCE_M
+
+    def test_other_stage_one_parameters_prepare_every_drive_and_replace_the_kept_pieces(
+        self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        _import(storage, mini_site, drive_folders(mini_site, "map"), create=True)
+        _build(storage, queue)
+        before = _kept(storage)
+        database = replace(MAPPING_FAST.database, view_spacing_m=2.0)  # in the pieces' key, cheap to change
+        monkeypatch.setitem(MAP_PRESETS, "fast", replace(MAPPING_FAST, database=database))
+        other, subtasks = _build(storage, queue)
+        assert _reuse(other) == (0, 2) and sum(j.kind == "map.drive" for j in subtasks) == 2
+        kept = _kept(storage)
+        assert len(kept) == 2 and not kept.keys() & before.keys()
+        assert not any(storage.blobs.exists(sha) for sha in before.values())
+
+    def test_deleting_the_site_leaves_no_kept_piece_and_no_blob(
+        self, storage: Storage, queue: JobQueue, mini_site: Path
+    ) -> None:
+        _import(storage, mini_site, drive_folders(mini_site, "map"), create=True)
+        _build(storage, queue)
+        kept = _kept(storage)
+        assert kept
+        with storage.db.session() as session:
+            candidates = deletion.delete_site(session, site_service.get_site(session, "tiny"))
+        deletion.delete_unreferenced_blobs(storage, candidates)
+        assert not _kept(storage)
+        assert not any(storage.blobs.exists(sha) for sha in kept.values())
+
+
+def _drive_ids(storage: Storage) -> list[int]:
+    with storage.db.session() as session:
+        return list(session.scalars(select(Drive.id)))
