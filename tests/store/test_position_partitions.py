@@ -154,6 +154,48 @@ class TestUpkeep:
         assert done.thinned == 120 - 6
         assert len(_where(pg)) == 6
 
+    def test_a_thinned_week_is_rewritten_once_and_gives_its_disk_back(self, pg: Storage) -> None:
+        vehicle_id = _vehicle(pg)
+        week = parts.week_start(NOW - timedelta(days=10))
+        with pg.db.engine.begin() as connection:
+            parts.upkeep(connection, week, None)
+        _add(pg, vehicle_id, [week + timedelta(days=1, seconds=0.1 * k) for k in range(20_000)])
+        name = parts.partition_name(week)
+
+        def size() -> int:
+            with pg.db.engine.connect() as connection:
+                return int(connection.scalar(text(f"SELECT pg_total_relation_size('{name}')")) or 0)
+
+        full = size()
+        policy = RetentionPolicy(full_days=2.0, downsample_s=10.0, keep_days=30.0, catch_up_days=14.0)
+        with pg.db.session() as session:
+            done = apply_retention(session, policy, NOW)
+        assert done.thinned == 20_000 - 200 and done.partition_compacted == name
+        assert size() < full / 10
+        assert set(_where(pg).values()) == {name} and len(_where(pg)) == 200
+        with pg.db.session() as session:
+            again = apply_retention(session, policy, NOW)
+            assert len(position_service.history(session, vehicle_id)) == 200
+        assert again.thinned == 0 and again.partition_compacted != name  # (a later week may be due now)
+        with pg.db.engine.connect() as connection:  # still a partition with its indexes and foreign keys
+            indexes = connection.scalars(
+                text("SELECT indexdef FROM pg_indexes WHERE tablename = :t"), {"t": name}
+            )
+            assert sorted(d.rsplit(" USING btree ", 1)[1] for d in indexes) == [
+                "(id, received_at)",
+                "(received_at)",
+                "(vehicle_id, t_s)",
+            ]
+            assert (
+                connection.scalar(
+                    text(
+                        "SELECT count(*) FROM pg_constraint WHERE conrelid = to_regclass(:t) AND contype = 'f'"
+                    ),
+                    {"t": name},
+                )
+                == 2
+            )
+
     def test_one_worker_at_a_time_and_a_second_pass_does_nothing(self, pg: Storage) -> None:
         later = NOW + timedelta(days=30)
         with pg.db.engine.connect() as first, pg.db.engine.connect() as second:

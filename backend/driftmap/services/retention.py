@@ -17,7 +17,9 @@ positions of a longer stop of every worker stay at full rate until they are dele
 On PostgreSQL the positions table is partitioned by week of ``received_at``
 (:mod:`driftmap.store.position_partitions`): a pass first creates the coming weeks' partitions and drops every
 partition that lies wholly past ``keep_days`` (one ``DROP TABLE`` instead of deleting its rows), then deletes
-row by row only what is left past ``keep_days`` (the boundary week, the default partition) and thins as above.
+row by row only what is left past ``keep_days`` (the boundary week, the default partition) and thins as above;
+last it rewrites one week whose rows are all thinned, to give back the disk its deleted rows held
+(:func:`~driftmap.store.position_partitions.compact`).
 Only one worker's pass does that upkeep at a time (an advisory lock; the others skip it); a pass whose upkeep
 cannot get a table lock within a few seconds leaves it to the next pass and still thins and deletes.
 """
@@ -81,12 +83,14 @@ class RetentionResult:
     dropped: int
     partitions_created: tuple[str, ...] = ()
     partitions_dropped: tuple[str, ...] = ()
+    partition_compacted: str | None = None
 
 
 def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) -> RetentionResult:
     """Apply ``policy`` to the stored positions at time ``now`` (timezone-aware UTC); the caller commits."""
     cutoff = now - timedelta(days=policy.keep_days) if policy.keep_days > 0 else None
-    upkeep = _partition_upkeep(session, now, cutoff)
+    partitioned = position_partitions.is_partitioned(session.connection())
+    upkeep = _partition_upkeep(session, now, cutoff) if partitioned else position_partitions.Upkeep((), ())
     dropped = 0
     if cutoff is not None:
         dropped = _deleted(
@@ -111,15 +115,15 @@ def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) ->
         thinned = _deleted(
             session.execute(delete(VehiclePosition).where(window, VehiclePosition.id.not_in(kept)))
         )
-    return RetentionResult(thinned, dropped, upkeep.created, upkeep.dropped)
+    compacted = None
+    if partitioned and upkeep.locked:
+        compacted = _compact(session, now - timedelta(days=policy.full_days), cutoff)
+    return RetentionResult(thinned, dropped, upkeep.created, upkeep.dropped, compacted)
 
 
 def _partition_upkeep(session: Session, now: datetime, cutoff: datetime | None) -> position_partitions.Upkeep:
-    """On a partitioned positions table: create the coming weeks' partitions, drop those wholly before
-    ``cutoff``; in a savepoint, so a lock timeout gives up only the upkeep."""
-    connection = session.connection()
-    if not position_partitions.is_partitioned(connection):
-        return position_partitions.Upkeep((), ())
+    """Create the coming weeks' partitions, drop those wholly before ``cutoff``; in a savepoint, so a lock
+    timeout gives up only the upkeep."""
     try:
         with session.begin_nested():
             return position_partitions.upkeep(session.connection(), now, cutoff)
@@ -133,3 +137,16 @@ def _partition_upkeep(session: Session, now: datetime, cutoff: datetime | None) 
 def _deleted(result: object) -> int:
     count = getattr(result, "rowcount", 0)
     return int(count) if isinstance(count, int) and count >= 0 else 0
+
+
+def _compact(session: Session, thinned_before: datetime, cutoff: datetime | None) -> str | None:
+    """Rewrite one fully thinned week (PostgreSQL), in a savepoint like :func:`_partition_upkeep`."""
+    try:
+        with session.begin_nested():
+            return position_partitions.compact(session.connection(), thinned_before, cutoff)
+    except OperationalError:
+        log.warning(
+            "position partitions: compaction gave up (a table lock was busy); next pass retries",
+            exc_info=True,
+        )
+        return None

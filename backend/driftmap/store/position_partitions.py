@@ -14,6 +14,12 @@ idempotent and safe with several workers: it runs only under a transaction-scope
 does not get it leaves the upkeep to the one that has it), skips partitions that exist already, and creates a
 partition as a plain table that it then attaches (rows the default partition holds for that week move into
 it first), which locks the parent less than ``CREATE TABLE ... PARTITION OF`` would.
+
+Thinning deletes 99 % of a week's rows but frees no disk: nothing is ever inserted into a past week again, so
+its pages are never reused. :func:`compact` therefore rewrites one thinned week per pass: its surviving rows
+are copied into a new table with the same indexes, foreign keys and a CHECK of the week's bounds, which then
+replaces the old partition (detach, attach, drop: the parent is locked exclusively only for those catalog
+changes, not for the copy). A compacted week carries the table comment :data:`COMPACTED`.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ __all__ = [
     "PARENT",
     "WEEK",
     "Upkeep",
+    "compact",
     "is_partition_name",
     "is_partitioned",
     "partition_name",
@@ -48,6 +55,7 @@ UPKEEP_LOCK = 0x64726D70  # "drmp": the advisory lock key of the partition upkee
 LOCK_TIMEOUT = "5s"
 """How long the upkeep waits for a table lock (a long query on the positions); it gives up and retries on the
 next pass rather than queue live inserts behind it."""
+COMPACTED = "driftmap: thinned and compacted"
 _NAME = re.compile(rf"^{PARENT}_w(\d{{8}})$")
 
 
@@ -126,6 +134,61 @@ def upkeep(connection: Connection, now: datetime, drop_before: datetime | None) 
                 connection.execute(text(f'DROP TABLE "{name}"'))
                 dropped.append(name)
     return Upkeep(tuple(created), tuple(dropped))
+
+
+def compact(connection: Connection, thinned_before: datetime, drop_before: datetime | None) -> str | None:
+    """Rewrite the oldest weekly partition that ends at or before ``thinned_before`` (its rows all thinned),
+    is not compacted yet and is not due to be dropped (ends after ``drop_before``); returns its name, or None
+    when there is none or another worker holds the upkeep lock. The caller commits."""
+    if not connection.scalar(text("SELECT pg_try_advisory_xact_lock(:key)"), {"key": UPKEEP_LOCK}):
+        return None
+    connection.execute(text(f"SET LOCAL lock_timeout = '{LOCK_TIMEOUT}'"))
+    comments: dict[str, str | None] = dict(
+        connection.execute(
+            text(
+                "SELECT c.relname, obj_description(c.oid, 'pg_class') FROM pg_inherits i "
+                "JOIN pg_class c ON c.oid = i.inhrelid WHERE i.inhparent = to_regclass(:parent)"
+            ),
+            {"parent": PARENT},
+        ).all()
+    )
+    for name, start in partitions(connection).items():
+        end = start + WEEK
+        due = end <= thinned_before and (drop_before is None or end > drop_before)
+        if due and comments.get(name) != COMPACTED:
+            _rewrite(connection, name, start)
+            return name
+    return None
+
+
+def _rewrite(connection: Connection, name: str, start: datetime) -> None:
+    """Replace weekly partition ``name`` by a compact copy of its rows (see the module doc)."""
+    new, lower, upper = f"{name}_compact", _literal(start), _literal(start + WEEK)
+    connection.execute(text(f'LOCK TABLE "{name}" IN SHARE MODE'))  # no row changes while it is copied
+    connection.execute(text(f'CREATE TABLE "{new}" (LIKE {PARENT} INCLUDING ALL)'))
+    connection.execute(text(f'INSERT INTO "{new}" SELECT * FROM "{name}"'))
+    foreign_keys = connection.execute(
+        text(
+            "SELECT conname, pg_get_constraintdef(oid) FROM pg_constraint "
+            "WHERE conrelid = to_regclass(:parent) AND contype = 'f'"
+        ),
+        {"parent": PARENT},
+    ).all()
+    for constraint, definition in foreign_keys:
+        connection.execute(text(f'ALTER TABLE "{new}" ADD CONSTRAINT "{constraint}" {definition}'))
+    connection.execute(
+        text(
+            f'ALTER TABLE "{new}" ADD CONSTRAINT "{new}_week" '
+            f"CHECK (received_at >= {lower} AND received_at < {upper})"
+        )
+    )  # lets the attach skip scanning the rows
+    connection.execute(text(f'ALTER TABLE {PARENT} DETACH PARTITION "{name}"'))
+    connection.execute(
+        text(f'ALTER TABLE {PARENT} ATTACH PARTITION "{new}" FOR VALUES FROM ({lower}) TO ({upper})')
+    )
+    connection.execute(text(f'DROP TABLE "{name}"'))
+    connection.execute(text(f'ALTER TABLE "{new}" RENAME TO "{name}"'))
+    connection.execute(text(f"COMMENT ON TABLE \"{name}\" IS '{COMPACTED}'"))
 
 
 def _create(connection: Connection, name: str, start: datetime) -> None:
