@@ -8,9 +8,10 @@ One partition per week (Monday 00:00 UTC to the next), named ``vehicle_positions
 plus the default partition ``vehicle_positions_default`` for any row no week covers, so no insert can fail.
 Weeks rather than days: history queries select by the vehicle's clock ``t_s``, which cannot prune partitions,
 so each query plans and probes every partition; a year of history is about 55 weekly partitions against about
-370 daily ones, and the retention still frees a whole week with one ``DROP TABLE``. The job workers' retention
-pass creates the coming weeks' partitions and drops the expired ones (:mod:`driftmap.store.position_partitions`
-uses the same names).
+370 daily ones, which add about 130 ms to a one-hour history query (docs/operations.md, Position history);
+the retention still frees a whole week with one ``DROP TABLE``. The job workers' retention pass creates the
+coming weeks' partitions and drops the expired ones (:mod:`driftmap.store.position_partitions` uses the same
+names).
 
 PostgreSQL requires a partitioned table's primary key to hold the partition key: it becomes
 ``(id, received_at)``; ``id`` stays the unique sequence number the live WebSocket resumes from (one sequence for
