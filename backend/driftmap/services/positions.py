@@ -91,7 +91,7 @@ _COLUMNS = (
     VehiclePosition.speckle,
     VehiclePosition.flat_area,
 )
-"""The columns of a :class:`PositionView`, in its field order."""
+"""The columns :func:`_view` unpacks, in its order."""
 
 
 def _query() -> Select[*tuple[Any, ...]]:
@@ -109,9 +109,10 @@ def _view(row: Sequence[Any]) -> PositionView:
     (seq, vehicle_id, vehicle, site_id, t, node, x, y, yaw, confidence, matched, lost, version, received_at,
      speed_mps, moving, odometry, obscured, reason, salient, sharpness, speckle, flat_area) = row  # fmt: skip
     return PositionView(
-        seq, vehicle_id, vehicle, site_id, t, node, x, y, yaw, confidence, matched, lost, version,
-        as_utc(received_at), speed_mps, moving, bool(odometry), obscured, reason, salient, sharpness, speckle,
-        flat_area,
+        seq=seq, vehicle_id=vehicle_id, vehicle=vehicle, site_id=site_id, t=t, node=node, x=x, y=y, yaw=yaw,
+        confidence=confidence, matched=matched, lost=lost, map_version=version, received_at=as_utc(received_at),
+        speed_mps=speed_mps, moving=moving, odometry=bool(odometry), obscured=obscured, obscured_reason=reason,
+        salient=salient, sharpness=sharpness, speckle=speckle, flat_area=flat_area,
     )  # fmt: skip
 
 
