@@ -1,8 +1,8 @@
 """bench_history.py on PostgreSQL: bytes per position row and one-hour history queries, partitioned vs plain.
 
 Two databases on one private server (tests.postgres_server): ``partitioned`` at the newest schema (the positions
-table partitioned by week of ``received_at``, migration 0017) and ``plain`` at the schema before it (revision
-0016, one table). Both get the same rows by COPY: ``vehicles`` vehicles, ``hours`` each at 10 positions a
+table partitioned by week of ``received_at``, migration 0017) and ``plain`` at the schema before it (one
+table). Both get the same rows by COPY: ``vehicles`` vehicles, ``hours`` each at 10 positions a
 second with every column filled, vehicle ``v``'s hours received ``v mod 30`` days ago, so the rows spread over
 the weekly partitions of a month. Then, for each table: its bytes per row (``pg_total_relation_size`` of the
 table and of every partition, indexes and TOAST included, after VACUUM ANALYZE), and the median of ``runs``
@@ -39,7 +39,6 @@ COLUMNS = (
     "vehicle_id, map_version_id, t_s, node, x_m, y_m, yaw_rad, confidence, matched, lost, received_at, "
     "obscured, obscured_reason, salient, sharpness, speckle, flat_area, speed_mps, moving, odometry"
 )
-PLAIN_REVISION = "0016"
 EXPLAIN = (
     "EXPLAIN (ANALYZE, FORMAT JSON) SELECT p.*, v.name, v.site_id, m.version FROM vehicle_positions p "
     "JOIN vehicles v ON p.vehicle_id = v.id LEFT JOIN map_versions m ON p.map_version_id = m.id "
@@ -59,7 +58,8 @@ def run_postgresql(hours: float, vehicles: int, runs: int, extra_partitions: int
     now = datetime.now(UTC)
     try:
         figures = {}
-        for name, revision in (("partitioned", "head"), ("plain", PLAIN_REVISION)):
+        plain = parts.revision_before(alembic_config(server.url()))
+        for name, revision in (("partitioned", "head"), ("plain", plain)):
             database = Database(server.create_database(name))
             try:
                 figures[name] = _measure(database, revision, now, hours, vehicles, runs)

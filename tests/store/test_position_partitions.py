@@ -215,7 +215,7 @@ def test_downgrade_and_upgrade_keep_every_row(pg: Storage) -> None:
     config = alembic_config(pg.db.url)
     with pg.db.engine.begin() as connection:
         config.attributes["connection"] = connection
-        command.downgrade(config, "0016")
+        command.downgrade(config, parts.revision_before(config))
     with pg.db.engine.connect() as connection:
         assert not parts.is_partitioned(connection)
     assert set(_where(pg)) == set(before) and set(_where(pg).values()) == {"vehicle_positions"}
