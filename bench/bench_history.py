@@ -1,12 +1,20 @@
-"""Benchmark: position history storage per vehicle-day and the cost of a retention pass (embedded SQLite).
+"""Benchmark: position history storage per vehicle-day, the cost of a retention pass, history query time.
 
-Stores ``--hours`` of one vehicle's positions at 10 per second as the live path writes them (one row per
+Embedded SQLite (the default): stores ``--hours`` of one vehicle's positions at 10 per second as the live path writes them (one row per
 processed frame, every column filled), measures the database file's growth per row and extrapolates to a
 vehicle-day at full rate and after thinning to one per 10 s (the default retention). Then ages those rows past
 ``DRIFTMAP_HISTORY_FULL_DAYS`` and times one retention pass (:func:`driftmap.services.retention.apply_retention`),
 against the baseline of writing the rows in this process.
 
-Usage: ``.venv/bin/python bench/bench_history.py [--hours 2]``
+``--database postgresql``: on a private PostgreSQL server, the same history (``--vehicles`` vehicles,
+``--hours`` each at 10 per second, the vehicles' hours spread over the last 30 days of ``received_at``) is
+copied into the weekly-partitioned positions table (migration 0017) and, in the same run, into the plain table
+of the schema before it; prints the bytes per position row (table and indexes), the size of 30 days of 50
+vehicles under the default retention, and the median time of a one-hour history query for one vehicle through
+:func:`driftmap.services.positions.history` (as the API answers it), partitioned against plain.
+
+Usage: ``.venv/bin/python bench/bench_history.py [--hours 2] [--database postgresql [--vehicles 50]
+[--extra-partitions 360]]``
 """
 
 from __future__ import annotations
@@ -34,9 +42,25 @@ DAY_S = 86_400.0
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--hours", type=float, default=2.0)
-    hours = parser.parse_args().hours
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--hours", type=float, default=2.0, help="hours of positions per vehicle")
+    parser.add_argument("--database", choices=("sqlite", "postgresql"), default="sqlite")
+    parser.add_argument("--vehicles", type=int, default=50, help="vehicles (PostgreSQL only)")
+    parser.add_argument("--runs", type=int, default=7, help="history queries timed per table (PostgreSQL)")
+    parser.add_argument(
+        "--extra-partitions", type=int, default=0, help="empty partitions added, then the query timed again"
+    )
+    args = parser.parse_args()
+    if args.database == "postgresql":
+        from history_postgres import run_postgresql  # bench/ is the script's folder, first on sys.path
+
+        run_postgresql(args.hours, args.vehicles, args.runs, args.extra_partitions)
+    else:
+        run_sqlite(args.hours)
+
+
+def run_sqlite(hours: float) -> None:
+    """Storage per vehicle-day and the retention pass on the embedded SQLite database."""
     rows = int(hours * 3600 * FPS)
     policy = RetentionPolicy()
     with tempfile.TemporaryDirectory() as tmp:

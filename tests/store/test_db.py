@@ -9,14 +9,16 @@ from alembic.migration import MigrationContext
 from sqlalchemy import inspect, text
 
 from driftmap.config import Settings
-from driftmap.store.schema import metadata
+from driftmap.store.schema import include_name, metadata
 from driftmap.store.storage import Storage
 
 
 class TestMigrations:
     def test_migrated_schema_matches_models(self, storage: Storage) -> None:
         with storage.db.engine.connect() as connection:
-            diff = compare_metadata(MigrationContext.configure(connection), metadata)
+            diff = compare_metadata(
+                MigrationContext.configure(connection, opts={"include_name": include_name}), metadata
+            )
         assert diff == []
 
     def test_upgrade_twice_is_harmless(self, settings: Settings) -> None:

@@ -143,10 +143,16 @@ class Reaper(threading.Thread):
         try:
             with self._storage.db.session() as session:
                 done = retention.apply_retention(session, self._retention, datetime.now(UTC))
-            if done.thinned or done.dropped:
+            if done.thinned or done.dropped or done.partitions_created or done.partitions_dropped:
                 log.info(
-                    "position history: %d thinned, %d past retention deleted", done.thinned, done.dropped
+                    "position history: %d thinned, %d past retention deleted; partitions created %s, dropped %s",
+                    done.thinned,
+                    done.dropped,
+                    list(done.partitions_created),
+                    list(done.partitions_dropped),
                 )
+            if done.partition_compacted:
+                log.info("position history: thinned week %s compacted", done.partition_compacted)
         except Exception:
             log.warning("position history retention failed", exc_info=True)
 

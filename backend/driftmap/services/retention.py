@@ -13,22 +13,36 @@ when several workers run it at once: the positions a pass keeps are fixed by the
 each vehicle and time bucket), so two passes delete the same rows. A pass thins only the positions that aged
 past ``full_days`` within the last ``catch_up_days`` (bounded work per pass, whatever the history's length);
 positions of a longer stop of every worker stay at full rate until they are deleted.
+
+On PostgreSQL the positions table is partitioned by week of ``received_at``
+(:mod:`driftmap.store.position_partitions`): a pass first creates the coming weeks' partitions and drops every
+partition that lies wholly past ``keep_days`` (one ``DROP TABLE`` instead of deleting its rows), then deletes
+row by row only what is left past ``keep_days`` (the boundary week, the default partition) and thins as above;
+last it rewrites one week whose rows are all thinned, to give back the disk its deleted rows held
+(:func:`~driftmap.store.position_partitions.compact`).
+Only one worker's pass does that upkeep at a time (an advisory lock; the others skip it); a pass whose upkeep
+cannot get a table lock within a few seconds leaves it to the next pass and still thins and deletes.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
 from sqlalchemy import BigInteger, ColumnElement, and_, cast, delete, func, select
+from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session
 
 from driftmap.config import Settings
 from driftmap.errors import BadInputError
+from driftmap.store import position_partitions
 from driftmap.store.access_models import VehiclePosition
 
 __all__ = ["RetentionPolicy", "RetentionResult", "apply_retention"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -63,17 +77,22 @@ class RetentionPolicy:
 
 @dataclass(frozen=True)
 class RetentionResult:
-    """Rows deleted by one pass."""
+    """Rows deleted by one pass, and on PostgreSQL the weekly partitions it created and dropped (names)."""
 
     thinned: int
     dropped: int
+    partitions_created: tuple[str, ...] = ()
+    partitions_dropped: tuple[str, ...] = ()
+    partition_compacted: str | None = None
 
 
 def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) -> RetentionResult:
     """Apply ``policy`` to the stored positions at time ``now`` (timezone-aware UTC); the caller commits."""
+    cutoff = now - timedelta(days=policy.keep_days) if policy.keep_days > 0 else None
+    partitioned = position_partitions.is_partitioned(session.connection())
+    upkeep = _partition_upkeep(session, now, cutoff) if partitioned else position_partitions.Upkeep((), ())
     dropped = 0
-    if policy.keep_days > 0:
-        cutoff = now - timedelta(days=policy.keep_days)
+    if cutoff is not None:
         dropped = _deleted(
             session.execute(delete(VehiclePosition).where(VehiclePosition.received_at < cutoff))
         )
@@ -96,9 +115,38 @@ def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) ->
         thinned = _deleted(
             session.execute(delete(VehiclePosition).where(window, VehiclePosition.id.not_in(kept)))
         )
-    return RetentionResult(thinned, dropped)
+    compacted = None
+    if partitioned and upkeep.locked:
+        compacted = _compact(session, now - timedelta(days=policy.full_days), cutoff)
+    return RetentionResult(thinned, dropped, upkeep.created, upkeep.dropped, compacted)
+
+
+def _partition_upkeep(session: Session, now: datetime, cutoff: datetime | None) -> position_partitions.Upkeep:
+    """Create the coming weeks' partitions, drop those wholly before ``cutoff``; in a savepoint, so a lock
+    timeout gives up only the upkeep."""
+    try:
+        with session.begin_nested():
+            return position_partitions.upkeep(session.connection(), now, cutoff)
+    except OperationalError:
+        log.warning(
+            "position partitions: upkeep gave up (a table lock was busy); next pass retries", exc_info=True
+        )
+        return position_partitions.Upkeep((), (), locked=False)
 
 
 def _deleted(result: object) -> int:
     count = getattr(result, "rowcount", 0)
     return int(count) if isinstance(count, int) and count >= 0 else 0
+
+
+def _compact(session: Session, thinned_before: datetime, cutoff: datetime | None) -> str | None:
+    """Rewrite one fully thinned week (PostgreSQL), in a savepoint like :func:`_partition_upkeep`."""
+    try:
+        with session.begin_nested():
+            return position_partitions.compact(session.connection(), thinned_before, cutoff)
+    except OperationalError:
+        log.warning(
+            "position partitions: compaction gave up (a table lock was busy); next pass retries",
+            exc_info=True,
+        )
+        return None

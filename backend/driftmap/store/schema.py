@@ -14,7 +14,13 @@ from driftmap.store import (
     models,
     worker_models,  # noqa: F401 (registers the workers table)
 )
+from driftmap.store.position_partitions import is_partition_name
 
 metadata = models.Base.metadata
 
-__all__ = ["metadata"]
+__all__ = ["include_name", "metadata"]
+
+
+def include_name(name: str | None, type_: str, parent_names: object) -> bool:
+    """Alembic's ``include_name`` hook: the positions' partitions (PostgreSQL) are not model tables."""
+    return not (type_ == "table" and name is not None and is_partition_name(name))
