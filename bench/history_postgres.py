@@ -1,7 +1,7 @@
 """bench_history.py on PostgreSQL: bytes per position row and one-hour history queries, partitioned vs plain.
 
 Two databases on one private server (tests.postgres_server): ``partitioned`` at the newest schema (the positions
-table partitioned by week of ``received_at``, migration 0017) and ``plain`` at the schema before it (one
+table partitioned by week of ``received_at``, migration 0018) and ``plain`` at the schema before it (one
 table). Both get the same rows by COPY: ``vehicles`` vehicles, ``hours`` each at 10 positions a
 second with every column filled, vehicle ``v``'s hours received ``v mod 30`` days ago, so the rows spread over
 the weekly partitions of a month. Then, for each table: its bytes per row (``pg_total_relation_size`` of the

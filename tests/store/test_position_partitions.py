@@ -1,4 +1,4 @@
-"""The positions table's weekly partitions on a real PostgreSQL (migration 0017 and the retention's upkeep):
+"""The positions table's weekly partitions on a real PostgreSQL (migration 0018 and the retention's upkeep):
 partitioned after migration, rows in their week's partition or the default one, history queries and
 retention unchanged, expired weeks dropped whole, a downgrade and upgrade keep every row. SQLite keeps a plain
 table."""

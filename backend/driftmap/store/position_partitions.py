@@ -1,6 +1,6 @@
 """The position table's weekly partitions on PostgreSQL: create the coming weeks', drop the expired ones.
 
-On PostgreSQL ``vehicle_positions`` is partitioned by RANGE on ``received_at`` (migration 0017): one
+On PostgreSQL ``vehicle_positions`` is partitioned by RANGE on ``received_at`` (migration 0018): one
 partition per UTC week starting Monday 00:00, named ``vehicle_positions_wYYYYMMDD`` after that Monday, plus
 ``vehicle_positions_default`` for a row no weekly partition covers (so no insert can fail). SQLite keeps a
 plain table and none of this applies (:func:`is_partitioned` is False).
@@ -97,7 +97,7 @@ def is_partition_name(name: str) -> bool:
 
 
 def is_partitioned(connection: Connection) -> bool:
-    """Whether ``vehicle_positions`` is a partitioned table (PostgreSQL after migration 0017)."""
+    """Whether ``vehicle_positions`` is a partitioned table (PostgreSQL after migration 0018)."""
     if connection.dialect.name != "postgresql":
         return False
     found = connection.execute(

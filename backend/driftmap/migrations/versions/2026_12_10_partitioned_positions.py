@@ -1,8 +1,8 @@
 """vehicle_positions: on PostgreSQL, partitioned by RANGE on received_at, one partition per UTC week
 
-Revision ID: 0017
-Revises: 0016
-Create Date: 2026-12-09 09:00:00.000000
+Revision ID: 0018
+Revises: 0017
+Create Date: 2026-12-10 09:00:00.000000
 
 One partition per week (Monday 00:00 UTC to the next), named ``vehicle_positions_wYYYYMMDD`` after its Monday,
 plus the default partition ``vehicle_positions_default`` for any row no week covers, so no insert can fail.
@@ -27,8 +27,8 @@ from datetime import UTC, datetime, timedelta
 import sqlalchemy as sa
 from alembic import op
 
-revision = "0017"
-down_revision = "0016"
+revision = "0018"
+down_revision = "0017"
 branch_labels = None
 depends_on = None
 
