@@ -93,6 +93,22 @@ class TestRealAnswers:
         _check_problem(response, 405, document)
         assert "GET" in response.headers["allow"]
 
+    @pytest.mark.parametrize(
+        ("method", "url", "template"),
+        [
+            ("PUT", "/api/sites", "/api/sites"),
+            ("POST", "/api/sites/1", "/api/sites/{site_id}"),
+            ("POST", "/api/vehicles/1/camera", "/api/vehicles/{vehicle_id}/camera"),
+        ],
+    )
+    def test_405_allows_every_method_of_the_path(
+        self, users: ApiUsers, document: dict[str, Any], method: str, url: str, template: str
+    ) -> None:
+        response = users.client.request(method, url, headers=users.auth("admin"))
+        _check_problem(response, 405, document)
+        documented = {m.upper() for m in document["paths"][template]}
+        assert documented <= set(response.headers["allow"].split(", ")), response.headers["allow"]
+
     def test_409(self, users: ApiUsers, document: dict[str, Any]) -> None:
         body = {"username": "viewer", "password": "longenough1", "role": "viewer"}
         response = users.client.post("/api/users", json=body, headers=users.auth("admin"))
