@@ -15,7 +15,7 @@ from pydantic import AllowInfNan, StringConstraints
 
 from driftmap.formats.bounds import DB_INT_MAX, INT64_MAX, INT64_MIN, MAX_ABS_T_S, MAX_CAMERA_SIDE_PX
 from driftmap.formats.records import STATION_MAX_CHARS
-from driftmap.services.users import MAX_PASSWORD_LENGTH
+from driftmap.services.users import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
 
 NAME_MAX_CHARS = 200
 """Longest name of a site, drive or vehicle, characters."""
@@ -44,5 +44,9 @@ Station = Annotated[str, StringConstraints(max_length=STATION_MAX_CHARS, pattern
 Description = Annotated[str, StringConstraints(max_length=DESCRIPTION_MAX_CHARS)]
 """A free-text description of at most ``DESCRIPTION_MAX_CHARS`` characters."""
 Password = Annotated[str, StringConstraints(max_length=MAX_PASSWORD_LENGTH)]
-"""A password as typed: at most ``MAX_PASSWORD_LENGTH`` characters (a new one is checked further by the
-users service)."""
+"""A password as typed: at most ``MAX_PASSWORD_LENGTH`` characters."""
+NewPassword = Annotated[
+    str, StringConstraints(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)
+]
+"""A password being set: ``MIN_PASSWORD_LENGTH`` to ``MAX_PASSWORD_LENGTH`` characters, as the users service
+checks (the OpenAPI document states both)."""
