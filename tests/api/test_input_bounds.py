@@ -69,6 +69,7 @@ PATH_AND_QUERY = [
     (f"/api/positions?since={HUGE}", ["query", "since"]),
     (f"/api/vehicles?site_id={-HUGE - 1}", ["query", "site_id"]),
     (f"/api/users/{HUGE}", ["path", "user_id"]),
+    (f"/api/sites/1/maps/compare?a={HUGE}&b=1", ["query", "a"]),
 ]
 
 
@@ -89,6 +90,7 @@ IN_PATH_AND_QUERY = [
     (f"/api/users/{BEYOND_THE_DATABASE}", ["path", "user_id"]),
     (f"/api/vehicles?site_id={BEYOND_THE_DATABASE}", ["query", "site_id"]),
     (f"/api/positions?since={BEYOND_THE_DATABASE}", ["query", "since"]),
+    (f"/api/sites/1/maps/compare?a=1&b={BEYOND_THE_DATABASE}", ["query", "b"]),
 ]
 
 
