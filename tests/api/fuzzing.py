@@ -1,9 +1,10 @@
 """Fuzzing a running ``driftmap serve`` from its own OpenAPI document with schemathesis: the engine shared by
 tests/api/test_fuzz_contract.py (a bounded run in ``make test``) and bench/fuzz_api.py (the same at scale).
 
-Every operation of ``/api/openapi.json`` gets ``examples`` generated requests per generation mode (positive:
-valid by the schema; negative: violating it somewhere), sent as one principal (an admin's bearer token, or
-none). Each answer is checked for:
+Every operation of ``/api/openapi.json`` gets up to ``coverage`` of schemathesis's coverage cases (boundary
+values: each bound and one past it, the largest integers, missing and empty values, wrong types, methods the
+path does not take), then ``examples`` generated requests per generation mode (positive: valid by the schema;
+negative: violating it somewhere), sent as one principal (an admin's bearer token, or none). Each answer is checked for:
 
 * ``not_a_server_error``: no 5xx;
 * ``status_code_conformance``: the status is one the operation documents;
@@ -29,6 +30,7 @@ queued instead of loading the two cores.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import subprocess
 import sys
@@ -238,25 +240,23 @@ def _record(
         )
 
 
-def fuzz_operation(
-    operation: Any,
-    principal: Principal,
-    mode: schemathesis.GenerationMode,
-    examples: int,
-    tally: Tally,
-    session: requests.Session,
-    base: str,
-    document: dict[str, Any],
-    *,
-    seed: int | None = 0,
-) -> None:
-    """Send ``examples`` generated requests of ``operation`` in ``mode`` as ``principal``; count into ``tally``."""
+@dataclass
+class Sender:
+    """Sends a generated request as ``principal``, checks the answer and counts both into ``tally``."""
 
-    def send(case: schemathesis.Case) -> None:
-        _protect(case, principal)
+    principal: Principal
+    tally: Tally
+    session: requests.Session
+    base: str
+    document: dict[str, Any]
+    """The OpenAPI document, for the body check schemathesis cannot do (:func:`_check_body`)."""
+
+    def __call__(self, case: schemathesis.Case) -> None:
+        tally, headers = self.tally, self.principal.headers
+        _protect(case, self.principal)
         try:
             response = case.call(
-                base_url=base, session=session, headers=principal.headers, timeout=REQUEST_TIMEOUT_S
+                base_url=self.base, session=self.session, headers=headers, timeout=REQUEST_TIMEOUT_S
             )
         except requests.RequestException as exc:  # a reset connection or a timeout counts as a server error
             tally.requests += 1
@@ -271,16 +271,34 @@ def fuzz_operation(
             tally.server_errors += 1
         try:
             try:
-                case.validate_response(response, checks=CHECKS, headers=principal.headers)
+                case.validate_response(response, checks=CHECKS, headers=headers)
             except InvalidSchema:  # schemathesis could not build the body's validator: see _check_body
-                case.validate_response(response, checks=CHECKS[:-2] + CHECKS[-1:], headers=principal.headers)
-                _check_body(case, response, document)
+                case.validate_response(response, checks=CHECKS[:-2] + CHECKS[-1:], headers=headers)
+                _check_body(case, response, self.document)
         except FailureGroup as failures:
             if response.status_code < 500:
                 tally.violations += 1
             _record(tally, case, failures, response)
 
-    run = hypothesis.given(case=operation.as_strategy(generation_mode=mode))(send)
+
+def cover_operation(operation: Any, cases: int, send: Sender) -> None:
+    """Send at most ``cases`` of schemathesis's coverage cases of ``operation``: deterministic boundary
+    values (each bound and one past it, the largest integers, empty and missing values, wrong types)."""
+    schema = operation.schema
+    generated = schema.iter_coverage_cases(
+        operation,
+        generation_modes=list(MODES),
+        generation_config=schema.config.generation_for(operation=operation),
+    )
+    for case in itertools.islice(generated, cases):
+        send(case)
+
+
+def fuzz_operation(
+    operation: Any, mode: schemathesis.GenerationMode, examples: int, send: Sender, *, seed: int | None = 0
+) -> None:
+    """Send ``examples`` requests of ``operation`` generated in ``mode`` (hypothesis, seeded by ``seed``)."""
+    run = hypothesis.given(case=operation.as_strategy(generation_mode=mode))(send.__call__)
     run = hypothesis.settings(
         max_examples=examples,
         phases=[Phase.explicit, Phase.generate],
@@ -295,7 +313,7 @@ def fuzz_operation(
     try:
         run()
     except Unsatisfiable:  # nothing to negate (an operation without parameters or body)
-        tally.skipped.append(f"{operation.label} [{mode.value}]: no such requests")
+        send.tally.skipped.append(f"{operation.label} [{mode.value}]: no such requests")
 
 
 def fuzz(
@@ -303,35 +321,30 @@ def fuzz(
     principal: Principal,
     examples: int,
     *,
+    coverage: int = 0,
     modes: tuple[schemathesis.GenerationMode, ...] = MODES,
     seed: int | None = 0,
     progress: Callable[[str, Tally], None] | None = None,
     tally: Tally | None = None,
 ) -> Tally:
-    """Fuzz every operation of the server's OpenAPI document as ``principal`` (see the module docstring);
-    counts into ``tally`` when given (one more round of a longer run), else into a new one."""
+    """Fuzz every operation of the server's OpenAPI document as ``principal`` (see the module docstring):
+    up to ``coverage`` coverage cases, then ``examples`` generated requests per mode. Counts into ``tally``
+    when given (one more round of a longer run), else into a new one."""
     tally = tally if tally is not None else Tally()
     started = time.monotonic()
     schema = server.schema()
     with requests.Session() as session:
+        send = Sender(principal, tally, session, server.base, schema.raw_schema)
         operations = [result.ok() for result in schema.get_all_operations()]
         for operation in sorted(operations, key=lambda op: op.method.upper() == "DELETE"):
             method, path = operation.method.upper(), operation.path
             if principal.skips(method, path):
                 tally.skipped.append(f"{method} {path}: {SKIPPED_AS_ADMIN[(method, path)]}")
                 continue
+            if coverage:
+                cover_operation(operation, coverage, send)
             for mode in modes:
-                fuzz_operation(
-                    operation,
-                    principal,
-                    mode,
-                    examples,
-                    tally,
-                    session,
-                    server.base,
-                    schema.raw_schema,
-                    seed=seed,
-                )
+                fuzz_operation(operation, mode, examples, send, seed=seed)
             if progress is not None:
                 progress(operation.label, tally)
     tally.elapsed_s += time.monotonic() - started
