@@ -69,6 +69,7 @@ PATH_AND_QUERY = [
     (f"/api/positions?since={HUGE}", ["query", "since"]),
     (f"/api/vehicles?site_id={-HUGE - 1}", ["query", "site_id"]),
     (f"/api/users/{HUGE}", ["path", "user_id"]),
+    (f"/api/sites/1/maps/compare?a={HUGE}&b=1", ["query", "a"]),
 ]
 
 
@@ -79,6 +80,31 @@ class TestIntegersBeyond64Bits:
         response = _post_json(users, "/api/vehicles", f'{{"name": "v", "site_id": {HUGE * 10**6}}}')
         assert _loc(response) == ["body", "site_id"]
         headers = {"Authorization": "Bearer dmv_99999999999999999999_x"}  # a vehicle token's id
+        assert users.client.get("/api/sites", headers=headers).status_code == 401
+
+
+BEYOND_THE_DATABASE = 2**31  # one past PostgreSQL's integer, the type of ids and frame numbers
+IN_PATH_AND_QUERY = [
+    (f"/api/sites/{BEYOND_THE_DATABASE}", ["path", "site_id"]),
+    (f"/api/drives/1/frames/{BEYOND_THE_DATABASE}", ["path", "index"]),
+    (f"/api/users/{BEYOND_THE_DATABASE}", ["path", "user_id"]),
+    (f"/api/vehicles?site_id={BEYOND_THE_DATABASE}", ["query", "site_id"]),
+    (f"/api/positions?since={BEYOND_THE_DATABASE}", ["query", "since"]),
+    (f"/api/sites/1/maps/compare?a=1&b={BEYOND_THE_DATABASE}", ["query", "b"]),
+]
+
+
+class TestIntegersBeyondTheDatabase:
+    """Integers that fit 64 bits but not the database's ``integer`` columns (a 500 on PostgreSQL)."""
+
+    def test_path_query_and_body_name_the_field(self, users: ApiUsers) -> None:
+        for url, loc in IN_PATH_AND_QUERY:
+            assert _loc(users.client.get(url, headers=users.auth("admin"))) == loc, url
+        response = _post_json(users, "/api/vehicles", f'{{"name": "v", "site_id": {BEYOND_THE_DATABASE}}}')
+        assert _loc(response) == ["body", "site_id"]
+
+    def test_a_vehicle_token_with_such_an_id_is_not_valid(self, users: ApiUsers) -> None:
+        headers = {"Authorization": f"Bearer dmv_{BEYOND_THE_DATABASE}_x"}
         assert users.client.get("/api/sites", headers=headers).status_code == 401
 
 

@@ -8,6 +8,8 @@ import httpx
 import pytest
 
 from driftmap.api.problems import PROBLEM_MEDIA_TYPE, PROBLEM_RESPONSES, Problem
+from driftmap.live.start import MAX_START_RADIUS_M
+from driftmap.services.users import MIN_PASSWORD_LENGTH
 from tests.api.data_helpers import ApiUsers
 
 PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
@@ -58,6 +60,17 @@ class TestTheDocument:
                     code,
                 )
 
+    def test_bounds_the_services_check_are_documented(self, document: dict[str, Any]) -> None:
+        """A value the schema allows is not refused for a bound the schema does not state (schemathesis's
+        positive-data check found these)."""
+        schemas = document["components"]["schemas"]
+        radius = schemas["StartRequest"]["properties"]["radius_m"]
+        assert (radius["minimum"], radius["maximum"]) == (0.0, MAX_START_RADIUS_M)
+        for schema, field in (("UserCreate", "password"), ("PasswordChange", "new_password")):
+            assert schemas[schema]["properties"][field]["minLength"] == MIN_PASSWORD_LENGTH, schema
+        reset = schemas["UserUpdate"]["properties"]["password"]["anyOf"][0]
+        assert reset["minLength"] == MIN_PASSWORD_LENGTH
+
     def test_no_route_keeps_fastapis_validation_schema(self, document: dict[str, Any]) -> None:
         assert "HTTPValidationError" not in document["components"]["schemas"]
 
@@ -92,6 +105,22 @@ class TestRealAnswers:
         response = users.client.delete("/api/health")
         _check_problem(response, 405, document)
         assert "GET" in response.headers["allow"]
+
+    @pytest.mark.parametrize(
+        ("method", "url", "template"),
+        [
+            ("PUT", "/api/sites", "/api/sites"),
+            ("POST", "/api/sites/1", "/api/sites/{site_id}"),
+            ("POST", "/api/vehicles/1/camera", "/api/vehicles/{vehicle_id}/camera"),
+        ],
+    )
+    def test_405_allows_every_method_of_the_path(
+        self, users: ApiUsers, document: dict[str, Any], method: str, url: str, template: str
+    ) -> None:
+        response = users.client.request(method, url, headers=users.auth("admin"))
+        _check_problem(response, 405, document)
+        documented = {m.upper() for m in document["paths"][template]}
+        assert documented <= set(response.headers["allow"].split(", ")), response.headers["allow"]
 
     def test_409(self, users: ApiUsers, document: dict[str, Any]) -> None:
         body = {"username": "viewer", "password": "longenough1", "role": "viewer"}

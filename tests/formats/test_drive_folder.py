@@ -387,7 +387,10 @@ class TestFramesCsvProperties:
         assert parse_frames_csv(text, "frames.csv") == rows
         assert frames_text(parse_frames_csv(text, "frames.csv")) == text
 
-    @pytest.mark.parametrize(("row", "field"), [("0,1e11", "t"), ("0,-1e300", "t"), (f"{2**63},1", "frame")])
+    @pytest.mark.parametrize(
+        ("row", "field"),
+        [("0,1e11", "t"), ("0,-1e300", "t"), (f"{2**63},1", "frame"), (f"{2**31},1", "frame")],
+    )
     def test_values_the_store_cannot_hold_are_named(self, row: str, field: str) -> None:
         with pytest.raises(BadInputError) as info:
             parse_frames_csv(f"frame,t\n{row}\n", "frames.csv")

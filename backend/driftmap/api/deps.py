@@ -27,6 +27,7 @@ from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import HTTPConnection
 
+from driftmap.api.input_types import Id
 from driftmap.config import Settings
 from driftmap.services import security
 from driftmap.store.access_models import User, Vehicle
@@ -219,7 +220,7 @@ AdminDep = Annotated[Principal, Depends(ADMIN)]
 
 
 async def _vehicle(
-    vehicle_id: Annotated[int, Path(description="The vehicle's id.")],
+    vehicle_id: Annotated[Id, Path(description="The vehicle's id.")],
     principal: Annotated[Principal | None, Depends(_current_principal)],
 ) -> Principal:
     if principal is None:

@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from fastapi import Request
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException
+from starlette.routing import Match, Mount
 
 from driftmap.api.problems import ProblemResponse, problem, validation_problem
 from driftmap.errors import (
@@ -34,6 +35,7 @@ from driftmap.errors import (
 
 log = logging.getLogger(__name__)
 ECHO_MAX_CHARS = 200  # longest input text echoed back in a 422, characters
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
 _STATUS: tuple[tuple[type[DriftmapError], int], ...] = (
     (PayloadTooLargeError, 413),
     (BadRequestError, 400),
@@ -73,13 +75,31 @@ async def driftmap_error_handler(request: Request, exc: Exception) -> ProblemRes
     return ProblemResponse(error_problem(exc, request.url.path), status_code=code)
 
 
+def allowed_methods(request: Request) -> str:
+    """The ``Allow`` of a 405: every method some route of the app takes on the request's path.
+
+    Starlette names only the first matching route's methods, and FastAPI makes one route per path and
+    method, so ``PUT /api/sites`` would be told ``Allow: GET`` although ``POST`` is allowed too. The browser
+    UI's mount (every path, GET only) is left out."""
+    routes = [route for route in request.app.router.routes if not isinstance(route, Mount)]
+    return ", ".join(
+        method
+        for method in _METHODS
+        if any(route.matches({**request.scope, "method": method})[0] == Match.FULL for route in routes)
+    )
+
+
 async def http_error_handler(request: Request, exc: Exception) -> ProblemResponse:
     """The handler for Starlette's ``HTTPException``: routing's 404 and 405, the access checks' 401 and 403,
-    login throttling's 429; its headers (``WWW-Authenticate``, ``Allow``, ``Retry-After``) are kept."""
+    login throttling's 429; its headers (``WWW-Authenticate``, ``Allow``, ``Retry-After``) are kept, a 405's
+    ``Allow`` completed by :func:`allowed_methods`."""
     assert isinstance(exc, HTTPException)
     detail = exc.detail if isinstance(exc.detail, str) else str(json_safe(exc.detail))
+    headers = dict(exc.headers or {})
+    if exc.status_code == 405 and (allowed := allowed_methods(request)):
+        headers["Allow"] = allowed
     return ProblemResponse(
-        problem(exc.status_code, detail, request.url.path), status_code=exc.status_code, headers=exc.headers
+        problem(exc.status_code, detail, request.url.path), status_code=exc.status_code, headers=headers
     )
 
 

@@ -70,8 +70,8 @@ def list_versions(
 def compare_versions(
     site_id: Id,
     session: SessionDep,
-    a: Annotated[int, Query(description="The earlier map version.")],
-    b: Annotated[int, Query(description="The later map version.")],
+    a: Annotated[Id, Query(description="The earlier map version.")],
+    b: Annotated[Id, Query(description="The later map version.")],
 ) -> MapCompareRead:
     """How far every mapping frame moved from version ``a`` to version ``b`` (metres)."""
     return MapCompareRead(

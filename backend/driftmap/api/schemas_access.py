@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Literal
+from typing import Annotated, Literal
 
+from annotated_types import Ge, Le
 from pydantic import BaseModel, ConfigDict, Field
 
 from driftmap.api.deps import Role
-from driftmap.api.input_types import Finite, Id, Name, Password
+from driftmap.api.input_types import Finite, Id, Name, NewPassword, Password
+from driftmap.live.start import MAX_START_RADIUS_M
 
 
 class LoginRequest(BaseModel):
@@ -33,7 +35,7 @@ class Me(BaseModel):
 
 class UserCreate(BaseModel):
     username: str = Field(min_length=1, max_length=100)
-    password: Password
+    password: NewPassword
     role: Role
 
 
@@ -41,7 +43,7 @@ class UserUpdate(BaseModel):
     """Any change revokes the user's login tokens."""
 
     role: Role | None = None
-    password: Password | None = None
+    password: NewPassword | None = None
     """A new password (an admin's reset)."""
     disabled: bool | None = None
     """True disables the user (no login, tokens revoked), False enables again."""
@@ -62,7 +64,7 @@ class PasswordChange(BaseModel):
     """A user's own password change."""
 
     current_password: Password
-    new_password: Password
+    new_password: NewPassword
 
 
 class VehicleCreate(BaseModel):
@@ -125,7 +127,7 @@ class StartRequest(BaseModel):
     """Survey-frame metres (east)."""
     y: Finite
     """Survey-frame metres (north)."""
-    radius_m: Finite = 10.0
+    radius_m: Annotated[Finite, Ge(0.0), Le(MAX_START_RADIUS_M)] = 10.0
     """How sure the start is, metres (0-200): the belief covers the map's nodes within this of the nearest."""
 
 

@@ -88,7 +88,7 @@ class SiteSimulate(BaseModel):
     """A synthetic site to render and import as a new site (a ``site.simulate`` job)."""
 
     name: Name
-    seed: Annotated[Count, Le(2**32 - 1)] = 0
+    seed: Annotated[int, Ge(0), Le(2**32 - 1)] = 0
     """Seed of the random layout and rendering (numpy seeds are 32-bit)."""
     size: Literal["tiny", "small", "medium", "large"] = "tiny"
     obscurants: bool = False

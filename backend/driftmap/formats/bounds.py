@@ -1,8 +1,9 @@
 """Ranges of input values that driftmap can store and compute with: integers, timestamps, image sizes.
 
-The database holds integers in 64 bits (SQLite ``INTEGER``, PostgreSQL ``bigint``) and times as float64
-seconds; a value outside these ranges would fail deep inside a driver (a server error) or poison later
-arithmetic (an infinite duration, a speed of NaN). Every reader of user input checks against the limits
+The database holds ids, frame numbers and counters in 32 bits (PostgreSQL ``integer``; SQLite's ``INTEGER``
+holds more, the limit is the same on both), other integers in 64 bits and times as float64 seconds; a value
+outside these ranges would fail deep inside a driver (a server error) or poison later arithmetic (an infinite
+duration, a speed of NaN). Every reader of user input checks against the limits
 here and names the field at fault.
 """
 
@@ -15,6 +16,9 @@ from driftmap.errors import BadInputError
 
 INT64_MIN = -(2**63)
 INT64_MAX = 2**63 - 1
+DB_INT_MIN = -(2**31)
+DB_INT_MAX = 2**31 - 1
+"""The range of a stored id, frame number or counter (PostgreSQL ``integer``)."""
 MAX_ABS_T_S = 1e10
 """Largest timestamp magnitude, seconds (about 317 years: Unix time in seconds fits, nanoseconds do not)."""
 MAX_CAMERA_SIDE_PX = 16384
@@ -49,14 +53,14 @@ def check_t_s(
     return value
 
 
-def check_int64(value: int, field: str, *, file: str | Path | None = None, line: int | None = None) -> int:
-    """Check an integer fits the database's 64-bit integers.
+def check_db_int(value: int, field: str, *, file: str | Path | None = None, line: int | None = None) -> int:
+    """Check an integer fits the database's integer columns (ids, frame numbers, counters).
 
     Raises:
-        BadInputError: outside ``[INT64_MIN, INT64_MAX]``, naming ``field`` (and ``file``, ``line``).
+        BadInputError: outside ``[DB_INT_MIN, DB_INT_MAX]``, naming ``field`` (and ``file``, ``line``).
     """
-    if not INT64_MIN <= value <= INT64_MAX:
+    if not DB_INT_MIN <= value <= DB_INT_MAX:
         raise BadInputError(
-            f"must be a 64-bit integer ({INT64_MIN} to {INT64_MAX})", field=field, file=file, line=line
+            f"must be a 32-bit integer ({DB_INT_MIN} to {DB_INT_MAX})", field=field, file=file, line=line
         )
     return value

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from driftmap.errors import BadInputError, ConflictError
-from driftmap.formats.bounds import check_int64, check_t_s
+from driftmap.formats.bounds import check_db_int, check_t_s
 from driftmap.formats.csv_exports import groundings_text, parse_groundings_rows
 from driftmap.formats.drive_json import checked_drive_json, parse_drive_json
 from driftmap.formats.frame_images import check_frame_image
@@ -104,7 +104,7 @@ def _parse_frames(text: str, file: str | Path) -> list[tuple[int, FrameRow]]:
     numbered: list[tuple[int, FrameRow]] = []
     for row in table:
         cells, line = row.cells, row.line
-        frame = check_int64(
+        frame = check_db_int(
             parse_int(cells["frame"], file=file, line=line, field="frame"), "frame", file=file, line=line
         )
         t = check_t_s(parse_float(cells["t"], file=file, line=line, field="t"), "t", file=file, line=line)

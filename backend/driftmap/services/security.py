@@ -25,6 +25,7 @@ from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 
 from driftmap.config import Settings
+from driftmap.formats.bounds import DB_INT_MAX
 
 VEHICLE_TOKEN_PREFIX = "dmv_"
 _hasher = PasswordHasher()
@@ -126,4 +127,6 @@ def vehicle_id_of_token(token: str) -> int | None:
     if not token.startswith(VEHICLE_TOKEN_PREFIX):
         return None
     head, _, rest = token.removeprefix(VEHICLE_TOKEN_PREFIX).partition("_")
-    return int(head) if head.isdigit() and len(head) <= 18 and rest else None  # ids are 64-bit
+    if not (head.isdigit() and len(head) <= 10 and rest):
+        return None
+    return int(head) if int(head) <= DB_INT_MAX else None  # no row has a larger id

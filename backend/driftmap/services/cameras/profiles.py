@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.errors import BadInputError, ConflictError, NotFoundError
-from driftmap.formats.bounds import INT64_MAX
+from driftmap.formats.bounds import DB_INT_MAX
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
 from driftmap.services import vehicles as vehicle_service
 from driftmap.store.access_models import Vehicle
@@ -142,7 +142,7 @@ def assign_profile(session: Session, vehicle: Vehicle, profile_id: object) -> di
         BadInputError: ``profile_id`` is not a positive integer (field ``profile``).
         NotFoundError: no such profile.
     """
-    if isinstance(profile_id, bool) or not isinstance(profile_id, int) or not 1 <= profile_id <= INT64_MAX:
+    if isinstance(profile_id, bool) or not isinstance(profile_id, int) or not 1 <= profile_id <= DB_INT_MAX:
         raise BadInputError(f"must be a camera profile id, found {profile_id!r}", field="profile")
     profile = get_profile(session, profile_id)
     return vehicle_service.set_camera(session, vehicle, profile.camera)
