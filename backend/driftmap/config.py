@@ -76,7 +76,7 @@ class Settings(BaseSettings):
     """Failed logins from one client address within ``login_failure_window_s`` before further tries get 429."""
     login_failure_window_s: float = 900.0
     """Window over which failed logins are counted, seconds; a refused client may retry when it ends."""
-    login_hash_concurrency: int = 2
+    login_hash_concurrency: int = 1
     """Password hashes (argon2id, 64 MiB each) computed at once by one API process; other logins wait."""
     login_waiting_max: int = 64
     """Logins that may wait for a hashing slot; beyond that a login is answered 429 at once."""
