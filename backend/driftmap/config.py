@@ -78,7 +78,7 @@ class Settings(BaseSettings):
     """Window over which failed logins are counted, seconds; a refused client may retry when it ends."""
     login_hash_concurrency: int = 1
     """Password hashes (argon2id, 64 MiB each) computed at once by one API process; other logins wait."""
-    login_waiting_max: int = 64
+    login_waiting_max: int = 8
     """Logins that may wait for a hashing slot; beyond that a login is answered 429 at once."""
     health_worker_stale_s: float = 30.0
     """``/api/health`` counts a job worker as alive if it reported within this many seconds."""
