@@ -244,13 +244,15 @@ class TestScaleOut:
     def test_a_worker_killed_in_the_middle_of_a_map_build_leaves_the_other_to_finish_it(
         self, topology: Topology, site: int
     ) -> None:
-        build = topology.call(0, "POST", f"/sites/{site}/maps", json={"preset": "fast"}).json()
+        # a full build: one that reused the first build's odometry could end before it is caught running
+        build = topology.call(0, "POST", f"/sites/{site}/maps", json={"preset": "fast", "full": True}).json()
         deadline = time.monotonic() + JOB_DEADLINE_S
         while True:  # the build is running and has made progress: kill the worker that runs it
             assert time.monotonic() < deadline, topology.log_tail()
             ((status, worker_id, progress),) = topology.rows(
                 f"SELECT status, worker_id, progress FROM jobs WHERE id = {build['id']}"
             )
+            assert status in ("queued", "running"), f"the build ended before it was caught running: {status}"
             if status == "running" and progress >= 0.1:
                 break
             time.sleep(0.05)
