@@ -690,6 +690,15 @@ class TestGrounding:
         expect(summary).to_contain_text("max 0.00 m")
         p.get_by_test_id("toggle-compare").uncheck()
         expect(summary).to_have_count(0)
+
+        # v2 reused every drive's kept odometry; "full rebuild" prepares every segment again
+        reused = server.api("GET", "/api/sites/1/maps/2").json()["stats"]
+        assert reused["segments_reused"] > 0 and reused["segments_prepared"] == 0, reused
+        p.get_by_test_id("build-full").check()
+        p.get_by_test_id("build-map").click()
+        expect(p.get_by_test_id("map-version")).to_have_text("map v3", timeout=BUILD_DEADLINE_MS)
+        full = server.api("GET", "/api/sites/1/maps/3").json()["stats"]
+        assert full["segments_reused"] == 0 and full["segments_prepared"] == reused["segments_reused"], full
         assert page.errors == []
 
 
