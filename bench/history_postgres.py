@@ -8,7 +8,10 @@ the weekly partitions of a month. Then, for each table: its bytes per row (``pg_
 table and of every partition, indexes and TOAST included, after VACUUM ANALYZE), and the median of ``runs``
 one-hour history queries of one vehicle through :func:`driftmap.services.positions.history` with the API's
 largest page (a new session each, as a request has), and PostgreSQL's own planning and execution times of that
-query. ``--extra-partitions N`` then adds N empty one-day partitions to the partitioned table and times the
+query; and every vehicle's latest position against finding each one's newest by grouping the whole table. On the partitioned table it then times the same hour as the API answers it (``GET
+/api/vehicles/{id}/positions`` of a real ``driftmap serve`` on that database, median of ``runs``) and, in this
+process on the same rows, the JSON encoding of the positions against encoding them through a validated
+:class:`~driftmap.api.schemas_access.PositionRead` per row. ``--extra-partitions N`` then adds N empty one-day partitions to the partitioned table and times the
 query on the server again (the cost of many partitions: a year of daily ones against weekly ones).
 """
 
@@ -16,15 +19,22 @@ from __future__ import annotations
 
 import statistics
 import sys
+import tempfile
 import time
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 
+import httpx
 from alembic import command
+from pydantic import TypeAdapter
 from sqlalchemy import text
 from tests.postgres_server import PostgresServer, postgres_bin_dir
 
+from bench_live import serving
+from driftmap.api.schemas_access import PositionRead, position_list_json
 from driftmap.services import positions as position_service
 from driftmap.services import sites as site_service
+from driftmap.services import users as user_service
 from driftmap.services import vehicles as vehicle_service
 from driftmap.services.retention import RetentionPolicy
 from driftmap.store import position_partitions as parts
@@ -47,6 +57,10 @@ EXPLAIN = (
 """The history query's SQL (as :func:`driftmap.services.positions.history` sends it), for the server's own
 planning and execution times."""
 
+NEWEST_BY_SCAN = "SELECT vehicle_id, max(id) FROM vehicle_positions GROUP BY vehicle_id"
+"""Every vehicle's newest position id from the whole table, for comparison with
+:func:`driftmap.services.positions.latest`'s search of each vehicle's newest through its index."""
+
 
 def run_postgresql(hours: float, vehicles: int, runs: int, extra_partitions: int = 0) -> None:
     """Measure and print (see the module doc)."""
@@ -63,6 +77,8 @@ def run_postgresql(hours: float, vehicles: int, runs: int, extra_partitions: int
             database = Database(server.create_database(name))
             try:
                 figures[name] = _measure(database, revision, now, hours, vehicles, runs)
+                if name == "partitioned":
+                    figures["api"] = _api_answer(database, figures[name], runs)
                 if name == "partitioned" and extra_partitions:
                     figures["more partitions"] = _with_more_partitions(
                         database, figures[name], extra_partitions
@@ -135,7 +151,18 @@ def _measure(
         times.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
     planning, execution = _server_s(database, vehicle_id, begin_s, runs)
+    latest, newest_by_scan = [], []
+    for _ in range(runs):
+        with database.session() as session:
+            t0 = time.perf_counter()
+            position_service.latest(session, 30.0)
+            latest.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            session.execute(text(NEWEST_BY_SCAN)).all()
+            newest_by_scan.append(time.perf_counter() - t0)
     return {
+        "latest_s": statistics.median(latest),
+        "newest_by_scan_s": statistics.median(newest_by_scan),
         "rows": rows,
         "bytes": float(size or 0),
         "write_s": write_s,
@@ -147,6 +174,52 @@ def _measure(
         "begin_s": begin_s,
         "found": found,
         "partitions": float(partitions or 0),
+    }
+
+
+def _api_answer(database: Database, measured: dict[str, float], runs: int) -> dict[str, float]:
+    """The one-hour history as the API answers it over HTTP, and its JSON encoding in this process against
+    encoding a validated ``PositionRead`` per row (median seconds of ``runs``)."""
+    vehicle_id, begin_s = int(measured["vehicle_id"]), measured["begin_s"]
+    with database.session() as session:
+        user_service.create_user(session, "bench", "bench-password", "admin")
+        views = position_service.history(session, vehicle_id, begin_s, begin_s + 3600 - 0.5 / FPS, 100_000)
+    validated = TypeAdapter(list[PositionRead])
+    encode, encode_validated = [], []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        fast = position_list_json(views)
+        encode.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        slow = validated.dump_json([PositionRead.model_validate(view) for view in views])
+        encode_validated.append(time.perf_counter() - t0)
+    if TypeAdapter(list[dict[str, object]]).validate_json(fast) != validated.dump_python(
+        validated.validate_json(slow), mode="json"
+    ):
+        sys.exit("the API's JSON of the positions differs from PositionRead's")
+    params = {"start": begin_s, "end": begin_s + 3600 - 0.5 / FPS, "limit": 100_000}
+    answers, found = [], 0
+    with (
+        tempfile.TemporaryDirectory(prefix="driftmap-history-") as work,
+        serving(Path(work), Path(work), "--no-worker", env={"DRIFTMAP_DATABASE_URL": database.url}) as (
+            base,
+            _pid,
+        ),
+        httpx.Client(base_url=base, timeout=60.0) as client,
+    ):
+        login = client.post("/api/auth/login", json={"username": "bench", "password": "bench-password"})
+        client.headers["Authorization"] = f"Bearer {login.json()['access_token']}"
+        for _ in range(runs + 1):  # the first warms the server's caches and connections
+            t0 = time.perf_counter()
+            answer = client.get(f"/api/vehicles/{vehicle_id}/positions", params=params)
+            answers.append(time.perf_counter() - t0)
+            answer.raise_for_status()
+            found = len(answer.json())
+    return {
+        "answer_s": statistics.median(answers[1:]),
+        "found": found,
+        "encode_s": statistics.median(encode),
+        "encode_validated_s": statistics.median(encode_validated),
     }
 
 
@@ -213,6 +286,20 @@ def _report(figures: dict[str, dict[str, float]], hours: float, vehicles: int, r
     print(f"ratio partitioned / plain: bytes per row {part['bytes'] / part['rows'] / (plain['bytes'] / plain['rows']):.2f}, "
           f"history query {part['query_s'] / plain['query_s']:.2f}, on the server "
           f"{part['server_s'] / plain['server_s']:.2f}")  # fmt: skip
+    for name in ("partitioned", "plain"):
+        f = figures[name]
+        print(
+            f"{name}: every vehicle's latest position (positions.latest) {f['latest_s'] * 1000:.1f} ms; finding "
+            f"each vehicle's newest id by grouping the whole table {f['newest_by_scan_s'] * 1000:.0f} ms "
+            f"(ratio {f['newest_by_scan_s'] / f['latest_s']:.0f}x)"
+        )
+    api = figures["api"]
+    print(
+        f"the API answers that hour ({api['found']:,.0f} positions, GET /api/vehicles/{{id}}/positions over HTTP) in "
+        f"{api['answer_s'] * 1000:.0f} ms (median of {runs}; target < 200 ms); encoding it as JSON "
+        f"{api['encode_s'] * 1000:.0f} ms, through a validated PositionRead per row "
+        f"{api['encode_validated_s'] * 1000:.0f} ms (ratio {api['encode_validated_s'] / api['encode_s']:.1f}x)"
+    )
     for name in ("partitioned", "more partitions"):
         if name in figures:
             f = figures[name]

@@ -7,6 +7,7 @@ to statuses, one per class, and answers FastAPI's validation, routing and unexpe
 
 from __future__ import annotations
 
+import gc
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from importlib import resources
@@ -68,7 +69,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         await live.start()
+        # What the process holds once started (modules, the app, its caches) leaves the collector's full
+        # passes: a long position history allocates enough objects to start one, which would otherwise walk
+        # the whole heap (about 100 ms; bench/bench_history.py --database postgresql).
+        gc.freeze()
         yield
+        gc.unfreeze()
         await live.stop()
         storage.close()
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends, Query, Response
 
 from driftmap.api.deps import VIEWER, SessionDep, SettingsDep
 from driftmap.api.input_types import Count, Id, Seconds
-from driftmap.api.schemas_access import LiveStateRead, PositionRead, VehicleLatestRead
+from driftmap.api.schemas_access import LiveStateRead, PositionRead, VehicleLatestRead, position_list_json
 from driftmap.errors import BadInputError, NotFoundError
 from driftmap.services import positions as position_service
 from driftmap.services import vehicles as vehicle_service
@@ -18,7 +18,7 @@ from driftmap.store.access_models import VehicleLiveState
 router = APIRouter(tags=["positions"], dependencies=[Depends(VIEWER)])
 
 
-@router.get("/vehicles/{vehicle_id}/positions")
+@router.get("/vehicles/{vehicle_id}/positions", response_model=list[PositionRead])
 def vehicle_positions(
     vehicle_id: Id,
     session: SessionDep,
@@ -27,13 +27,13 @@ def vehicle_positions(
     ] = None,
     end: Annotated[Seconds | None, Query(description="Latest frame time t, seconds.")] = None,
     limit: Annotated[int, Query(ge=1, le=100000)] = 10000,
-) -> list[PositionRead]:
+) -> Response:
     """A vehicle's position history between ``start`` and ``end``, in time order."""
     vehicle_service.get_vehicle(session, vehicle_id)
     if start is not None and end is not None and end < start:
         raise BadInputError(f"end ({end}) is before start ({start})", field="end")
-    rows = position_service.history(session, vehicle_id, start, end, limit)
-    return [PositionRead.model_validate(r) for r in rows]
+    views = position_service.history(session, vehicle_id, start, end, limit)
+    return Response(position_list_json(views), media_type="application/json")
 
 
 @router.get("/vehicles/{vehicle_id}/live-state")
@@ -56,10 +56,11 @@ def latest_positions(
     return [VehicleLatestRead.model_validate(r) for r in rows]
 
 
-@router.get("/positions")
+@router.get("/positions", response_model=list[PositionRead])
 def positions_since(
     session: SessionDep,
     since: Annotated[Count, Query(description="Positions with a higher seq than this.")] = 0,
-) -> list[PositionRead]:
+) -> Response:
     """Every vehicle's positions after sequence number ``since`` (polling clients resume with it)."""
-    return [PositionRead.model_validate(r) for r in position_service.since(session, since)]
+    views = position_service.since(session, since)
+    return Response(position_list_json(views), media_type="application/json")

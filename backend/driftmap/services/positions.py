@@ -6,9 +6,6 @@ position whose ``seq`` is above N.
 
 from __future__ import annotations
 
-import gc
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
@@ -25,9 +22,13 @@ def as_utc(moment: datetime) -> datetime:
     return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class PositionView:
-    """One position of one vehicle, as the API shows it (see :class:`~driftmap.live.localise.FrameOutcome`)."""
+    """One position of one vehicle, as the API shows it (see :class:`~driftmap.live.localise.FrameOutcome`).
+
+    Slotted and not frozen: an hour of one vehicle is 36,000 of them, and a frozen dataclass sets each field
+    through ``object.__setattr__`` (several times the cost of building the row).
+    """
 
     seq: int
     vehicle_id: int
@@ -83,7 +84,7 @@ _COLUMNS = (
     VehiclePosition.received_at,
     VehiclePosition.speed_mps,
     VehiclePosition.moving,
-    VehiclePosition.odometry,
+    func.coalesce(VehiclePosition.odometry, False),
     VehiclePosition.obscured,
     VehiclePosition.obscured_reason,
     VehiclePosition.salient,
@@ -91,7 +92,7 @@ _COLUMNS = (
     VehiclePosition.speckle,
     VehiclePosition.flat_area,
 )
-"""The columns :func:`_view` unpacks, in its order."""
+"""The columns of a :class:`PositionView`, in its fields' order (``received_at`` is read back aware UTC)."""
 
 
 def _query() -> Select[*tuple[Any, ...]]:
@@ -105,30 +106,11 @@ def _query() -> Select[*tuple[Any, ...]]:
     )
 
 
-def _view(row: Sequence[Any]) -> PositionView:
-    (seq, vehicle_id, vehicle, site_id, t, node, x, y, yaw, confidence, matched, lost, version, received_at,
-     speed_mps, moving, odometry, obscured, reason, salient, sharpness, speckle, flat_area) = row  # fmt: skip
-    return PositionView(
-        seq=seq, vehicle_id=vehicle_id, vehicle=vehicle, site_id=site_id, t=t, node=node, x=x, y=y, yaw=yaw,
-        confidence=confidence, matched=matched, lost=lost, map_version=version, received_at=as_utc(received_at),
-        speed_mps=speed_mps, moving=moving, odometry=bool(odometry), obscured=obscured, obscured_reason=reason,
-        salient=salient, sharpness=sharpness, speckle=speckle, flat_area=flat_area,
-    )  # fmt: skip
-
-
-@contextmanager
-def _collector_paused() -> Iterator[None]:
-    """Python's cyclic garbage collector paused while a long result becomes views (an hour of one vehicle is
-    36,000 rows): rows and views hold no reference cycles, yet the collections their allocations trigger cost
-    about half as much again as building them. Another thread that pauses it too may see it re-enabled early,
-    never left off."""
-    paused = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if paused:
-            gc.enable()
+def _views(session: Session, query: Select[*tuple[Any, ...]]) -> list[PositionView]:
+    """The positions ``query`` selects, run on the session's connection: plain rows need none of the ORM's
+    per-row loading, which costs as much again as the rows themselves."""
+    result = session.connection().execute(query)
+    return [PositionView(*row) for rows in result.partitions(1000) for row in rows]
 
 
 def history(
@@ -144,18 +126,12 @@ def history(
         query = query.where(VehiclePosition.t_s >= start_s)
     if end_s is not None:
         query = query.where(VehiclePosition.t_s <= end_s)
-    with _collector_paused():
-        rows = session.execute(query.order_by(VehiclePosition.t_s).limit(limit)).all()
-        return [_view(row) for row in rows]
+    return _views(session, query.order_by(VehiclePosition.t_s).limit(limit))
 
 
 def since(session: Session, seq: int, limit: int = 10000) -> list[PositionView]:
     """Positions of every vehicle with a sequence number above ``seq``, oldest first."""
-    with _collector_paused():
-        rows = session.execute(
-            _query().where(VehiclePosition.id > seq).order_by(VehiclePosition.id).limit(limit)
-        ).all()
-        return [_view(row) for row in rows]
+    return _views(session, _query().where(VehiclePosition.id > seq).order_by(VehiclePosition.id).limit(limit))
 
 
 def last_seq(session: Session) -> int:
@@ -171,28 +147,32 @@ def is_stale(position: PositionView | None, stale_after_s: float, now: datetime 
 
 
 def latest(session: Session, stale_after_s: float, site_id: int | None = None) -> list[VehicleLatest]:
-    """Every vehicle (of one site when given) with its last known position and stale flag."""
-    newest = (
-        select(VehiclePosition.vehicle_id, func.max(VehiclePosition.id).label("id"))
-        .group_by(VehiclePosition.vehicle_id)
-        .subquery()
+    """Every vehicle (of one site when given) with its last known position and stale flag.
+
+    A vehicle's last position is its one of highest ``t`` (a vehicle's stored ``t`` only grows: a frame not
+    after the last accepted one is refused), found through the ``(vehicle_id, t_s)`` index one vehicle at a
+    time, so the cost does not grow with the history kept.
+    """
+    newest_id = (
+        select(VehiclePosition.id)
+        .where(VehiclePosition.vehicle_id == Vehicle.id)
+        .order_by(VehiclePosition.t_s.desc())
+        .limit(1)
+        .scalar_subquery()
     )
-    positions = {
-        view.vehicle_id: view
-        for view in (
-            _view(row) for row in session.execute(_query().join(newest, VehiclePosition.id == newest.c.id))
-        )
-    }
-    vehicles = select(Vehicle).order_by(Vehicle.id)
+    vehicles_query = select(Vehicle.id, Vehicle.name, Vehicle.site_id, newest_id).order_by(Vehicle.id)
     if site_id is not None:
-        vehicles = vehicles.where(Vehicle.site_id == site_id)
+        vehicles_query = vehicles_query.where(Vehicle.site_id == site_id)
+    vehicles = session.execute(vehicles_query).all()
+    ids = [position_id for *_, position_id in vehicles if position_id is not None]
+    positions = {
+        view.vehicle_id: view for view in _views(session, _query().where(VehiclePosition.id.in_(ids)))
+    }
     now = utc_now()
     out = []
-    for vehicle in session.scalars(vehicles):
-        position = positions.get(vehicle.id)
+    for vehicle_id, name, vehicle_site_id, _ in vehicles:
+        position = positions.get(vehicle_id)
         out.append(
-            VehicleLatest(
-                vehicle.id, vehicle.name, vehicle.site_id, is_stale(position, stale_after_s, now), position
-            )
+            VehicleLatest(vehicle_id, name, vehicle_site_id, is_stale(position, stale_after_s, now), position)
         )
     return out

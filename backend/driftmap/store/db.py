@@ -26,15 +26,26 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor.close()
 
 
+def _postgresql_utc(dbapi_connection: Any, _record: Any) -> None:
+    """Every session in UTC: moments come back tagged ``datetime.UTC`` (nothing to convert per row) and
+    whatever the server computes from dates does not depend on the server's own zone."""
+    with dbapi_connection.cursor() as cursor:
+        cursor.execute("SET TIME ZONE 'UTC'")
+    dbapi_connection.commit()
+
+
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite files get their directory, WAL and foreign keys."""
+    """An engine for ``url``; SQLite files get their directory, WAL and foreign keys, PostgreSQL sessions UTC."""
     if url.startswith("sqlite:///"):
         path = Path(url.removeprefix("sqlite:///"))
         path.parent.mkdir(parents=True, exist_ok=True)
         engine = create_engine(url, connect_args={"timeout": 30})
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
-    return create_engine(url, pool_pre_ping=True)
+    engine = create_engine(url, pool_pre_ping=True)
+    if engine.dialect.name == "postgresql":
+        event.listen(engine, "connect", _postgresql_utc)
+    return engine
 
 
 def alembic_config(url: str) -> Config:
