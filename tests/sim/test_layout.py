@@ -15,7 +15,7 @@ from driftmap.sim.params import SIZES
 from driftmap.sim.survey import write_survey_dxf
 
 LENGTH_TOLERANCE = 0.25  # sizes within 25 % of their nominal centreline length
-NOMINAL_LENGTH_M = {"tiny": 100.0, "small": 400.0, "medium": 1500.0, "large": 6000.0}
+NOMINAL_LENGTH_M = {"tiny": 100.0, "small": 400.0, "medium": 1500.0, "large": 6000.0, "mine": 20000.0}
 
 
 @pytest.fixture(scope="module", params=["tiny", "small", "medium"])

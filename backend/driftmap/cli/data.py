@@ -20,7 +20,7 @@ from driftmap.store.storage import Storage
 site_app = typer.Typer(help="Sites and their survey maps.", no_args_is_help=True)
 drive_app = typer.Typer(help="Recorded drives: import, export, list.", no_args_is_help=True)
 db_app = typer.Typer(help="The database schema.", no_args_is_help=True)
-SizeName = Literal["tiny", "small", "medium", "large"]
+SizeName = Literal["tiny", "small", "medium", "large", "mine"]
 """The names of :data:`driftmap.sim.params.SIZES` (a test keeps them equal)."""
 SimCamera = Literal["pinhole", "wide180"]
 DriveKind = Literal["mapping", "localisation"]
@@ -32,7 +32,7 @@ def simulate(
     ],
     seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same site.")] = 1,
     size: Annotated[
-        SizeName, typer.Option(help="tiny, small (~400 m), medium (~1.5 km) or large (~6 km).")
+        SizeName, typer.Option(help="tiny, small (~400 m), medium (~1.5 km), large (~6 km) or mine (~20 km).")
     ] = "small",
     obscurants: Annotated[
         bool, typer.Option("--obscurants/--no-obscurants", help="Also write dust and water copies.")

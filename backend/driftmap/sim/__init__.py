@@ -1,7 +1,7 @@
 """The synthetic mine: layout, survey DXF, renderer, vehicle motion and the site writer.
 
 :func:`simulate_site` writes a complete site (survey.dxf, site.json, drive folders with ground truth
-and obscured copies) for a seed and a size ("tiny", "small", "medium", "large"); the same seed gives
+and obscured copies) for a seed and a size ("tiny", "small", "medium", "large", "mine"); the same seed gives
 the same bytes. :func:`plan_site` returns the layout and every drive's frame poses without rendering.
 
 Modules: ``params`` (sizes, camera, vehicle), ``layout`` (tunnel network), ``survey`` (DXF),

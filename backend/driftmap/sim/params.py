@@ -46,7 +46,7 @@ class LayoutParams:
 class SiteSize:
     """A named site size: its layout and its total frame budget (mapping + localisation)."""
 
-    name: str  # "tiny", "small", "medium" or "large"
+    name: str  # "tiny", "small", "medium", "large" or "mine"
     layout: LayoutParams  # geometry of the level
     frame_budget: int  # rendered frames in all drives (obscured copies are extra)
     localisation_drives: int  # number of localisation drives sharing what the mapping leaves
@@ -54,7 +54,7 @@ class SiteSize:
 
 
 # Centreline length and frames (seeds vary them a little): tiny ~105 m / ~1,400 frames (mapping alone
-# takes most of it), small ~370 m / ~4,500, medium ~1.46 km / ~15,000, large ~5.7 km / ~62,000. Every
+# takes most of it), small ~370 m / ~4,500, medium ~1.46 km / ~15,000, large ~5.7 km / ~62,000, mine ~20 km (a producing mine's worth of drives and cross-cuts) / ~220,000. Every
 # mapping drive leaves from the dump, so mapping takes about three quarters of the frames.
 SIZES: dict[str, SiteSize] = {
     "tiny": SiteSize("tiny", LayoutParams(24.0, 15.0, 0, access_length_m=0.0), 400, 1, 100),
@@ -66,6 +66,13 @@ SIZES: dict[str, SiteSize] = {
         60000,
         8,
         9000,
+    ),
+    "mine": SiteSize(
+        "mine",
+        LayoutParams(3100.0, 420.0, 20, drawpoint_spacing_m=28.0, access_length_m=200.0),
+        220000,
+        12,
+        20000,
     ),
 }
 

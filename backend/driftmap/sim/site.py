@@ -149,7 +149,7 @@ def simulate_site(
     Args:
         out_dir: output folder; created if missing, must be empty if it exists.
         seed: non-negative site seed; the same seed gives byte-identical output.
-        size: "tiny", "small", "medium" or "large".
+        size: "tiny", "small", "medium", "large" or "mine".
         obscurants: also write dust1/dust2/water1/water2 copies of every localisation drive.
         progress: called with (what is happening, fraction done in [0, 1]).
         workers: rendering processes (default: up to 2, the CPU count).
