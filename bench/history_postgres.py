@@ -28,7 +28,7 @@ import httpx
 from alembic import command
 from pydantic import TypeAdapter
 from sqlalchemy import text
-from tests.postgres_server import PostgresServer, postgres_bin_dir
+from tests.postgres_server import PostgresServer, postgres_bin_dir, revision_before_partitioning
 
 from bench_live import serving
 from driftmap.api.schemas_access import PositionRead, position_list_json
@@ -72,7 +72,7 @@ def run_postgresql(hours: float, vehicles: int, runs: int, extra_partitions: int
     now = datetime.now(UTC)
     try:
         figures = {}
-        plain = parts.revision_before(alembic_config(server.url()))
+        plain = revision_before_partitioning(alembic_config(server.url()))
         for name, revision in (("partitioned", "head"), ("plain", plain)):
             database = Database(server.create_database(name))
             try:

@@ -21,6 +21,8 @@ import uuid
 from pathlib import Path
 
 import psycopg
+from alembic.config import Config
+from alembic.script import ScriptDirectory
 from psycopg import sql
 
 from tests.processes import free_port, stop
@@ -28,6 +30,16 @@ from tests.processes import free_port, stop
 USER = "driftmap"
 TEMPLATE = "driftmap_template"
 STOP_DEADLINE_S = 30.0
+
+
+def revision_before_partitioning(config: Config) -> str:
+    """The Alembic revision just before the one that partitions the positions table (its plain-table schema)."""
+    for script in ScriptDirectory.from_config(config).walk_revisions():
+        if script.path.endswith("_partitioned_positions.py") and isinstance(script.down_revision, str):
+            return script.down_revision
+    raise LookupError("no migration *_partitioned_positions.py")
+
+
 _active: PostgresServer | None = None
 
 

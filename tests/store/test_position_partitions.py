@@ -20,6 +20,7 @@ from driftmap.store import position_partitions as parts
 from driftmap.store.access_models import VehiclePosition
 from driftmap.store.db import alembic_config
 from driftmap.store.storage import Storage
+from tests.postgres_server import revision_before_partitioning
 
 NOW = datetime.now(UTC).replace(microsecond=0)
 POLICY = RetentionPolicy(full_days=2.0, downsample_s=10.0, keep_days=30.0, catch_up_days=7.0)
@@ -215,7 +216,7 @@ def test_downgrade_and_upgrade_keep_every_row(pg: Storage) -> None:
     config = alembic_config(pg.db.url)
     with pg.db.engine.begin() as connection:
         config.attributes["connection"] = connection
-        command.downgrade(config, parts.revision_before(config))
+        command.downgrade(config, revision_before_partitioning(config))
     with pg.db.engine.connect() as connection:
         assert not parts.is_partitioned(connection)
     assert set(_where(pg)) == set(before) and set(_where(pg).values()) == {"vehicle_positions"}

@@ -28,8 +28,6 @@ import re
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
-from alembic.config import Config
-from alembic.script import ScriptDirectory
 from sqlalchemy import Connection, text
 
 __all__ = [
@@ -43,7 +41,6 @@ __all__ = [
     "is_partitioned",
     "partition_name",
     "partitions",
-    "revision_before",
     "upkeep",
     "week_start",
 ]
@@ -70,14 +67,6 @@ class Upkeep:
     created: tuple[str, ...]
     dropped: tuple[str, ...]
     locked: bool = True
-
-
-def revision_before(config: Config) -> str:
-    """The Alembic revision just before the one that partitions the table (its plain-table schema)."""
-    for script in ScriptDirectory.from_config(config).walk_revisions():
-        if script.path.endswith("_partitioned_positions.py") and isinstance(script.down_revision, str):
-            return script.down_revision
-    raise LookupError("no migration *_partitioned_positions.py")
 
 
 def week_start(moment: datetime) -> datetime:
