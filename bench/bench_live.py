@@ -28,7 +28,7 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -155,6 +155,69 @@ def serving(
         server.wait(30)
 
 
+AnswerSink = Callable[[float, str, float | None], None]
+"""Told of each frame a vehicle sends: its ``t``, the answer's status (or ``not sent``, or the transport
+error's name) and the answer's latency in milliseconds (None when not sent)."""
+
+
+async def add_vehicle(
+    client: httpx.AsyncClient, admin: dict[str, str], name: str, camera: dict[str, Any]
+) -> tuple[int, dict[str, str]]:
+    """A new vehicle of site 1 with ``camera``; returns its id and its frame-posting headers."""
+    made = (await client.post("/api/vehicles", json={"name": name, "site_id": 1}, headers=admin)).json()
+    await client.put(f"/api/vehicles/{made['id']}/camera", json=camera, headers=admin)
+    return int(made["id"]), {"Authorization": f"Bearer {made['token']}", "Content-Type": "image/png"}
+
+
+async def stream_frames(
+    client: httpx.AsyncClient,
+    vehicle_id: int,
+    headers: dict[str, str],
+    frames: list[tuple[float, bytes]],
+    k: int,
+    count: int,
+    fps: float,
+    start: float,
+    answered: AnswerSink,
+) -> None:
+    """Post ``count`` frames at ``fps`` from ``start`` (``time.perf_counter``), as vehicle number ``k``
+    (which frame of ``frames`` it starts at), telling ``answered`` of each.
+
+    Open loop, like a vehicle computer: it keeps at most ``MAX_IN_FLIGHT`` frames waiting for an answer and
+    drops a new frame while that many wait (``not sent``); a client that queued without bound would measure
+    its own backlog, not the server. ``client`` should be the vehicle's own, with ``MAX_IN_FLIGHT``
+    connections."""
+    url = f"/api/vehicles/{vehicle_id}/frames"
+    running: set[asyncio.Task[None]] = set()
+
+    async def post(t_s: float, blob: bytes) -> None:
+        t0 = time.perf_counter()
+        try:
+            response = await client.post(url, params={"t": t_s}, content=blob, headers=headers)
+            status = str(response.json().get("status", response.status_code))
+        except httpx.HTTPError as e:
+            status = type(e).__name__
+        answered(t_s, status, (time.perf_counter() - t0) * 1e3)
+
+    for i in range(count):
+        delay = start + i / fps - time.perf_counter()
+        if delay > 0:
+            await asyncio.sleep(delay)
+        t_s = round(i / fps, 3)
+        if len(running) >= MAX_IN_FLIGHT:
+            answered(t_s, "not sent", None)
+            continue
+        task = asyncio.create_task(post(t_s, frames[(i + 37 * k) % len(frames)][1]))
+        running.add(task)
+        task.add_done_callback(running.discard)
+    await asyncio.gather(*running)
+
+
+def vehicle_client(base: str) -> httpx.AsyncClient:
+    """A vehicle's own HTTP client: ``MAX_IN_FLIGHT`` connections to the server at ``base``."""
+    return httpx.AsyncClient(base_url=base, timeout=120.0, limits=httpx.Limits(max_connections=MAX_IN_FLIGHT))
+
+
 async def drive_vehicle(
     base: str,
     admin: dict[str, str],
@@ -162,45 +225,25 @@ async def drive_vehicle(
     frames: list[tuple[float, bytes]],
     args: argparse.Namespace,
 ) -> tuple[list[float], list[str], bool, int]:
-    """Replay frames as vehicle ``k`` with its own connections; returns latencies, answers, history check,
-    frames due. Like a vehicle computer it keeps at most ``MAX_IN_FLIGHT`` frames waiting for an answer and
-    drops a new frame while that many wait (answer ``not sent``)."""
-    async with httpx.AsyncClient(
-        base_url=base, timeout=120.0, limits=httpx.Limits(max_connections=MAX_IN_FLIGHT)
-    ) as client:
-        vehicle = (
-            await client.post("/api/vehicles", json={"name": f"v{k}", "site_id": 1}, headers=admin)
-        ).json()
-        await client.put(f"/api/vehicles/{vehicle['id']}/camera", json=args.camera, headers=admin)
-        headers = {"Authorization": f"Bearer {vehicle['token']}", "Content-Type": "image/png"}
-        url = f"/api/vehicles/{vehicle['id']}/frames"
+    """Replay frames as vehicle ``k`` (:func:`stream_frames`); returns latencies, answers, history check,
+    frames due."""
+    async with vehicle_client(base) as client:
+        vehicle_id, headers = await add_vehicle(client, admin, f"v{k}", args.camera)
         latencies: list[float] = []
         statuses: list[str] = []
 
-        async def post(t_s: float, blob: bytes) -> None:
-            t0 = time.perf_counter()
-            response = await client.post(url, params={"t": t_s}, content=blob, headers=headers)
-            latencies.append((time.perf_counter() - t0) * 1e3)
-            statuses.append(str(response.json().get("status", response.status_code)))
+        def answered(_t_s: float, status: str, latency_ms: float | None) -> None:
+            statuses.append(status)
+            if latency_ms is not None:
+                latencies.append(latency_ms)
 
         n = int(args.seconds * args.fps)
-        start = time.perf_counter() + 0.2
-        running: set[asyncio.Task[None]] = set()
-        for i in range(n):
-            _t, blob = frames[(i + 37 * k) % len(frames)]
-            delay = start + i / args.fps - time.perf_counter()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            if len(running) >= MAX_IN_FLIGHT:
-                statuses.append("not sent")
-                continue
-            task = asyncio.create_task(post(i / args.fps, blob))
-            running.add(task)
-            task.add_done_callback(running.discard)
-        await asyncio.gather(*running)
+        await stream_frames(
+            client, vehicle_id, headers, frames, k, n, args.fps, time.perf_counter() + 0.2, answered
+        )
         await asyncio.sleep(0.5)  # let the lane store its last counts
-        history = (await client.get(f"/api/vehicles/{vehicle['id']}/positions", headers=admin)).json()
-        state = (await client.get(f"/api/vehicles/{vehicle['id']}/live-state", headers=admin)).json()
+        history = (await client.get(f"/api/vehicles/{vehicle_id}/positions", headers=admin)).json()
+        state = (await client.get(f"/api/vehicles/{vehicle_id}/live-state", headers=admin)).json()
     ts = [p["t"] for p in history]
     sent = n - statuses.count("not sent")
     accounted = state["processed"] + state["skipped"] + state["out_of_order"] == sent

@@ -33,13 +33,18 @@ from pathlib import Path
 import httpx
 import websockets
 
-from bench_live import prepare, serving  # bench/ is the script's folder, first on sys.path
+from bench_live import (  # bench/ is the script's folder, first on sys.path
+    add_vehicle,
+    prepare,
+    serving,
+    stream_frames,
+    vehicle_client,
+)
 from proc_tree import tree_rss_mb
 
 SAMPLE_EVERY_S = 15.0
 QUERY_EVERY_S = 30.0
 TARGET_GROWTH = 0.05
-MAX_IN_FLIGHT = 8  # frames a vehicle keeps waiting for an answer
 
 
 @dataclass
@@ -62,50 +67,23 @@ async def vehicle(
     args: argparse.Namespace,
     soak: Soak,
 ) -> tuple[int, set[float]]:
-    """Stream frames as vehicle ``k`` until the run ends; returns its id and the ``t`` answered processed.
-
-    Like a vehicle computer, it keeps at most ``MAX_IN_FLIGHT`` frames waiting for an answer and drops a new
-    frame while that many wait (counted as ``not sent``): a client that queued without bound would measure
-    its own backlog, not the server."""
-    async with httpx.AsyncClient(
-        base_url=base, timeout=120.0, limits=httpx.Limits(max_connections=MAX_IN_FLIGHT)
-    ) as client:
-        made = (
-            await client.post("/api/vehicles", json={"name": f"soak-{k}", "site_id": 1}, headers=admin)
-        ).json()
-        await client.put(f"/api/vehicles/{made['id']}/camera", json=args.camera, headers=admin)
-        headers = {"Authorization": f"Bearer {made['token']}", "Content-Type": "image/png"}
-        url = f"/api/vehicles/{made['id']}/frames"
+    """Stream frames as vehicle ``k`` until the run ends (:func:`bench_live.stream_frames`); returns its id
+    and the ``t`` answered processed."""
+    async with vehicle_client(base) as client:
+        vehicle_id, headers = await add_vehicle(client, admin, f"soak-{k}", args.camera)
         processed: set[float] = set()
-        running: set[asyncio.Task[None]] = set()
 
-        async def post(t_s: float, blob: bytes) -> None:
-            t0 = time.perf_counter()
-            try:
-                response = await client.post(url, params={"t": t_s}, content=blob, headers=headers)
-                status = response.json().get("status", str(response.status_code))
-            except httpx.HTTPError as e:
-                status = type(e).__name__
-            soak.latencies_ms.append((time.perf_counter() - t0) * 1e3)
+        def answered(t_s: float, status: str, latency_ms: float | None) -> None:
             soak.statuses[status] += 1
+            if latency_ms is not None:
+                soak.latencies_ms.append(latency_ms)
             if status == "processed":
                 processed.add(t_s)
 
         n = int(args.minutes * 60 * args.fps)
         start = time.perf_counter() + 0.1 * k / args.vehicles
-        for i in range(n):
-            delay = start + i / args.fps - time.perf_counter()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            if len(running) >= MAX_IN_FLIGHT:
-                soak.statuses["not sent"] += 1
-                continue
-            t_s = round(i / args.fps, 3)
-            task = asyncio.create_task(post(t_s, frames[(i + 37 * k) % len(frames)][1]))
-            running.add(task)
-            task.add_done_callback(running.discard)
-        await asyncio.gather(*running)
-    return int(made["id"]), processed
+        await stream_frames(client, vehicle_id, headers, frames, k, n, args.fps, start, answered)
+    return vehicle_id, processed
 
 
 async def watcher(base: str, token: str, stop: asyncio.Event, soak: Soak) -> None:
