@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 from sqlalchemy import select
+from tests.sim_site import create_site, import_folders, version_poses
 
 from bench_mapping import PRESETS, mapping_folders, site_dir
 from driftmap.config import Settings
 from driftmap.core.mapping.pipeline import MappingParams
-from driftmap.services import drives as drive_service
 from driftmap.services import map_pieces
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
-from driftmap.store.models import MapPose, MapVersion
+from driftmap.store.models import MapVersion
 from driftmap.store.storage import Storage
 
 TOLERANCE_M = 0.1  # the issue's target: every pose of an incremental build within this of a full one's
@@ -40,15 +40,9 @@ STAGES = ("odometry_s", "frame_stats_s", "loop_closure_s", "pose_graph_s", "topo
 
 
 def _import(storage: Storage, site: Path, folders: list[Path], create: bool) -> None:
-    with storage.blobs.batch() as batch, storage.db.session() as session:
-        if create:
-            record = site_service.create_site(session, "bench")
-            site_service.add_survey_map(
-                session, batch, record, (site / "survey.dxf").read_bytes(), "survey.dxf"
-            )
-    for folder in folders:
-        with storage.blobs.batch() as batch, storage.db.session() as session:
-            drive_service.import_drive(session, batch, site_service.get_site(session, "bench"), folder)
+    if create:
+        create_site(storage, site, "bench")
+    import_folders(storage, "bench", folders)
 
 
 def _build(
@@ -78,12 +72,7 @@ def _build(
 def _poses(storage: Storage, number: int) -> np.ndarray:
     with storage.db.session() as session:
         version_id = session.scalars(select(MapVersion.id).where(MapVersion.version == number)).one()
-        rows = session.execute(
-            select(MapPose.x_m, MapPose.y_m, MapPose.yaw_rad)
-            .where(MapPose.map_version_id == version_id)
-            .order_by(MapPose.frame_id)
-        ).all()
-    return np.array(rows, dtype=np.float64)
+    return version_poses(storage, version_id)
 
 
 def _line(name: str, seconds: float, stats: dict) -> str:

@@ -20,14 +20,14 @@ from sqlalchemy import select
 from driftmap.core.mapping.pipeline import MAP_PRESETS, MAPPING_FAST
 from driftmap.jobs.queue import JobQueue
 from driftmap.services import deletion
-from driftmap.services import drives as drive_service
 from driftmap.services import groundings as grounding_service
 from driftmap.services import jobs as job_service
 from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, Grounding, MapPiece, MapPose, MapVersion
+from driftmap.store.models import Drive, Grounding, MapPiece, MapVersion
 from driftmap.store.storage import Storage
 from tests.jobs.mini_site import drive_folders
+from tests.sim_site import create_site, import_folders, version_poses
 
 POSE_TOLERANCE_M = 0.1
 """Largest distance between an incremental build's pose and a full build's (the issue's target)."""
@@ -38,15 +38,9 @@ GROUNDING_SHIFT_M = 5.0
 
 
 def _import(storage: Storage, site_dir: Path, folders: list[Path], create: bool) -> None:
-    with storage.blobs.batch() as batch, storage.db.session() as session:
-        if create:
-            site = site_service.create_site(session, "tiny")
-            site_service.add_survey_map(
-                session, batch, site, (site_dir / "survey.dxf").read_bytes(), "survey.dxf"
-            )
-    for folder in folders:
-        with storage.blobs.batch() as batch, storage.db.session() as session:
-            drive_service.import_drive(session, batch, site_service.get_site(session, "tiny"), folder)
+    if create:
+        create_site(storage, site_dir, "tiny")
+    import_folders(storage, "tiny", folders)
 
 
 def _build(storage: Storage, queue: JobQueue, **args: Any) -> tuple[MapVersion, list[Job]]:
@@ -71,13 +65,7 @@ def _build(storage: Storage, queue: JobQueue, **args: Any) -> tuple[MapVersion, 
 
 def _poses(storage: Storage, version: MapVersion) -> np.ndarray:
     """(F, 3) [x_m, y_m, yaw_rad] of the version, frame by frame."""
-    with storage.db.session() as session:
-        rows = session.execute(
-            select(MapPose.x_m, MapPose.y_m, MapPose.yaw_rad)
-            .where(MapPose.map_version_id == version.id)
-            .order_by(MapPose.frame_id)
-        ).all()
-    return np.array(rows, dtype=np.float64)
+    return version_poses(storage, version.id)
 
 
 def _kept(storage: Storage) -> dict[str, str]:
