@@ -54,7 +54,24 @@ def test_history_and_since(storage: Storage) -> None:
     with storage.db.session() as session:
         history = position_service.history(session, ids["truck"], 5001.0, 5003.5)
         assert [p.t for p in history] == [5001.0, 5002.0, 5003.0]
-        assert all(p.vehicle == "truck" and p.odometry is False for p in history)
+        site_id = history[0].site_id
+        # every column lands in its field (an odometry flag never recorded reads False)
+        assert history[0] == position_service.PositionView(
+            seq=history[0].seq,
+            vehicle_id=ids["truck"],
+            vehicle="truck",
+            site_id=site_id,
+            t=5001.0,
+            node=1,
+            x=1.0,
+            y=-1.0,
+            yaw=None,
+            confidence=0.5,
+            matched=True,
+            lost=False,
+            map_version=None,
+            received_at=NOW + timedelta(seconds=1),
+        )
         since = position_service.since(session, history[0].seq)
         assert [p.seq for p in since] == sorted(p.seq for p in since)
         assert len(since) == 12 - 4  # rows 1-4: both vehicles at k = 0 and 1
