@@ -142,6 +142,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--preset", choices=sorted(PRESETS), default="paper")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--plot", type=Path, help="draw each stage's CPU time against tunnel length here (PNG)"
+    )
     args = parser.parse_args()
     context = multiprocessing.get_context("spawn")
     results: list[SizeResult] = []
@@ -154,6 +157,37 @@ def main() -> None:
         child.join()
         _print_size(results[-1])
     _print_growth(results)
+    if args.plot is not None:
+        plot(results, args.plot)
+
+
+def plot(results: list[SizeResult], path: Path) -> None:
+    """Log-log curves of each stage's CPU seconds (and the build's wall seconds) against tunnel length."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    km = [r.km for r in results]
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    for stage in STAGES[1:]:
+        ax.plot(km, [max(r.costs[stage].cpu_s, 1e-2) for r in results], marker="o", label=f"{stage} (CPU)")
+    walls = [sum(c.wall_s for c in r.costs.values()) for r in results]
+    ax.plot(km, walls, marker="s", color="black", linestyle="--", label="whole build (wall)")
+    ax.plot(
+        km, [walls[0] * k / km[0] for k in km], color="grey", linestyle=":", label="linear from the first"
+    )
+    for r, wall in zip(results, walls, strict=True):
+        ax.annotate(r.size, (r.km, wall), textcoords="offset points", xytext=(4, 6))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("tunnel length, km")
+    ax.set_ylabel("seconds")
+    ax.set_title("Map build cost by stage against the size of the mine")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 def _print_size(r: SizeResult) -> None:
