@@ -13,9 +13,11 @@ import tomllib
 import zipfile
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
+import yaml
 
 from driftmap.api.app import ui_dir
 from driftmap.store.db import MIGRATIONS_DIR
@@ -82,6 +84,38 @@ class TestLock:
         assert declared_distributions() <= set(pins), declared_distributions() - set(pins)
         dockerfile = (ROOT / "Dockerfile").read_text()
         assert "-c requirements.lock" in dockerfile and "FROM node:22-" in dockerfile
+
+
+class TestCompose:
+    """docker-compose.yml: every service that keeps running has a health check, and what waits on it waits for
+    it to be healthy; the one-shot schema upgrade is waited for to succeed."""
+
+    @pytest.fixture
+    def services(self) -> dict[str, Any]:
+        found: dict[str, Any] = yaml.safe_load((ROOT / "docker-compose.yml").read_text())["services"]
+        return found
+
+    def test_every_lasting_service_has_a_health_check(self, services: dict[str, Any]) -> None:
+        assert {"postgres", "redis", "migrate", "api", "worker"} <= set(services)
+        for name, service in services.items():
+            if service.get("restart") == "no":  # a one-shot job: its exit status is its health
+                assert name == "migrate" and service["command"] == ["driftmap", "db", "upgrade"]
+                continue
+            check = service.get("healthcheck") or {}
+            assert check.get("test") and not check.get("disable"), f"{name} has no health check"
+
+    def test_dependents_wait_for_health_or_success(self, services: dict[str, Any]) -> None:
+        for name, service in services.items():
+            for needed, how in (service.get("depends_on") or {}).items():
+                wanted = "service_completed_successfully" if needed == "migrate" else "service_healthy"
+                assert how == {"condition": wanted}, (name, needed)
+
+    def test_api_and_worker_checks_ask_their_own_ports(self, services: dict[str, Any]) -> None:
+        api, worker = services["api"], services["worker"]
+        port = next(a.split("=")[1] for a in api["command"] if a.startswith("--port="))
+        assert f"http://127.0.0.1:{port}/api/health" in " ".join(api["healthcheck"]["test"])
+        metrics = next(a.split("=")[1] for a in worker["command"] if a.startswith("--metrics-port="))
+        assert f"http://127.0.0.1:{metrics}/metrics" in " ".join(worker["healthcheck"]["test"])
 
 
 class TestPackageData:

@@ -11,7 +11,7 @@ from starlette.websockets import WebSocketDisconnect
 from typer.testing import CliRunner
 
 from driftmap.api.app import create_app
-from driftmap.api.deps import WS_CLOSE_UNAUTHORIZED
+from driftmap.api.deps import TOKEN_COOKIE, WS_CLOSE_UNAUTHORIZED
 from driftmap.cli import app as cli_app
 from driftmap.config import Settings, get_settings
 from driftmap.services import security
@@ -51,8 +51,17 @@ class TestLogin:
         cookie = response.headers["set-cookie"].lower()
         assert "httponly" in cookie and "secure" in cookie and "samesite=strict" in cookie
         assert client.get("/api/users").status_code == 200
+        cookie = {"Cookie": f"{TOKEN_COOKIE}={client.cookies[TOKEN_COOKIE]}"}  # what a browser sends to wss:
+        with client.websocket_connect("/api/live", headers=cookie) as ws:
+            assert ws.receive_json()["type"] == "snapshot"  # no token in the URL, no auth message
         client.post("/api/auth/logout")
         assert client.get("/api/users").status_code == 401
+        with (
+            client.websocket_connect("/api/live", headers=cookie) as ws,
+            pytest.raises(WebSocketDisconnect) as closed,
+        ):
+            ws.receive_json()
+        assert closed.value.code == WS_CLOSE_UNAUTHORIZED  # the logged-out cookie no longer opens a socket
 
     def test_expired_and_forged_tokens_are_refused(self, actors: Actors, settings: Settings) -> None:
         key = security.secret_key(settings)

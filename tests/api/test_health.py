@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 from driftmap.api.app import create_app
 from driftmap.config import Settings
 from driftmap.services import supervision
+from driftmap.store.db import Database
 from driftmap.store.job_models import Job
 from driftmap.store.models import utc_now
 from driftmap.store.storage import Storage
@@ -99,3 +100,21 @@ class TestRedis:
         code, body = _health(settings.model_copy(update={"redis_url": dead}))
         assert (code, body["status"], body["redis"]) == (200, "degraded", "unreachable")
         assert body["problems"] == ["Redis does not answer"]
+
+
+class TestDatabase:
+    def test_a_database_that_does_not_answer_is_503_down(self, settings: Settings) -> None:
+        app = create_app(settings)
+        storage: Storage = app.state.storage
+        working = storage.db
+        storage.db = Database(
+            f"postgresql+psycopg://driftmap@127.0.0.1:{free_port()}/driftmap"
+        )  # nothing there
+        try:
+            response = TestClient(app).get("/api/health")
+        finally:
+            storage.db.dispose()
+            working.dispose()
+        body = response.json()
+        assert (response.status_code, body["status"], body["database"]) == (503, "down", "unreachable")
+        assert body["problems"][0] == "the database does not answer"

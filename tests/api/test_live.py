@@ -27,6 +27,7 @@ from driftmap.errors import ConflictError
 from driftmap.formats.frame_images import decode_gray, encode_png
 from driftmap.live.hub import InMemoryHub
 from driftmap.live.ingest import LiveService
+from driftmap.live.metrics import LIVE_REGISTRY
 from driftmap.services import localisation as loc_service
 from driftmap.services import sites as site_service
 from driftmap.services import vehicles as vehicle_service
@@ -228,6 +229,13 @@ class TestMotion:
         ]
 
 
+FRAME_STATUSES = ("processed", "skipped", "out_of_order")
+
+
+def _frames_counted(status: str) -> float:
+    return LIVE_REGISTRY.get_sample_value("driftmap_live_frames_total", {"status": status}) or 0.0
+
+
 class TestOverload:
     def test_a_burst_skips_stale_frames_in_order_and_counts_them(
         self, built: Path, frames: list[RecordedFrame]
@@ -248,6 +256,7 @@ class TestOverload:
             processes=1,
         )
         burst = [(f.t, f.data) for f in frames[:12]]
+        counted = {status: _frames_counted(status) for status in FRAME_STATUSES}
 
         async def run() -> list:  # type: ignore[type-arg]
             first = await asyncio.gather(*(live.submit(vid, "burst", site_id, t, g) for t, g in burst[:6]))
@@ -265,6 +274,9 @@ class TestOverload:
         assert processed == sorted(processed) and processed[-2:] == [burst[-1][0], frames[12].t]
         assert statuses[:12].count("skipped") >= 8  # one frame runs, one waits: a burst of 6 keeps 1-2
         assert statuses[5] == statuses[11] == "processed"  # the newest frame of a burst is always processed
+        assert {status: _frames_counted(status) - counted[status] for status in FRAME_STATUSES} == {
+            status: statuses.count(status) for status in FRAME_STATUSES
+        }  # GET /metrics's driftmap_live_frames_total
         with storage.db.session() as session:
             state = session.get(VehicleLiveState, vid)
             assert state is not None

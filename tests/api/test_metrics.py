@@ -4,13 +4,27 @@ localiser time, the request histogram by route template, vehicles by state and j
 from __future__ import annotations
 
 from collections.abc import Iterator
+from datetime import timedelta
 from pathlib import Path
 
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
 from driftmap.config import Settings
+from driftmap.services import sites as site_service
+from driftmap.services import vehicles as vehicle_service
+from driftmap.store.access_models import VehiclePosition
+from driftmap.store.models import utc_now
+from driftmap.store.storage import Storage
 from tests.api.access_helpers import Actors, RecordedFrame, localisation_drive, make_actors, recorded_frames
+
+VEHICLE_STATES = ("reporting", "lost", "obscured", "stale", "never")
+STATES = {  # vehicle -> (lost, obscured, age of its latest position in s) beside lhd-1 and lhd-2
+    "dark": (True, False, 5.0),
+    "dusty": (False, True, 5.0),
+    "parked": (False, False, 7200.0),
+    "gone": (True, True, 7200.0),
+}
 
 
 @pytest.fixture
@@ -83,3 +97,46 @@ def test_a_bad_request_is_timed_under_its_route(actors: Actors) -> None:
         )
         == 1
     )
+
+
+def _position(vehicle_id: int, *, lost: bool, obscured: bool, age_s: float) -> VehiclePosition:
+    return VehiclePosition(
+        vehicle_id=vehicle_id, t_s=0.0, node=1, x_m=0.0, y_m=0.0, confidence=0.9, matched=not lost,
+        lost=lost, obscured=obscured, received_at=utc_now() - timedelta(seconds=age_s),
+    )  # fmt: skip
+
+
+def test_vehicle_states_and_the_queue_depth_are_counted_at_each_scrape(actors: Actors) -> None:
+    """Each vehicle is counted under the state of its latest position (stale before lost or obscured), and
+    jobs accepted while no worker runs are the queue depth."""
+    storage: Storage = actors.app.state.storage
+    with storage.db.session() as session:
+        site_id = site_service.get_site(session, "tiny").id
+        made = {name: vehicle_service.create_vehicle(session, name, site_id)[0].id for name in STATES}
+        vehicle_service.create_vehicle(session, "idle", site_id)  # no position yet
+        session.add(_position(actors.vehicle_id, lost=False, obscured=False, age_s=1.0))
+        session.add(_position(actors.other_vehicle_id, lost=True, obscured=False, age_s=7200.0))  # older
+        session.add(_position(actors.other_vehicle_id, lost=True, obscured=False, age_s=1.0))  # latest
+        for name, (lost, obscured, age_s) in STATES.items():
+            session.add(_position(made[name], lost=lost, obscured=obscured, age_s=age_s))
+    before = _scrape(actors)
+    assert {s: _value(before, "driftmap_vehicles", state=s) for s in VEHICLE_STATES} == {
+        "reporting": 1,
+        "lost": 2,  # the other vehicle by its latest position, and "dark"
+        "obscured": 1,
+        "stale": 2,  # an hour past stale_after_s outweighs lost or obscured
+        "never": 1,
+    }
+    queued = _value(before, "driftmap_jobs", status="queued")
+    accepted = [
+        actors.client.post(
+            f"/api/sites/{site_id}/maps", json={"preset": "fast"}, headers=actors.auth("surveyor")
+        ),
+        actors.client.post("/api/sites/simulate", json={"name": "far", "size": "tiny"},
+                           headers=actors.auth("admin")),
+    ]  # fmt: skip
+    assert [r.status_code for r in accepted] == [202, 202], [r.text for r in accepted]
+    assert all(r.json()["status"] == "queued" for r in accepted)
+    after = _scrape(actors)
+    assert _value(after, "driftmap_jobs", status="queued") == queued + 2  # no worker runs here
+    assert _value(after, "driftmap_jobs", status="running") == 0

@@ -5,11 +5,15 @@ from __future__ import annotations
 from typing import Any
 
 import httpx
+import jsonschema_rs
 import pytest
+from fastapi.testclient import TestClient
 
 from driftmap.api.problems import PROBLEM_MEDIA_TYPE, PROBLEM_RESPONSES, Problem
 from driftmap.live.start import MAX_START_RADIUS_M
+from driftmap.services import sites as site_service
 from driftmap.services.users import MIN_PASSWORD_LENGTH
+from tests.api.access_helpers import PASSWORD
 from tests.api.data_helpers import ApiUsers
 
 PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
@@ -31,6 +35,9 @@ def _check_problem(response: httpx.Response, status: int, document: dict[str, An
     assert response.headers["content-type"].split(";")[0] == PROBLEM_MEDIA_TYPE
     body: dict[str, Any] = response.json()
     Problem.model_validate(body)
+    schema = {**PROBLEM_REF, "components": document["components"]}
+    errors = [e.message for e in jsonschema_rs.Draft202012Validator(schema).iter_errors(body)]
+    assert not errors, (errors, body)
     component = document["components"]["schemas"]["Problem"]
     assert set(component["required"]) <= set(body) <= set(component["properties"]), body
     assert body["status"] == status and body["title"] and body["detail"]
@@ -144,3 +151,42 @@ class TestRealAnswers:
     def test_403(self, users: ApiUsers, document: dict[str, Any]) -> None:
         response = users.client.post("/api/sites", json={"name": "x"}, headers=users.auth("viewer"))
         _check_problem(response, 403, document)
+
+    def test_400_names_the_file(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        site = users.client.post("/api/sites", json={"name": "north"}, headers=users.auth("admin")).json()
+        response = users.client.post(
+            f"/api/sites/{site['id']}/drives/zip",
+            files={"file": ("drive.zip", b"not a zip at all", "application/zip")},
+            headers=users.auth("surveyor"),
+        )
+        assert _check_problem(response, 400, document)["file"] == "drive.zip"
+
+    def test_422_of_a_file_names_file_line_and_field(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        site = users.client.post("/api/sites", json={"name": "north"}, headers=users.auth("admin")).json()
+        response = users.client.put(
+            f"/api/sites/{site['id']}/groundings.csv",
+            files={"file": ("control.csv", b"drive,frame,station,x,y,enabled\nnowhere,1,,0,0,true\n")},
+            headers=users.auth("surveyor"),
+        )
+        body = _check_problem(response, 422, document)
+        assert (body["file"], body["line"], body["field"]) == ("control.csv", 2, "drive")
+
+    def test_429_keeps_retry_after(self, users: ApiUsers, document: dict[str, Any]) -> None:
+        limit = users.app.state.settings.login_max_failures_per_user
+        wrong = {"username": "viewer", "password": "not the password"}
+        assert {users.client.post("/api/auth/login", json=wrong).status_code for _ in range(limit)} == {401}
+        response = users.client.post("/api/auth/login", json={"username": "viewer", "password": PASSWORD})
+        assert "too many failed logins" in _check_problem(response, 429, document)["detail"]
+        assert int(response.headers["retry-after"]) > 0
+
+    def test_500_hides_the_fault(
+        self, users: ApiUsers, document: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        def broken(*_args: object, **_kwargs: object) -> object:
+            raise RuntimeError("secret internals")
+
+        monkeypatch.setattr(site_service, "list_sites", broken)
+        with TestClient(users.app, raise_server_exceptions=False) as client:
+            response = client.get("/api/sites", headers=users.auth("viewer"))
+        body = _check_problem(response, 500, document)
+        assert "secret internals" not in response.text and "server log" in body["detail"]

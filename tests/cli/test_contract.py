@@ -12,10 +12,11 @@ from typing import Any, get_args
 import pytest
 from typer.testing import CliRunner, Result
 
-from driftmap.cli import app, camera, data, maps
+from driftmap.cli import app, camera, data, localise, maps
 from driftmap.config import Settings, get_settings
 from driftmap.core.imaging.lens import LENS_MODELS
 from driftmap.core.mapping.pipeline import MAP_PRESETS
+from driftmap.errors import BadInputError
 from driftmap.services import maps as map_service
 from driftmap.services.users import ROLES
 from driftmap.sim.params import RIGS, SIZES
@@ -96,6 +97,24 @@ class TestJsonOutput:
         assert result.exit_code == 1 and result.stdout == "" and "nowhere" in result.stderr
 
 
+class TestMethodChoice:
+    def test_the_chosen_methods_reach_the_report(
+        self, built_env: None, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        """The report itself is the reports tests' (stood in for here): it is given the labels chosen."""
+        given: list[object] = []
+
+        def report(*_args: object, methods: object = None, **_kwargs: object) -> object:
+            given.append(methods)
+            raise BadInputError("stood in")
+
+        monkeypatch.setattr(localise, "run_localisation_report", report)
+        chosen = ["--method", "HMM+SESAME+odometry", "--method", "SAD"]
+        result = _refused("report", "localisation", "tiny", "--truth", *chosen)
+        assert result.exit_code == 1 and "stood in" in result.stderr
+        assert given == [["HMM+SESAME+odometry", "SAD"]]
+
+
 class TestExitCodes:
     def test_refusals_exit_1(self, empty_env: None) -> None:
         result = _refused("drive", "list", "nowhere")
@@ -104,6 +123,7 @@ class TestExitCodes:
     def test_usage_errors_exit_2(self, empty_env: None, tmp_path: Path) -> None:
         assert _refused("site", "list", "--no-such-option").exit_code == 2
         assert _refused("map", "build", "tiny", "--preset", "slow").exit_code == 2
+        assert _refused("report", "localisation", "tiny", "--truth", "--method", "SIFT").exit_code == 2
         out = tmp_path / "x.csv"
         both = _refused("map", "export", "tiny", "--format", "csv")  # --format without --out
         assert both.exit_code == 2 and "--out" in both.output and not out.exists()
@@ -119,6 +139,8 @@ class TestChoices:
             (["user", "add"], "admin|surveyor|viewer"),
             (["camera", "intrinsics"], "pinhole|fisheye"),
             (["map", "export"], "csv|"),
+            (["positions", "export"], "csv|geojson|kml|tum"),
+            (["report", "localisation"], "SAD|SAD+SESAME|HMM+SAD|HMM+SESAME|HMM+SESAME+odometry"),
         ],
     )
     def test_help_lists_the_choices(self, command: list[str], shown: str) -> None:

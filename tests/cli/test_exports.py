@@ -5,19 +5,25 @@ from __future__ import annotations
 
 import io
 import json
+import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import ezdxf
+import numpy as np
 import pytest
 from evo.tools import file_interface
 from typer.testing import CliRunner
 
 from driftmap.cli import app
-from driftmap.config import get_settings
+from driftmap.config import Settings, get_settings
 from driftmap.formats.csv_exports import parse_poses_csv, read_poses_csv
 from driftmap.formats.g2o import read_g2o
 from driftmap.formats.position_exports import parse_positions_csv
+from driftmap.formats.site_crs import SiteCrs
+from driftmap.formats.trajectory_exports import COORDINATES_MEMBER, KML_NAMESPACE, PLANE_COORDINATES
+from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
 from tests.cli.in_process import point_cli_at
 from tests.export_site import LOADER, SITE, TRACKS, TRUCK, export_store
 
@@ -133,3 +139,58 @@ class TestPositionsExport:
         )
         assert result.exit_code == 1 and "ghost" in result.output
         assert not out.exists()
+
+
+@pytest.fixture
+def crs_env(
+    tmp_path_factory: pytest.TempPathFactory,
+    tiny_site_dir: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> Iterator[None]:
+    """The CLI on a private copy of the built tiny site (its coordinates are changed)."""
+    data, url = copy_data_to_new_database(
+        built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data"
+    )
+    point_cli_at(monkeypatch, Settings(data_dir=data, database_url=url))
+    yield
+    get_settings.cache_clear()
+
+
+def _xy(collection: dict[str, Any]) -> list[np.ndarray]:
+    return [np.array(f["geometry"]["coordinates"], dtype=float) for f in collection["features"]]
+
+
+class TestSiteCrs:
+    def test_mine_grid_then_wgs84_then_plane_again(self, crs_env: None, tmp_path: Path) -> None:
+        plane = json.loads(_run_to_text(tmp_path, "geojson"))
+        assert plane[COORDINATES_MEMBER] == PLANE_COORDINATES
+
+        grid_args = ["--false-origin", "5000,20000", "--rotation-deg", "90", "--scale", "1.0002"]
+        assert "mine grid" in _run("site", "crs", SITE, *grid_args)
+        grid = json.loads(_run_to_text(tmp_path, "geojson"))
+        assert "mine grid" in grid[COORDINATES_MEMBER]
+        to_grid = SiteCrs(None, 5000.0, 20000.0, 90.0, 1.0002).to_grid
+        for before, after in zip(_xy(plane), _xy(grid), strict=True):
+            np.testing.assert_allclose(after, to_grid(before), atol=1e-6)
+        kml = ET.fromstring(_run_to_text(tmp_path, "kml"))
+        first = kml.find(f".//{{{KML_NAMESPACE}}}coordinates")
+        assert first is not None and first.text is not None
+        east, north, _z = (float(v) for v in first.text.split()[0].split(","))
+        np.testing.assert_allclose([east, north], _xy(grid)[0][0], atol=1e-6)
+
+        placed = SiteCrs(28355, 321_000.0, 6_123_000.0, 3.0)  # GDA94 / MGA zone 55
+        _run(
+            "site", "crs", SITE, "--epsg", "28355", "--false-origin", "321000,6123000", "--rotation-deg", "3"
+        )
+        earth = json.loads(_run_to_text(tmp_path, "geojson"))
+        assert "EPSG:28355" in earth[COORDINATES_MEMBER]
+        for before, lonlat in zip(_xy(plane), _xy(earth), strict=True):
+            assert np.all((lonlat[:, 0] > 144.0) & (lonlat[:, 0] < 146.0))
+            assert np.all((lonlat[:, 1] > -36.0) & (lonlat[:, 1] < -34.0))
+            np.testing.assert_allclose(placed.from_wgs84(lonlat), before, atol=1e-3)  # back on the floor
+
+        refused = runner.invoke(app, ["site", "crs", SITE, "--false-origin", "12"])
+        assert refused.exit_code == 1 and "--false-origin" in refused.output
+        _run("site", "crs", SITE, "--clear")
+        assert json.loads(_run_to_text(tmp_path, "geojson")) == plane

@@ -3,6 +3,7 @@ of the built tiny site: files written and read back, a bad row named, nothing ha
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -69,3 +70,16 @@ def test_map_show_prints_the_residual_summary(env: None) -> None:
     output = _run("map", "show", "tiny")
     assert "RMS m" in output and "mean m" in output and "max m" in output
     assert "all" in output
+
+
+def test_the_residuals_csv_matches_map_show(env: None, tmp_path: Path) -> None:
+    out = tmp_path / "residuals.csv"
+    assert "of map version 1 of 'tiny'" in _run("groundings", "residuals", "tiny", "--out", str(out))
+    header, *lines = out.read_text().splitlines()
+    assert header == "drive,frame,station,x,y,residual_m,enabled"
+    shown = json.loads(_run("map", "show", "tiny", "--json"))["residuals"]
+    by_frame = {(r["drive"], r["frame"]): r["distance_m"] for r in shown}
+    written = {(c[0], int(c[1])): float(c[5]) for c in (line.split(",") for line in lines)}
+    assert written == pytest.approx(by_frame) and len(written) == len(shown) > 0
+    refused = runner.invoke(app, ["groundings", "residuals", "tiny", "--version", "9", "--out", str(out)])
+    assert refused.exit_code == 1 and "9" in refused.output

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import httpx
 import pytest
+from prometheus_client.parser import text_string_to_metric_families
 
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive
 from tests.processes import alive, driftmap_env, free_port, start_server, stop
@@ -73,6 +74,22 @@ def server(env: dict[str, str], tmp_path: Path) -> Iterator[str]:
         stop(process)
 
 
+def _assert_metrics_count_the_replay(base: str, frames: int) -> None:
+    """``GET /metrics`` of the (one-process) server, parsed: the replayed frames, their localiser times and
+    requests, and the replay's vehicle reporting."""
+    values: dict[tuple[str, tuple[tuple[str, str], ...]], float] = {}
+    for family in text_string_to_metric_families(httpx.get(f"{base}/metrics").text):
+        for sample in family.samples:
+            values[(sample.name, tuple(sorted(sample.labels.items())))] = sample.value
+    assert values[("driftmap_live_frames_total", (("status", "processed"),))] == frames
+    assert values[("driftmap_localise_seconds_count", ())] == frames
+    assert 0.0 < values[("driftmap_localise_seconds_sum", ())] < 10.0 * frames
+    route = (("method", "POST"), ("route", "/api/vehicles/{vehicle_id}/frames"), ("status", "200"))
+    assert values[("driftmap_http_request_duration_seconds_count", route)] == frames
+    assert values[("driftmap_vehicles", (("state", "reporting"),))] == 1
+    assert values[("driftmap_jobs", (("status", "queued"),))] == 0
+
+
 def _replay(env: dict[str, str], *args: str) -> list[str]:
     return [sys.executable, "-m", "driftmap", "replay", *args, "--password-stdin", "--status-every", "1"]
 
@@ -108,6 +125,7 @@ class TestReplay:
         vehicles = httpx.get(f"{server}/api/vehicles", headers=_login(server)).json()
         assert [v["has_camera"] for v in vehicles if v["name"] == drive.name] == [True]
         assert any(r["odometry"] for r in rows[1:])
+        _assert_metrics_count_the_replay(server, frames=6)
 
         again = subprocess.run(  # a second run reuses the vehicle with a fresh token and its clock goes on
             _replay(env, "tiny", str(drive), "--url", server, "--once", "--max-frames", "2"),

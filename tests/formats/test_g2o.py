@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import gtsam
 import numpy as np
 import pytest
 
@@ -31,6 +32,23 @@ EDGE_SE2 1 2 1.0 0.0 1.5707963 100 0 0 100 0 1000
 EDGE_SE2 2 0 1.4142 0.0 -2.3561945 10 0 0 10 0 50   # closure
 VERTEX_SE2 2 1.0 1.0 3.1415926
 """
+
+
+def assert_read_by_gtsam(g: G2oGraph, factors: gtsam.NonlinearFactorGraph, initial: gtsam.Values) -> None:
+    """GTSAM's reading of ``g``'s file holds its poses, and one between-factor per edge with its measurement
+    and information."""
+    assert initial.size() == len(g.vertex_ids)
+    for v, wTi in zip(g.vertex_ids, g.wTi, strict=True):
+        pose = initial.atPose2(int(v))
+        np.testing.assert_allclose([pose.x(), pose.y(), pose.theta()], wTi, atol=1e-12)
+    assert factors.size() == g.edge_ij.shape[0]
+    for k, ((i, j), iTj, info) in enumerate(zip(g.edge_ij, g.iTj, g.information, strict=True)):
+        factor = factors.at(k)
+        assert factor.keys() == [int(g.vertex_ids[i]), int(g.vertex_ids[j])]
+        measured = factor.measured()
+        np.testing.assert_allclose([measured.x(), measured.y(), measured.theta()], iTj, atol=1e-12)
+        R = factor.noiseModel().R()  # information = R^T R
+        np.testing.assert_allclose(R.T @ R, info, rtol=1e-9, atol=1e-9)
 
 
 def bad(text: str) -> BadInputError:
@@ -159,6 +177,13 @@ class TestWriter:
         again = parse_g2o(g2o_text(g, ["a comment"]))
         for field in ("vertex_ids", "wTi", "edge_ij", "iTj", "information", "fixed"):
             np.testing.assert_array_equal(getattr(again, field), getattr(g, field))
+
+    def test_gtsam_reads_it_back(self, tmp_path: Path) -> None:
+        g = parse_g2o(G2O)
+        path = tmp_path / "graph.g2o"
+        path.write_text(g2o_text(g, ["site north, version 3", "second comment"]))
+        factors, initial = gtsam.readG2o(str(path), False)
+        assert_read_by_gtsam(g, factors, initial)
 
     def test_relative_poses_are_the_pose_of_j_in_i(self) -> None:
         wTi = np.array([[1.0, 2.0, np.pi / 2], [1.0, 5.0, -np.pi / 2 + 0.1]])

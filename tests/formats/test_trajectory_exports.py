@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely.geometry
 from evo.tools import file_interface
 
 from driftmap.errors import BadInputError
@@ -133,6 +134,16 @@ class TestGeoJson:
         assert vehicle["properties"]["vehicle"] == "lhd-1" and vehicle["properties"]["yaw_rad"] == [0.5, None]
         assert "frame" not in vehicle["properties"]
         assert single["geometry"] == {"type": "Point", "coordinates": [-5.0, 1.0]}
+
+    def test_shapely_reads_the_geometries_back(self) -> None:
+        tracks = tracks_from_poses(POSES) + tracks_from_positions(POSITIONS)
+        features = json.loads(geojson_text(tracks))["features"]
+        shapes = [shapely.geometry.shape(f["geometry"]) for f in features]
+        assert all(s.is_valid for s in shapes)
+        assert [s.geom_type for s in shapes] == ["LineString", "LineString", "LineString", "Point"]
+        for track, read in zip(tracks, shapes, strict=True):
+            expected = np.array([[p.x_m, p.y_m] for p in track.poses])
+            np.testing.assert_array_equal(np.asarray(read.coords), expected)
 
     def test_empty_tracks_are_left_out(self) -> None:
         empty = Track("nothing", "vehicle", ())

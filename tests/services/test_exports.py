@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import ezdxf
+import gtsam
 import numpy as np
 import pytest
 from evo.tools import file_interface
@@ -28,6 +29,7 @@ from driftmap.services import sites as site_service
 from driftmap.store.models import MapGroundingResidual, MapLoopClosure, MapVersion, Site
 from driftmap.store.storage import Storage
 from tests.export_site import LOADER, SITE, TRACKS, TRUCK, export_store
+from tests.formats.test_g2o import assert_read_by_gtsam
 
 DRIVES = ("map-01", "map-02")  # the tiny site's mapping drives
 
@@ -141,7 +143,7 @@ class TestMapExports:
         yaw = np.arctan2([m[1, 0] for m in path.poses_se3], [m[0, 0] for m in path.poses_se3])
         np.testing.assert_allclose(np.cos(yaw - [r.yaw_rad for r in rows]), 1.0, atol=1e-12)
 
-    def test_g2o_is_the_pose_graph_at_its_solution(self, store: Storage) -> None:
+    def test_g2o_is_the_pose_graph_at_its_solution(self, store: Storage, tmp_path: Path) -> None:
         rows = parse_poses_csv(_map(store, "csv").text, "p.csv")
         exported = _map(store, "g2o")
         graph = parse_g2o(exported.text, exported.filename)
@@ -161,6 +163,9 @@ class TestMapExports:
         np.testing.assert_allclose(graph.iTj, relative_poses(graph.wTi, graph.edge_ij), atol=1e-9)
         odometry = graph.edge_ij[: len(rows) - len(DRIVES)]
         assert np.all(odometry[:, 1] == odometry[:, 0] + 1)
+        path = tmp_path / exported.filename
+        path.write_text(exported.text)
+        assert_read_by_gtsam(graph, *gtsam.readG2o(str(path), False))
 
     def test_one_drive_keeps_its_own_edges_and_closures(self, store: Storage) -> None:
         rows = [r for r in parse_poses_csv(_map(store, "csv").text, "p.csv") if r.drive == "map-01"]

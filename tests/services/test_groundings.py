@@ -5,17 +5,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
+from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.errors import BadInputError, ConflictError
 from driftmap.formats.control_csv import parse_control_rows
 from driftmap.services import groundings as grounding_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives
-from driftmap.store.models import Drive, Grounding
+from driftmap.store.models import Drive, Grounding, MapPose, MapVersion
 from driftmap.store.storage import Storage
+from tests.jobs.mini_site import MINI_FRAMES
 from tests.sim_site import import_site
 
 
@@ -29,6 +33,22 @@ def mini(storage: Storage, mini_site: Path) -> Storage:
 def _site_id(storage: Storage) -> int:
     with storage.db.session() as session:
         return site_service.get_site(session, "tiny").id
+
+
+def _build_mini(storage: Storage) -> None:
+    with storage.blobs.batch() as batch, storage.db.session() as session:
+        site = site_service.get_site(session, "tiny")
+        map_service.build_site_map(session, storage.blobs, batch, site, MAPPING_FAST, warm_start=False)
+
+
+def _poses(session: Session, version: MapVersion) -> np.ndarray:
+    """The (N, 2) map poses of ``version``, metres, in frame order."""
+    rows = session.execute(
+        select(MapPose.x_m, MapPose.y_m)
+        .where(MapPose.map_version_id == version.id)
+        .order_by(MapPose.frame_id)
+    )
+    return np.array([tuple(r) for r in rows], dtype=float)
 
 
 def _export(storage: Storage) -> str:
@@ -90,6 +110,27 @@ class TestSiteControlFile:
         with mini.db.session() as session:
             grounding_service.import_site_csv(session, _site_id(mini), original.encode(), "c.csv", "t")
         assert _export(mini) == original
+
+    def test_a_point_switched_off_in_the_file_changes_the_build(self, mini: Storage) -> None:
+        """A control point about 85 m off its drive pulls the map while enabled; switched off in the file (and
+        the file read back), the next build leaves it out."""
+        header, *rows = _export(mini).splitlines()
+        drive, frame, _station, x, y, _enabled = rows[0].split(",")
+        other = (int(frame) + 50) % MINI_FRAMES
+        far = f"{drive},{other},STN-FAR,{float(x) + 60.0!r},{float(y) + 60.0!r},"
+        for enabled in ("true", "false"):
+            text = "\n".join([header, *rows, far + enabled]) + "\n"
+            with mini.db.session() as session:
+                grounding_service.import_site_csv(session, _site_id(mini), text.encode(), "c.csv", "t")
+            assert sorted(_export(mini).splitlines()) == sorted(text.splitlines())  # in drive, frame order
+            _build_mini(mini)
+        with mini.db.session() as session:
+            versions = list(session.scalars(select(MapVersion).order_by(MapVersion.version)))
+            pulled, kept = (map_service.residual_rows(session, v) for v in versions)
+            moved = [_poses(session, v) for v in versions]
+        assert len(pulled) == 3 and len(kept) == 2  # the residuals of the enabled points only
+        assert max(r.distance_m for r in pulled) > 5.0 and max(r.distance_m for r in kept) < 2.0
+        assert np.abs(moved[0] - moved[1]).max() > 5.0  # the far point moved the map
 
     def test_each_bad_row_is_named_and_nothing_changes(self, mini: Storage) -> None:
         before = _export(mini)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from enum import Enum
 from fnmatch import fnmatch
 from pathlib import Path
 from typing import Annotated
@@ -16,9 +17,15 @@ from driftmap.formats.csv_exports import write_localisation_csv
 from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.frame_images import decode_gray
 from driftmap.reports.localisation_report import run_localisation_report
+from driftmap.reports.localisation_results import METHODS
 from driftmap.services import localisation as loc_service
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
+
+MethodName = Enum(  # type: ignore[misc]
+    "MethodName", {name: name for name, *_ in METHODS}, type=str
+)
+"""``--method`` choices: the labels of :data:`driftmap.reports.localisation_results.METHODS`."""
 
 
 def localise(
@@ -137,11 +144,8 @@ def report_localisation(
         ),
     ] = False,
     method: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--method",
-            help="Only these methods (repeatable): SAD, SAD+SESAME, HMM+SAD, HMM+SESAME, HMM+SESAME+odometry.",
-        ),
+        list[MethodName] | None,
+        typer.Option("--method", help="Only these methods (repeatable)."),
     ] = None,
 ) -> None:
     """Precision-recall of SAD, SAD+SESAME, HMM+SAD and HMM+SESAME over the site's localisation drives."""
@@ -172,7 +176,7 @@ def report_localisation(
                 holistic_map=holistic,
                 known_start=known_start,
                 progress=report,
-                methods=method,
+                methods=None if method is None else [m.value for m in method],
             )
     console.print(result.table())
     fitted = result.calibration()

@@ -253,9 +253,10 @@ def relative_poses(wTi: NDArray[np.float64], edge_ij: NDArray[np.int64]) -> NDAr
 def g2o_text(graph: G2oGraph, comments: Sequence[str] = ()) -> str:
     """The text of a 2-D g2o file that :func:`parse_g2o` reads back as ``graph``.
 
-    ``#`` comment lines first, then one ``VERTEX_SE2 id x y theta`` per vertex, one
-    ``EDGE_SE2 i j dx dy dtheta I11 I12 I13 I22 I23 I33`` per edge (in ``graph`` order) and, when vertices
-    are fixed, one ``FIX`` line. Numbers are written with :func:`repr` (read back identical).
+    One ``VERTEX_SE2 id x y theta`` per vertex, one ``EDGE_SE2 i j dx dy dtheta I11 I12 I13 I22 I23 I33``
+    per edge (in ``graph`` order), one ``FIX`` line when vertices are fixed, then the ``#`` comment lines
+    (last: GTSAM's ``readG2o`` stops reading edges at the first comment line). Numbers are written with
+    :func:`repr` (read back identical).
 
     Raises:
         ValueError: a non-finite number (g2o readers refuse them).
@@ -267,11 +268,11 @@ def g2o_text(graph: G2oGraph, comments: Sequence[str] = ()) -> str:
     def numbers(values: NDArray[np.float64]) -> str:
         return " ".join(repr(float(v)) for v in values)
 
-    lines = [f"# {c}" for c in comments]
-    lines += [f"VERTEX_SE2 {int(v)} {numbers(p)}" for v, p in zip(ids, graph.wTi, strict=True)]
+    lines = [f"VERTEX_SE2 {int(v)} {numbers(p)}" for v, p in zip(ids, graph.wTi, strict=True)]
     upper = np.triu_indices(3)
     for (i, j), measured, info in zip(graph.edge_ij, graph.iTj, graph.information, strict=True):
         lines.append(f"EDGE_SE2 {int(ids[i])} {int(ids[j])} {numbers(measured)} {numbers(info[upper])}")
     if graph.fixed.size:
         lines.append("FIX " + " ".join(str(int(ids[r])) for r in graph.fixed))
+    lines += [f"# {c}" for c in comments]
     return "\n".join(lines) + "\n"
