@@ -164,8 +164,8 @@ class TestPositionDownloads:
             "query",
             "since",
         ]
-        dxf = actors.client.get(url, params={"format": "dxf"}, headers=viewer)
-        assert dxf.status_code == 422 and dxf.json()["errors"][0]["loc"] == ["query", "format"]
+        g2o = actors.client.get(url, params={"format": "g2o"}, headers=viewer)
+        assert g2o.status_code == 422 and g2o.json()["errors"][0]["loc"] == ["query", "format"]
         ghost = actors.client.get(url, params={"format": "csv", "vehicle": "ghost"}, headers=viewer)
         assert ghost.status_code == 404
         assert (

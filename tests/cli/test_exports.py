@@ -132,7 +132,7 @@ class TestPositionsExport:
             ],
         )
         assert result.exit_code == 1 and "until" in result.output
-        result = runner.invoke(app, ["positions", "export", SITE, "--format", "dxf", "--out", str(out)])
+        result = runner.invoke(app, ["positions", "export", SITE, "--format", "g2o", "--out", str(out)])
         assert result.exit_code == 2 and "--format" in result.output
         result = runner.invoke(
             app, ["positions", "export", SITE, "--vehicle", "ghost", "--format", "csv", "--out", str(out)]

@@ -220,12 +220,26 @@ class TestPositionExports:
         names = [e.text for e in root.iter(f"{{{KML_NAMESPACE}}}name")]
         assert names == ["tiny vehicle positions", LOADER]
 
+    def test_dxf_and_kitti(self, store: Storage, tmp_path: Path) -> None:
+        exported = _positions(store, "dxf")
+        assert exported.filename == "tiny-positions.dxf"
+        msp = ezdxf.read(io.StringIO(exported.text)).modelspace()
+        for track in TRACKS:  # a layer per vehicle holding its track, site plane metres
+            (line,) = msp.query(f'LWPOLYLINE[layer=="VEHICLE-{track.vehicle}"]')
+            np.testing.assert_allclose(np.array(line.get_points("xy")), np.c_[track.x, track.y])
+        with pytest.raises(BadInputError) as caught:
+            _positions(store, "kitti")
+        assert caught.value.field == "vehicle"
+        (tmp_path / "k.txt").write_text(_positions(store, "kitti", vehicle=LOADER).text, encoding="utf-8")
+        poses = file_interface.read_kitti_poses_file(str(tmp_path / "k.txt"))
+        np.testing.assert_allclose(poses.positions_xyz[:, :2], np.c_[TRACKS[0].x, TRACKS[0].y], atol=1e-9)
+
     def test_refusals(self, store: Storage) -> None:
         with pytest.raises(BadInputError) as caught:
             _positions(store, "csv", since_s=5.0, until_s=4.0)
         assert caught.value.field == "until"
         with pytest.raises(BadInputError) as caught:
-            _positions(store, "kitti")
+            _positions(store, "g2o")
         assert caught.value.field == "format"
         with pytest.raises(BadInputError) as caught:
             _positions(store, "csv", since_s=float("nan"))

@@ -47,7 +47,7 @@ from driftmap.store.models import (
 )
 
 MapFormat = Literal["csv", "geojson", "dxf", "kml", "tum", "kitti", "g2o"]
-PositionFormat = Literal["csv", "geojson", "kml", "tum"]
+PositionFormat = Literal["csv", "geojson", "dxf", "kml", "tum", "kitti"]
 MAP_FORMATS: tuple[str, ...] = get_args(MapFormat)
 POSITION_FORMATS: tuple[str, ...] = get_args(PositionFormat)
 MEDIA_TYPES: dict[str, str] = {
@@ -297,13 +297,15 @@ def export_positions(
 
     Raises:
         BadInputError: an unknown format (``format``), a bad range (``since``/``until``), several vehicles
-            for TUM (``vehicle``).
+            for TUM or KITTI (``vehicle``).
         NotFoundError: no vehicle of the site is named ``vehicle``.
     """
     _check_format(fmt, POSITION_FORMATS)
     rows = position_rows(session, site, vehicle, since_s, until_s)
     if fmt == "csv":
         text = positions_text(rows)
+    elif fmt == "dxf":  # one layer per vehicle, site plane metres like the map's
+        text = map_dxf_text(tracks_from_positions(rows))
     else:
         bounds = {"since_s": since_s, "until_s": until_s}
         about = {"site": site.name} | {k: v for k, v in bounds.items() if v is not None}

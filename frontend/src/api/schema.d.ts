@@ -10561,7 +10561,7 @@ export interface operations {
         parameters: {
             query: {
                 /** @description File format (docs/formats.md, Exports). */
-                format: "csv" | "geojson" | "kml" | "tum";
+                format: "csv" | "geojson" | "dxf" | "kml" | "tum" | "kitti";
                 /** @description Only this vehicle (default: every vehicle). */
                 vehicle?: string | null;
                 /** @description Earliest frame time t, seconds (vehicle clock). */
@@ -10585,6 +10585,7 @@ export interface operations {
                 content: {
                     "text/csv": unknown;
                     "application/geo+json": unknown;
+                    "image/vnd.dxf": unknown;
                     "application/vnd.google-earth.kml+xml": unknown;
                     "text/plain": unknown;
                 };

@@ -7,7 +7,7 @@ const T = new Date(2026, 11, 4, 17, 30, 0).getTime() / 1000;
 describe("formats", () => {
   it("offers every format of the API, GeoJSON and CSV first", () => {
     expect(Object.keys(MAP_FORMATS)).toEqual(["geojson", "csv", "kml", "dxf", "tum", "kitti", "g2o"]);
-    expect(Object.keys(POSITION_FORMATS)).toEqual(["csv", "geojson", "kml", "tum"]);
+    expect(Object.keys(POSITION_FORMATS)).toEqual(["csv", "geojson", "kml", "dxf", "tum", "kitti"]);
   });
 });
 

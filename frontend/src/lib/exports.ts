@@ -24,7 +24,9 @@ export const POSITION_FORMATS: Record<PositionFormat, string> = {
   csv: "CSV",
   geojson: "GeoJSON",
   kml: "KML",
+  dxf: "DXF",
   tum: "TUM (one vehicle)",
+  kitti: "KITTI (one vehicle)",
 };
 
 /** What the monitoring view shows of a vehicle's history, to default an export's range to. */
