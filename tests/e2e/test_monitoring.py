@@ -2,13 +2,16 @@
 the camera-obscured status and alert, the vehicle's latest frame, each vehicle in its own colour (swatch and
 trail) and following it on the map, placing a
 vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
-showing so on another's, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+showing so on another's, ending ("back") when its vehicle reports again, filtered and exported as CSV, against a
+real ``driftmap serve`` (fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import itertools
 import json
 import math
@@ -418,6 +421,7 @@ class TestEvents:
         self, server: Server, page: PageWithLog, browser: Browser, tiny_site_dir: Path
     ) -> None:
         add_user(server.env, "watcher", "viewer", "e2e-watcher-password")
+        silent, other = Vehicle(server, "silent-1"), Vehicle(server, "quiet-2")  # quiet-2 never reports
         admin = page.page
         log_in(admin, server)
         context = browser.new_context(viewport={"width": VIEWPORT_W, "height": VIEWPORT_H})
@@ -432,7 +436,7 @@ class TestEvents:
 
         # one position, then silence: the server opens a stale event and both screens show it, unacknowledged
         (frame,) = recorded_frames(localisation_drive(tiny_site_dir), 1)
-        assert Vehicle(server, "silent-1").post(2000.0, frame.data)["status"] == "processed"
+        assert silent.post(2000.0, frame.data)["status"] == "processed"
         wait_ms = (STALE_AFTER_S + DEADLINE_S) * 1000
         for screen in (admin, watcher):
             expect(event_of(screen, "events-pending")).to_have_attribute("data-open", "true", timeout=wait_ms)
@@ -447,8 +451,39 @@ class TestEvents:
             expect(done).to_have_attribute("data-acknowledged", "true")
             expect(done.get_by_test_id("event-acknowledged-by")).to_contain_text("watcher")
             expect(event_of(screen, "events-pending")).to_have_count(0)
-        screenshot(admin, "ui_events")
         stored = server.api("GET", "/api/events", params={"kind": "stale", "unacknowledged": "false"}).json()
-        assert [e["acknowledged_by"] for e in stored["items"] if e["vehicle"] == "silent-1"] == ["watcher"]
+        (event,) = [e for e in stored["items"] if e["vehicle"] == "silent-1"]
+        assert event["acknowledged_by"] == "watcher" and event["ended_at"] is None
+
+        # the vehicle reports again: its event ends ("back" and the time) on both screens, still acknowledged
+        assert silent.post(2000.1, frame.data)["status"] == "processed"
+        for screen in (admin, watcher):
+            done = screen.get_by_test_id(f"event-row-{event['id']}")
+            expect(done).to_have_attribute("data-open", "false")
+            expect(done).to_contain_text(re.compile(r"back \d\d:\d\d:\d\d"))
+            expect(done).to_have_attribute("data-acknowledged", "true")
+        ended = server.api("GET", "/api/events", params={"vehicle": silent.id, "kind": "stale"}).json()
+        assert next(e for e in ended["items"] if e["id"] == event["id"])["ended_at"] is not None
+        screenshot(admin, "ui_events")
+
+        # filters: another kind or another vehicle hides it, its own shows it
+        row = admin.get_by_test_id(f"event-row-{event['id']}")
+        admin.get_by_test_id("events-kind").select_option("lost")
+        expect(row).to_have_count(0)
+        admin.get_by_test_id("events-kind").select_option("stale")
+        expect(row).to_be_visible()
+        admin.get_by_test_id("events-vehicle").select_option(str(other.id))
+        expect(row).to_have_count(0)
+        admin.get_by_test_id("events-vehicle").select_option(str(silent.id))
+        expect(row).to_be_visible()
+
+        # the CSV export holds the filtered log: this event with its end and who acknowledged it
+        with admin.expect_download() as saved:
+            admin.get_by_test_id("events-csv").click()
+        assert saved.value.suggested_filename == "events.csv"
+        rows = list(csv.DictReader(io.StringIO(Path(saved.value.path()).read_text())))
+        assert rows and {(r["vehicle"], r["kind"]) for r in rows} == {("silent-1", "stale")}, rows
+        (exported,) = [r for r in rows if r["id"] == str(event["id"])]
+        assert exported["ended_at"] and exported["acknowledged_by"] == "watcher", exported
         context.close()
         assert page.errors == []
