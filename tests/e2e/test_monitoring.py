@@ -48,6 +48,7 @@ FRAME_PERIOD_S = 0.1
 REPLAY_FRAMES = 40
 START_FRAMES = 100  # ten seconds of the drive: it stands for one, then drives about ten metres
 CLICK_TOLERANCE_M = 1.0  # a click lands within a pixel or two of the aimed point (about 0.3 m/px when fitted)
+JUMP_SLACK_M, JUMP_SPEED_MPS = 5.0, 10.0  # a trail's jump (frontend/src/lib/trail.ts)
 CENTRELINE_TOLERANCE_M = (
     2.0  # the drives keep within 1.5 m of the surveyed centreline; the walls are ~3 m off
 )
@@ -262,6 +263,14 @@ class TestLatestFrame:
         )
         trails = json.loads(plan.get_attribute("data-trail-colours") or "{}")
         assert {n: _channels(trails[n]) for n in names} == swatches, (trails, swatches)
+        # each drove on from afar: the trail (the snapshot's last position, then the new ones) is cut at a jump
+        seen = {n: server.api("GET", f"/api/vehicles/{vehicles[n].id}/positions").json()[2:] for n in names}
+        pieces = {n: _trail_pieces(seen[n]) for n in names}
+        assert max(pieces.values()) >= 2, f"no vehicle jumped: {seen}"
+        deadline = time.monotonic() + DEADLINE_S
+        while (drawn := json.loads(plan.get_attribute("data-trail-pieces") or "{}")) != pieces:
+            assert time.monotonic() < deadline, f"trail pieces drawn {drawn}, expected {pieces}"
+            p.wait_for_timeout(100)
         screenshot(p, "ui_monitoring_colours")
         # full size on a click, Escape closes it
         details.get_by_test_id("latest-frame").click()
@@ -285,6 +294,17 @@ class TestLatestFrame:
         expect(plan).not_to_have_attribute("data-follow-offset", re.compile(".*"))
 
         assert page.errors == []
+
+
+def _trail_pieces(positions: list[dict[str, Any]]) -> int:
+    """How many pieces a trail through ``positions`` is cut into: a step further than 5 m plus 10 m/s times its
+    time is a jump (``frontend/src/lib/trail.ts``)."""
+    jumps = sum(
+        math.hypot(b["x"] - a["x"], b["y"] - a["y"])
+        > JUMP_SLACK_M + JUMP_SPEED_MPS * max(0.0, b["t"] - a["t"])
+        for a, b in itertools.pairwise(positions)
+    )
+    return 1 + jumps
 
 
 def _confidence_text(confidence: float) -> str:
