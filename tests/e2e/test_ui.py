@@ -61,6 +61,18 @@ def make_user(server: Server, name: str, role: str) -> str:
     return password
 
 
+def wait_for_number(page: Page, test_id: str, attribute: str, value: float, tolerance: float = 0.002) -> None:
+    """Wait until the element's ``attribute`` holds a number within ``tolerance`` of ``value``."""
+    element = page.get_by_test_id(test_id)
+    deadline = time.monotonic() + DEADLINE_S
+    while True:
+        text = element.get_attribute(attribute)
+        if text is not None and abs(float(text) - value) <= tolerance:
+            return
+        assert time.monotonic() < deadline, f"{test_id} {attribute} is {text}, not {value}"
+        page.wait_for_timeout(100)
+
+
 def groundings(server: Server) -> list[dict[str, Any]]:
     items: list[dict[str, Any]] = server.api("GET", "/api/sites/1/groundings").json()["items"]
     return items
@@ -604,7 +616,13 @@ class TestGrounding:
         selected = p.get_by_test_id("selected-frame")
         expect(selected).to_have_attribute("data-frame", str(last["frame"]))
         expect(p.get_by_test_id("drive-select")).to_have_value(str(last["drive_id"]))
+        # the residual arrows: to the keyframe's pose, then ten times as long
+        residuals = server.api("GET", "/api/sites/1/maps/1/residuals").json()
+        longest = max(r["distance_m"] for r in residuals)
+        assert longest > 0.01, residuals
+        wait_for_number(p, "map", "data-longest-arrow-m", longest)
         p.get_by_test_id("residual-exaggeration").select_option("10")
+        wait_for_number(p, "map", "data-longest-arrow-m", 10 * longest)
 
         # any frame, not only the strip's keyframes; the strip turns to the keyframe before it
         p.get_by_test_id("goto-frame").fill("13")
