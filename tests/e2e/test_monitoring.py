@@ -1,5 +1,5 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status and alert, the vehicle's latest frame, each vehicle in its own colour (swatch and
+the camera-obscured status, alert and event, the vehicle's latest frame, each vehicle in its own colour (swatch and
 trail) and following it on the map, placing a
 vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
 showing so on another's, ending ("back") when its vehicle reports again, filtered and exported as CSV, against a
@@ -214,6 +214,19 @@ class TestObscuredCamera:
         assert float(frame.get_attribute("data-t") or "nan") >= 1000.0
         assert frame.evaluate("img => img.naturalWidth") == 320
         screenshot(p, "ui_obscured")
+        # the event log keeps it: open while the lens is dusty, ended ("camera clear") once it is clean again
+        event = p.get_by_test_id("events-pending").locator('[data-vehicle="dusty-1"][data-kind="obscured"]')
+        expect(event).to_have_attribute("data-open", "true")
+        deadline = time.monotonic() + DEADLINE_S
+        i = 0
+        while row.get_attribute("data-status") == "camera obscured":
+            assert time.monotonic() < deadline, "the camera never cleared"
+            vehicle.post(t, frames[i % len(frames)].data)
+            t += FRAME_PERIOD_S
+            i += 1
+        expect(event).to_have_attribute("data-open", "false")
+        expect(event).to_contain_text(re.compile(r"camera clear \d\d:\d\d:\d\d"))
+        expect(p.get_by_test_id("obscured-alert")).to_have_count(0)
         assert page.errors == []
 
 
@@ -400,6 +413,12 @@ class TestKnownStart:
         expect(result).to_have_attribute("data-state", "accepted")
         expect(result).to_contain_text("Start set at")
         expect(p.get_by_test_id("set-start")).to_have_attribute("data-placing", "no")
+        # the event log records it, acknowledged by whoever set it
+        logged = p.get_by_test_id("events-acknowledged").locator(
+            '[data-vehicle="start-1"][data-kind="start_known"]'
+        )
+        expect(logged).to_contain_text("known start set (radius 10 m)")
+        expect(logged.get_by_test_id("event-acknowledged-by")).to_contain_text("admin")
         sent = starts[-1]
         assert sent["radius_m"] == 10
         # survey coordinates, the map's local origin added back: the aimed tunnel point within a pixel or two
