@@ -38,6 +38,22 @@ WALL_MARGIN_M = (
 PICK_CLEARANCE_PX = 20  # a keyframe picked for grounding lies this far from every grounding's square
 
 
+WATCH_BUILD_JOB = """() => {
+  window.buildJobShown = [];
+  const record = () => {
+    const job = document.querySelector('[data-testid="build-job"]');
+    if (!job) return;
+    const seen = [job.dataset.progress, job.textContent];
+    const last = window.buildJobShown[window.buildJobShown.length - 1];
+    if (!last || last[0] !== seen[0] || last[1] !== seen[1]) window.buildJobShown.push(seen);
+  };
+  new MutationObserver(record).observe(document.body, {
+    subtree: true, childList: true, characterData: true, attributes: true,
+  });
+}"""
+"""Records each (data-progress, text) the build job's line shows from now on, in ``window.buildJobShown``."""
+
+
 def log_in(page: Page, server: Server, username: str, password: str) -> None:
     page.goto(f"{server.base}/")
     page.fill("#username", username)
@@ -713,10 +729,20 @@ class TestGrounding:
         reused = server.api("GET", "/api/sites/1/maps/2").json()["stats"]
         assert reused["segments_reused"] > 0 and reused["segments_prepared"] == 0, reused
         p.get_by_test_id("build-full").check()
+        p.evaluate(WATCH_BUILD_JOB)
         p.get_by_test_id("build-map").click()
         expect(p.get_by_test_id("map-version")).to_have_text("map v3", timeout=BUILD_DEADLINE_MS)
         full = server.api("GET", "/api/sites/1/maps/3").json()["stats"]
         assert full["segments_reused"] == 0 and full["segments_prepared"] == reused["segments_reused"], full
+        # the progress shown is the whole build's: it never goes back (a stage's restart at 0 % included),
+        # and once under way it says about how long is left
+        lines: list[list[str]] = p.evaluate("window.buildJobShown")
+        job_of = [int(m.group(1)) if (m := re.search(r"job (\d+) ", text)) else -1 for _, text in lines]
+        shown = [line for line, job_id in zip(lines, job_of, strict=True) if job_id == max(job_of)]
+        progress = [float(value) for value, _ in shown]
+        assert progress == sorted(progress) and any(0 < f < 1 for f in progress), shown
+        assert progress[-1] == 1.0, shown
+        assert any(re.search(r"\d+% · .+ · about .+ left", text) for _, text in shown), shown
         assert page.errors == []
 
 
