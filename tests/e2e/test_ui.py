@@ -355,6 +355,8 @@ class TestGrounding:
         expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "yes")
         p.mouse.move(*at)
         expect(p.get_by_test_id("grid-readout")).to_contain_text("E ")
+        under = p.evaluate("([x, y]) => getComputedStyle(document.elementFromPoint(x, y)).cursor", list(at))
+        assert under == "crosshair", under
         x, y = grid_readout(p)
         p.mouse.click(*at)  # on the keyframe's estimate: written without a question
 
@@ -583,10 +585,24 @@ class TestGrounding:
         box.click()
         expect(box).to_be_checked()
         assert all(g["enabled"] for g in groundings(server))
+        # RMS, mean and max of the build's residuals, overall and per drive (n, RMS, mean, max in metres)
+        residuals = server.api("GET", "/api/sites/1/maps/1/residuals").json()
+
+        def summary_cells(distances: list[float]) -> list[str]:
+            rms = math.sqrt(sum(d * d for d in distances) / len(distances))
+            mean = sum(distances) / len(distances)
+            return [str(len(distances)), f"{rms:.2f}", f"{mean:.2f}", f"{max(distances):.2f}"]
+
+        overall = p.get_by_test_id("residual-summary-all").locator("td")
+        expect(overall.nth(1)).to_have_text(summary_cells([r["distance_m"] for r in residuals])[0])
+        assert overall.all_inner_texts()[1:] == summary_cells([r["distance_m"] for r in residuals])
         p.get_by_test_id("grounding-drive-filter").select_option(str(first["drive_id"]))
         rows = p.get_by_test_id("groundings-table").locator("tbody tr")
         expect(rows).to_have_count(sum(g["drive_id"] == first["drive_id"] for g in groundings(server)))
-        expect(p.get_by_test_id(f"residual-summary-{first['drive']}")).to_be_visible()
+        line = p.get_by_test_id(f"residual-summary-{first['drive']}")
+        expect(line).to_be_visible()
+        of_drive = [r["distance_m"] for r in residuals if r["drive"] == first["drive"]]
+        assert line.locator("td").all_inner_texts() == [first["drive"], *summary_cells(of_drive)]
         assert page.errors == []
 
     def test_a_second_build_is_refused_and_each_preset_is_explained(
