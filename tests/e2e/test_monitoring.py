@@ -1,9 +1,9 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status, alert and event, the vehicle's latest frame, each vehicle in its own colour (swatch and
-trail) and following it on the map, placing a
-vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
-showing so on another's, ending ("back") when its vehicle reports again, filtered and exported as CSV, against a
-real ``driftmap serve`` (fixtures of ``conftest.py``).
+the camera-obscured status, alert and event, the vehicle's latest frame, each vehicle in its own colour (swatch
+and trail, the trail cut at a jump) and following it on the map, placing a vehicle's known start on the plan
+and its trail along the tunnels, an event beeping for the user who turned the sound on, acknowledged on one
+user's screen and showing so on another's, ending ("back") when its vehicle reports again, filtered and
+exported as CSV; against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
@@ -309,6 +309,17 @@ class TestLatestFrame:
         assert page.errors == []
 
 
+COUNT_BEEPS = """() => {
+  document.body.dataset.beeps = "0";
+  const start = OscillatorNode.prototype.start;
+  OscillatorNode.prototype.start = function (...args) {
+    document.body.dataset.beeps = String(Number(document.body.dataset.beeps) + 1);
+    return start.apply(this, args);
+  };
+}"""
+"""Counts the beeps the page plays (oscillators started) in ``body``'s ``data-beeps``."""
+
+
 def _trail_pieces(positions: list[dict[str, Any]]) -> int:
     """How many pieces a trail through ``positions`` is cut into: a step further than 5 m plus 10 m/s times its
     time is a jump (``frontend/src/lib/trail.ts``)."""
@@ -469,6 +480,8 @@ class TestEvents:
         for screen in (admin, watcher):
             screen.get_by_test_id("nav-monitor").click()
             expect(screen.get_by_test_id("live-connection")).to_have_text("live")
+            screen.evaluate(COUNT_BEEPS)
+        admin.get_by_test_id("events-sound").check()  # the admin hears new events, the watcher does not
 
         def event_of(screen: Page, listing: str) -> Locator:
             return screen.get_by_test_id(listing).locator('[data-vehicle="silent-1"][data-kind="stale"]')
@@ -482,6 +495,9 @@ class TestEvents:
             expect(event_of(screen, "events-pending")).to_contain_text(
                 re.compile(r"\b\d\d:\d\d:\d\d silent-1 stale")
             )
+
+        expect(admin.locator("body")).to_have_attribute("data-beeps", re.compile(r"^[1-9]"))
+        assert watcher.locator("body").get_attribute("data-beeps") == "0"
 
         # the control room's viewer acknowledges it; the admin's screen shows who did, without a reload
         event_of(watcher, "events-pending").get_by_test_id("event-ack").click()
