@@ -683,6 +683,17 @@ class TestGrounding:
         p.get_by_test_id("frame-view").locator(".frameview-box").hover()
         p.mouse.wheel(0, -100)
         expect(view).to_have_attribute("data-scale", "1.88")
+        # a drag pans the zoomed image by as much as the pointer moved
+        expect(view).to_have_attribute("data-shift", re.compile(r"^-\d+,-\d+$"))
+        x0, y0 = (int(v) for v in (view.get_attribute("data-shift") or "").split(","))
+        image = view.locator(".frameview-box").bounding_box()
+        assert image is not None
+        centre = (image["x"] + image["width"] / 2, image["y"] + image["height"] / 2)
+        p.mouse.move(*centre)
+        p.mouse.down()
+        p.mouse.move(centre[0] + 30, centre[1] + 20, steps=5)
+        p.mouse.up()
+        expect(view).to_have_attribute("data-shift", f"{x0 + 30},{y0 + 20}")
         p.get_by_test_id("frame-fit").click()
         expect(view).to_have_attribute("data-scale", "1.00")
         p.get_by_test_id("frame-view-close").click()
