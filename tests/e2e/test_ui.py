@@ -25,6 +25,7 @@ from tests.e2e.map_helpers import (
     pixel_of,
     plain_map_at,
 )
+from tests.jobs.mini_site import zip_folder
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
@@ -52,6 +53,19 @@ WATCH_BUILD_JOB = """() => {
   });
 }"""
 """Records each (data-progress, text) the build job's line shows from now on, in ``window.buildJobShown``."""
+
+
+WATCH_UPLOAD = """(testId) => {
+  window.uploadShown = [];
+  new MutationObserver(() => {
+    const box = document.querySelector(`[data-testid="${testId}"]`);
+    if (!box) return;
+    const seen = [box.dataset.state, box.querySelector("span")?.textContent ?? ""];
+    const last = window.uploadShown[window.uploadShown.length - 1];
+    if (!last || last[0] !== seen[0] || last[1] !== seen[1]) window.uploadShown.push(seen);
+  }).observe(document.body, { subtree: true, childList: true, characterData: true, attributes: true });
+}"""
+"""Records each (data-state, text) an upload's progress line shows from now on, in ``window.uploadShown``."""
 
 
 def log_in(page: Page, server: Server, username: str, password: str) -> None:
@@ -823,6 +837,22 @@ class TestAdmin:
         refused = p.get_by_test_id("upload-zip")
         expect(refused).to_have_attribute("data-state", "refused")
         expect(refused).to_contain_text("zip")
+        # a drive folder's zip: its progress in megabytes, then the job that imports it
+        drive_zip = tmp_path / "map-02.zip"
+        drive_zip.write_bytes(zip_folder(tiny_site_dir / "drives" / "map-02"))
+        megabytes = f"{drive_zip.stat().st_size / 1e6:.1f}"
+        p.get_by_test_id("upload-zip-file").set_input_files(drive_zip)
+        p.evaluate(WATCH_UPLOAD, "upload-zip")
+        p.get_by_test_id("upload-zip-send").click()
+        expect(refused).to_have_attribute("data-state", "done")
+        expect(refused).to_contain_text(re.compile(r"uploaded; imported by job \d+ \(queued\)"))
+        shown: list[list[str]] = p.evaluate("window.uploadShown")
+        sending = [text for state, text in shown if state == "sending"]
+        assert any(re.fullmatch(rf"[\d.]+ of {megabytes} MB \(\d+%\)", t) for t in sending), shown
+        job_id = int(re.findall(r"job (\d+)", refused.inner_text())[0])
+        job = server.api("GET", f"/api/jobs/{job_id}").json()
+        assert job["status"] == "queued" and job["site_id"] == site.json()["id"], job
+        assert server.api("POST", f"/api/jobs/{job_id}/cancel").status_code == 200
         p.get_by_test_id("upload-video-send").click()  # nothing chosen: said before anything is sent
         expect(p.get_by_test_id("upload-video")).to_contain_text("choose a video file")
         video, calibration = tmp_path / "run-9.mp4", tmp_path / "camera.json"
