@@ -1,7 +1,7 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
 the camera-obscured status, alert and event, the vehicle's latest frame, each vehicle in its own colour (swatch
 and trail, the trail cut at a jump) and following it on the map, placing a vehicle's known start on the plan
-and its trail along the tunnels, an event beeping for the user who turned the sound on, acknowledged on one
+and its trail along the tunnels, a lost vehicle's event ending "found again", an event beeping for the user who turned the sound on, acknowledged on one
 user's screen and showing so on another's, ending ("back") when its vehicle reports again, filtered and
 exported as CSV; against a real ``driftmap serve`` (fixtures of ``conftest.py``).
 
@@ -45,6 +45,7 @@ DEADLINE_S = 60.0
 # the vehicles of the latest-frame test drive on from these frames of the drive (after its standing start)
 TRAIL_FROM, TRAIL_APART, TRAIL_STRIDE = 40, 100, 4
 FRAME_PERIOD_S = 0.1
+LOST_WITHIN_FRAMES = 20  # frames of noise after which the localiser has said lost (it takes three)
 REPLAY_FRAMES = 40
 START_FRAMES = 100  # ten seconds of the drive: it stands for one, then drives about ten metres
 CLICK_TOLERANCE_M = 1.0  # a click lands within a pixel or two of the aimed point (about 0.3 m/px when fitted)
@@ -467,6 +468,50 @@ class TestKnownStart:
 
 
 class TestEvents:
+    def test_a_lost_vehicle_raises_an_event_that_stays_after_it_is_found_again(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path
+    ) -> None:
+        frames = recorded_frames(localisation_drive(tiny_site_dir), 30)
+        shape = decode_gray(frames[0].data).shape
+        noise = encode_png(np.random.default_rng(4).integers(0, 256, size=shape, dtype=np.uint8))
+        vehicle = Vehicle(server, "lost-1")
+        p = page.page
+        log_in(p, server)
+        p.get_by_test_id("nav-monitor").click()
+        expect(p.get_by_test_id("live-connection")).to_have_text("live")
+        t = 4000.0
+        for f in frames[:10]:
+            assert vehicle.post(t, f.data)["lost"] is False
+            t += FRAME_PERIOD_S
+
+        # frames that match nothing (a camera fed noise): the vehicle is lost, the alert and an open event show
+        for _ in range(LOST_WITHIN_FRAMES):
+            t += FRAME_PERIOD_S
+            if vehicle.post(t, noise)["lost"]:
+                break
+        else:
+            raise AssertionError(f"not lost after {LOST_WITHIN_FRAMES} noise frames")
+        expect(p.get_by_test_id("lost-alert")).to_contain_text("lost-1")
+        event = p.get_by_test_id("events-pending").locator('[data-vehicle="lost-1"][data-kind="lost"]')
+        expect(event).to_have_attribute("data-open", "true")
+        expect(event).to_contain_text("ongoing")
+
+        # the drive's frames again: found again; the alert goes, the event ends and stays until acknowledged
+        for f in frames[10:]:
+            t += FRAME_PERIOD_S
+            if not vehicle.post(t, f.data)["lost"]:
+                break
+        else:
+            raise AssertionError("never found again")
+        expect(p.get_by_test_id("lost-alert")).to_have_count(0)
+        expect(event).to_have_attribute("data-open", "false")
+        expect(event).to_contain_text(re.compile(r"found again \d\d:\d\d:\d\d"))
+        expect(event).to_have_attribute("data-acknowledged", "false")
+        stored = server.api("GET", "/api/events", params={"vehicle": vehicle.id, "kind": "lost"}).json()
+        (lost,) = stored["items"]
+        assert lost["ended_at"] is not None and lost["acknowledged_at"] is None, lost
+        assert page.errors == []
+
     def test_an_event_acknowledged_by_one_user_shows_acknowledged_to_another(
         self, server: Server, page: PageWithLog, browser: Browser, tiny_site_dir: Path
     ) -> None:
