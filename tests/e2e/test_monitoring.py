@@ -1,9 +1,10 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
 the camera-obscured status, alert and event, the vehicle's latest frame, each vehicle in its own colour (swatch
 and trail, the trail cut at a jump) and following it on the map, placing a vehicle's known start on the plan
-and its trail along the tunnels, a lost vehicle's event ending "found again", an event beeping for the user who turned the sound on, acknowledged on one
-user's screen and showing so on another's, ending ("back") when its vehicle reports again, filtered and
-exported as CSV; against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+and its trail along the tunnels, a lost vehicle's event ending "found again", an event beeping for the user
+who turned the sound on, acknowledged on one user's screen and showing so on another's, ending ("back") when
+its vehicle reports again, filtered and exported as CSV; against a real ``driftmap serve`` (fixtures of
+``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
