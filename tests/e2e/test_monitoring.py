@@ -282,9 +282,14 @@ class TestLatestFrame:
         seen = {n: server.api("GET", f"/api/vehicles/{vehicles[n].id}/positions").json()[2:] for n in names}
         pieces = {n: _trail_pieces(seen[n]) for n in names}
         assert max(pieces.values()) >= 2, f"no vehicle jumped: {seen}"
+
+        def drawn() -> dict[str, int | None]:  # (the page also draws earlier tests' vehicles)
+            every = json.loads(plan.get_attribute("data-trail-pieces") or "{}")
+            return {n: every.get(n) for n in names}
+
         deadline = time.monotonic() + DEADLINE_S
-        while (drawn := json.loads(plan.get_attribute("data-trail-pieces") or "{}")) != pieces:
-            assert time.monotonic() < deadline, f"trail pieces drawn {drawn}, expected {pieces}"
+        while drawn() != pieces:
+            assert time.monotonic() < deadline, f"trail pieces drawn {drawn()}, expected {pieces}"
             p.wait_for_timeout(100)
         screenshot(p, "ui_monitoring_colours")
         # full size on a click, Escape closes it
