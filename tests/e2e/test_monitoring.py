@@ -560,6 +560,11 @@ class TestEvents:
         stored = server.api("GET", "/api/events", params={"kind": "stale", "unacknowledged": "false"}).json()
         (event,) = [e for e in stored["items"] if e["vehicle"] == "silent-1"]
         assert event["acknowledged_by"] == "watcher" and event["ended_at"] is None
+        # where it happened: the vehicle's last position, on the event's row
+        last = server.api("GET", f"/api/vehicles/{silent.id}/positions").json()[-1]
+        assert (event["x"], event["y"]) == pytest.approx((last["x"], last["y"]))
+        where = f"at E {event['x']:.1f} / N {event['y']:.1f}"
+        expect(admin.get_by_test_id(f"event-row-{event['id']}")).to_have_attribute("title", where)
 
         # the vehicle reports again: its event ends ("back" and the time) on both screens, still acknowledged
         assert silent.post(2000.1, frame.data)["status"] == "processed"
