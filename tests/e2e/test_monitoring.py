@@ -1,14 +1,18 @@
 """Live monitoring in the browser: replaying a time range of a vehicle's history (speed, scrubber, follow),
-the camera-obscured status and alert, the vehicle's latest frame, each vehicle in its own colour (swatch and
-trail) and following it on the map, placing a
-vehicle's known start on the plan and its trail along the tunnels, an event acknowledged on one user's screen
-showing so on another's, against a real ``driftmap serve`` (fixtures of ``conftest.py``).
+the camera-obscured status, alert and event, the vehicle's latest frame, each vehicle in its own colour (swatch
+and trail, the trail cut at a jump) and following it on the map, placing a vehicle's known start on the plan
+and its trail along the tunnels, a lost vehicle's event ending "found again", an event beeping for the user
+who turned the sound on, acknowledged on one user's screen and showing so on another's, ending ("back") when
+its vehicle reports again, filtered and exported as CSV; against a real ``driftmap serve`` (fixtures of
+``conftest.py``).
 
 Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); nothing sleeps for a fixed time.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import itertools
 import json
 import math
@@ -42,9 +46,11 @@ DEADLINE_S = 60.0
 # the vehicles of the latest-frame test drive on from these frames of the drive (after its standing start)
 TRAIL_FROM, TRAIL_APART, TRAIL_STRIDE = 40, 100, 4
 FRAME_PERIOD_S = 0.1
+LOST_WITHIN_FRAMES = 20  # frames of noise after which the localiser has said lost (it takes three)
 REPLAY_FRAMES = 40
 START_FRAMES = 100  # ten seconds of the drive: it stands for one, then drives about ten metres
 CLICK_TOLERANCE_M = 1.0  # a click lands within a pixel or two of the aimed point (about 0.3 m/px when fitted)
+JUMP_SLACK_M, JUMP_SPEED_MPS = 5.0, 10.0  # a trail's jump (frontend/src/lib/trail.ts)
 CENTRELINE_TOLERANCE_M = (
     2.0  # the drives keep within 1.5 m of the surveyed centreline; the walls are ~3 m off
 )
@@ -210,6 +216,19 @@ class TestObscuredCamera:
         assert float(frame.get_attribute("data-t") or "nan") >= 1000.0
         assert frame.evaluate("img => img.naturalWidth") == 320
         screenshot(p, "ui_obscured")
+        # the event log keeps it: open while the lens is dusty, ended ("camera clear") once it is clean again
+        event = p.get_by_test_id("events-pending").locator('[data-vehicle="dusty-1"][data-kind="obscured"]')
+        expect(event).to_have_attribute("data-open", "true")
+        deadline = time.monotonic() + DEADLINE_S
+        i = 0
+        while row.get_attribute("data-status") == "camera obscured":
+            assert time.monotonic() < deadline, "the camera never cleared"
+            vehicle.post(t, frames[i % len(frames)].data)
+            t += FRAME_PERIOD_S
+            i += 1
+        expect(event).to_have_attribute("data-open", "false")
+        expect(event).to_contain_text(re.compile(r"camera clear \d\d:\d\d:\d\d"))
+        expect(p.get_by_test_id("obscured-alert")).to_have_count(0)
         assert page.errors == []
 
 
@@ -259,6 +278,19 @@ class TestLatestFrame:
         )
         trails = json.loads(plan.get_attribute("data-trail-colours") or "{}")
         assert {n: _channels(trails[n]) for n in names} == swatches, (trails, swatches)
+        # each drove on from afar: the trail (the snapshot's last position, then the new ones) is cut at a jump
+        seen = {n: server.api("GET", f"/api/vehicles/{vehicles[n].id}/positions").json()[2:] for n in names}
+        pieces = {n: _trail_pieces(seen[n]) for n in names}
+        assert max(pieces.values()) >= 2, f"no vehicle jumped: {seen}"
+
+        def drawn() -> dict[str, int | None]:  # (the page also draws earlier tests' vehicles)
+            every = json.loads(plan.get_attribute("data-trail-pieces") or "{}")
+            return {n: every.get(n) for n in names}
+
+        deadline = time.monotonic() + DEADLINE_S
+        while drawn() != pieces:
+            assert time.monotonic() < deadline, f"trail pieces drawn {drawn()}, expected {pieces}"
+            p.wait_for_timeout(100)
         screenshot(p, "ui_monitoring_colours")
         # full size on a click, Escape closes it
         details.get_by_test_id("latest-frame").click()
@@ -282,6 +314,28 @@ class TestLatestFrame:
         expect(plan).not_to_have_attribute("data-follow-offset", re.compile(".*"))
 
         assert page.errors == []
+
+
+COUNT_BEEPS = """() => {
+  document.body.dataset.beeps = "0";
+  const start = OscillatorNode.prototype.start;
+  OscillatorNode.prototype.start = function (...args) {
+    document.body.dataset.beeps = String(Number(document.body.dataset.beeps) + 1);
+    return start.apply(this, args);
+  };
+}"""
+"""Counts the beeps the page plays (oscillators started) in ``body``'s ``data-beeps``."""
+
+
+def _trail_pieces(positions: list[dict[str, Any]]) -> int:
+    """How many pieces a trail through ``positions`` is cut into: a step further than 5 m plus 10 m/s times its
+    time is a jump (``frontend/src/lib/trail.ts``)."""
+    jumps = sum(
+        math.hypot(b["x"] - a["x"], b["y"] - a["y"])
+        > JUMP_SLACK_M + JUMP_SPEED_MPS * max(0.0, b["t"] - a["t"])
+        for a, b in itertools.pairwise(positions)
+    )
+    return 1 + jumps
 
 
 def _confidence_text(confidence: float) -> str:
@@ -377,6 +431,12 @@ class TestKnownStart:
         expect(result).to_have_attribute("data-state", "accepted")
         expect(result).to_contain_text("Start set at")
         expect(p.get_by_test_id("set-start")).to_have_attribute("data-placing", "no")
+        # the event log records it, acknowledged by whoever set it
+        logged = p.get_by_test_id("events-acknowledged").locator(
+            '[data-vehicle="start-1"][data-kind="start_known"]'
+        )
+        expect(logged).to_contain_text("known start set (radius 10 m)")
+        expect(logged.get_by_test_id("event-acknowledged-by")).to_contain_text("admin")
         sent = starts[-1]
         assert sent["radius_m"] == 10
         # survey coordinates, the map's local origin added back: the aimed tunnel point within a pixel or two
@@ -414,10 +474,55 @@ class TestKnownStart:
 
 
 class TestEvents:
+    def test_a_lost_vehicle_raises_an_event_that_stays_after_it_is_found_again(
+        self, server: Server, page: PageWithLog, tiny_site_dir: Path
+    ) -> None:
+        frames = recorded_frames(localisation_drive(tiny_site_dir), 30)
+        shape = decode_gray(frames[0].data).shape
+        noise = encode_png(np.random.default_rng(4).integers(0, 256, size=shape, dtype=np.uint8))
+        vehicle = Vehicle(server, "lost-1")
+        p = page.page
+        log_in(p, server)
+        p.get_by_test_id("nav-monitor").click()
+        expect(p.get_by_test_id("live-connection")).to_have_text("live")
+        t = 4000.0
+        for f in frames[:10]:
+            assert vehicle.post(t, f.data)["lost"] is False
+            t += FRAME_PERIOD_S
+
+        # frames that match nothing (a camera fed noise): the vehicle is lost, the alert and an open event show
+        for _ in range(LOST_WITHIN_FRAMES):
+            t += FRAME_PERIOD_S
+            if vehicle.post(t, noise)["lost"]:
+                break
+        else:
+            raise AssertionError(f"not lost after {LOST_WITHIN_FRAMES} noise frames")
+        expect(p.get_by_test_id("lost-alert")).to_contain_text("lost-1")
+        event = p.get_by_test_id("events-pending").locator('[data-vehicle="lost-1"][data-kind="lost"]')
+        expect(event).to_have_attribute("data-open", "true")
+        expect(event).to_contain_text("ongoing")
+
+        # the drive's frames again: found again; the alert goes, the event ends and stays until acknowledged
+        for f in frames[10:]:
+            t += FRAME_PERIOD_S
+            if not vehicle.post(t, f.data)["lost"]:
+                break
+        else:
+            raise AssertionError("never found again")
+        expect(p.get_by_test_id("lost-alert")).to_have_count(0)
+        expect(event).to_have_attribute("data-open", "false")
+        expect(event).to_contain_text(re.compile(r"found again \d\d:\d\d:\d\d"))
+        expect(event).to_have_attribute("data-acknowledged", "false")
+        stored = server.api("GET", "/api/events", params={"vehicle": vehicle.id, "kind": "lost"}).json()
+        (lost,) = stored["items"]
+        assert lost["ended_at"] is not None and lost["acknowledged_at"] is None, lost
+        assert page.errors == []
+
     def test_an_event_acknowledged_by_one_user_shows_acknowledged_to_another(
         self, server: Server, page: PageWithLog, browser: Browser, tiny_site_dir: Path
     ) -> None:
         add_user(server.env, "watcher", "viewer", "e2e-watcher-password")
+        silent, other = Vehicle(server, "silent-1"), Vehicle(server, "quiet-2")  # quiet-2 never reports
         admin = page.page
         log_in(admin, server)
         context = browser.new_context(viewport={"width": VIEWPORT_W, "height": VIEWPORT_H})
@@ -426,19 +531,24 @@ class TestEvents:
         for screen in (admin, watcher):
             screen.get_by_test_id("nav-monitor").click()
             expect(screen.get_by_test_id("live-connection")).to_have_text("live")
+            screen.evaluate(COUNT_BEEPS)
+        admin.get_by_test_id("events-sound").check()  # the admin hears new events, the watcher does not
 
         def event_of(screen: Page, listing: str) -> Locator:
             return screen.get_by_test_id(listing).locator('[data-vehicle="silent-1"][data-kind="stale"]')
 
         # one position, then silence: the server opens a stale event and both screens show it, unacknowledged
         (frame,) = recorded_frames(localisation_drive(tiny_site_dir), 1)
-        assert Vehicle(server, "silent-1").post(2000.0, frame.data)["status"] == "processed"
+        assert silent.post(2000.0, frame.data)["status"] == "processed"
         wait_ms = (STALE_AFTER_S + DEADLINE_S) * 1000
         for screen in (admin, watcher):
             expect(event_of(screen, "events-pending")).to_have_attribute("data-open", "true", timeout=wait_ms)
             expect(event_of(screen, "events-pending")).to_contain_text(
                 re.compile(r"\b\d\d:\d\d:\d\d silent-1 stale")
             )
+
+        expect(admin.locator("body")).to_have_attribute("data-beeps", re.compile(r"^[1-9]"))
+        assert watcher.locator("body").get_attribute("data-beeps") == "0"
 
         # the control room's viewer acknowledges it; the admin's screen shows who did, without a reload
         event_of(watcher, "events-pending").get_by_test_id("event-ack").click()
@@ -447,8 +557,44 @@ class TestEvents:
             expect(done).to_have_attribute("data-acknowledged", "true")
             expect(done.get_by_test_id("event-acknowledged-by")).to_contain_text("watcher")
             expect(event_of(screen, "events-pending")).to_have_count(0)
-        screenshot(admin, "ui_events")
         stored = server.api("GET", "/api/events", params={"kind": "stale", "unacknowledged": "false"}).json()
-        assert [e["acknowledged_by"] for e in stored["items"] if e["vehicle"] == "silent-1"] == ["watcher"]
+        (event,) = [e for e in stored["items"] if e["vehicle"] == "silent-1"]
+        assert event["acknowledged_by"] == "watcher" and event["ended_at"] is None
+        # where it happened: the vehicle's last position, on the event's row
+        last = server.api("GET", f"/api/vehicles/{silent.id}/positions").json()[-1]
+        assert (event["x"], event["y"]) == pytest.approx((last["x"], last["y"]))
+        where = f"at E {event['x']:.1f} / N {event['y']:.1f}"
+        expect(admin.get_by_test_id(f"event-row-{event['id']}")).to_have_attribute("title", where)
+
+        # the vehicle reports again: its event ends ("back" and the time) on both screens, still acknowledged
+        assert silent.post(2000.1, frame.data)["status"] == "processed"
+        for screen in (admin, watcher):
+            done = screen.get_by_test_id(f"event-row-{event['id']}")
+            expect(done).to_have_attribute("data-open", "false")
+            expect(done).to_contain_text(re.compile(r"back \d\d:\d\d:\d\d"))
+            expect(done).to_have_attribute("data-acknowledged", "true")
+        ended = server.api("GET", "/api/events", params={"vehicle": silent.id, "kind": "stale"}).json()
+        assert next(e for e in ended["items"] if e["id"] == event["id"])["ended_at"] is not None
+        screenshot(admin, "ui_events")
+
+        # filters: another kind or another vehicle hides it, its own shows it
+        row = admin.get_by_test_id(f"event-row-{event['id']}")
+        admin.get_by_test_id("events-kind").select_option("lost")
+        expect(row).to_have_count(0)
+        admin.get_by_test_id("events-kind").select_option("stale")
+        expect(row).to_be_visible()
+        admin.get_by_test_id("events-vehicle").select_option(str(other.id))
+        expect(row).to_have_count(0)
+        admin.get_by_test_id("events-vehicle").select_option(str(silent.id))
+        expect(row).to_be_visible()
+
+        # the CSV export holds the filtered log: this event with its end and who acknowledged it
+        with admin.expect_download() as saved:
+            admin.get_by_test_id("events-csv").click()
+        assert saved.value.suggested_filename == "events.csv"
+        rows = list(csv.DictReader(io.StringIO(Path(saved.value.path()).read_text())))
+        assert rows and {(r["vehicle"], r["kind"]) for r in rows} == {("silent-1", "stale")}, rows
+        (exported,) = [r for r in rows if r["id"] == str(event["id"])]
+        assert exported["ended_at"] and exported["acknowledged_by"] == "watcher", exported
         context.close()
         assert page.errors == []

@@ -25,6 +25,7 @@ from tests.e2e.map_helpers import (
     pixel_of,
     plain_map_at,
 )
+from tests.jobs.mini_site import zip_folder
 
 pytestmark = pytest.mark.slow  # a real server and a browser
 
@@ -36,6 +37,35 @@ WALL_MARGIN_M = (
     1.0  # the far click lies this far outside the walls (the UI checks the plan as loaded, simplified)
 )
 PICK_CLEARANCE_PX = 20  # a keyframe picked for grounding lies this far from every grounding's square
+
+
+WATCH_BUILD_JOB = """() => {
+  window.buildJobShown = [];
+  const record = () => {
+    const job = document.querySelector('[data-testid="build-job"]');
+    if (!job) return;
+    const seen = [job.dataset.progress, job.textContent];
+    const last = window.buildJobShown[window.buildJobShown.length - 1];
+    if (!last || last[0] !== seen[0] || last[1] !== seen[1]) window.buildJobShown.push(seen);
+  };
+  new MutationObserver(record).observe(document.body, {
+    subtree: true, childList: true, characterData: true, attributes: true,
+  });
+}"""
+"""Records each (data-progress, text) the build job's line shows from now on, in ``window.buildJobShown``."""
+
+
+WATCH_UPLOAD = """(testId) => {
+  window.uploadShown = [];
+  new MutationObserver(() => {
+    const box = document.querySelector(`[data-testid="${testId}"]`);
+    if (!box) return;
+    const seen = [box.dataset.state, box.querySelector("span")?.textContent ?? ""];
+    const last = window.uploadShown[window.uploadShown.length - 1];
+    if (!last || last[0] !== seen[0] || last[1] !== seen[1]) window.uploadShown.push(seen);
+  }).observe(document.body, { subtree: true, childList: true, characterData: true, attributes: true });
+}"""
+"""Records each (data-state, text) an upload's progress line shows from now on, in ``window.uploadShown``."""
 
 
 def log_in(page: Page, server: Server, username: str, password: str) -> None:
@@ -59,6 +89,18 @@ def make_user(server: Server, name: str, role: str) -> str:
     created = server.api("POST", "/api/users", json={"username": name, "password": password, "role": role})
     assert created.status_code in (200, 201), created.text
     return password
+
+
+def wait_for_number(page: Page, test_id: str, attribute: str, value: float, tolerance: float = 0.002) -> None:
+    """Wait until the element's ``attribute`` holds a number within ``tolerance`` of ``value``."""
+    element = page.get_by_test_id(test_id)
+    deadline = time.monotonic() + DEADLINE_S
+    while True:
+        text = element.get_attribute(attribute)
+        if text is not None and abs(float(text) - value) <= tolerance:
+            return
+        assert time.monotonic() < deadline, f"{test_id} {attribute} is {text}, not {value}"
+        page.wait_for_timeout(100)
 
 
 def groundings(server: Server) -> list[dict[str, Any]]:
@@ -327,6 +369,8 @@ class TestGrounding:
         expect(p.get_by_test_id("map")).to_have_attribute("data-placing", "yes")
         p.mouse.move(*at)
         expect(p.get_by_test_id("grid-readout")).to_contain_text("E ")
+        under = p.evaluate("([x, y]) => getComputedStyle(document.elementFromPoint(x, y)).cursor", list(at))
+        assert under == "crosshair", under
         x, y = grid_readout(p)
         p.mouse.click(*at)  # on the keyframe's estimate: written without a question
 
@@ -555,10 +599,24 @@ class TestGrounding:
         box.click()
         expect(box).to_be_checked()
         assert all(g["enabled"] for g in groundings(server))
+        # RMS, mean and max of the build's residuals, overall and per drive (n, RMS, mean, max in metres)
+        residuals = server.api("GET", "/api/sites/1/maps/1/residuals").json()
+
+        def summary_cells(distances: list[float]) -> list[str]:
+            rms = math.sqrt(sum(d * d for d in distances) / len(distances))
+            mean = sum(distances) / len(distances)
+            return [str(len(distances)), f"{rms:.2f}", f"{mean:.2f}", f"{max(distances):.2f}"]
+
+        overall = p.get_by_test_id("residual-summary-all").locator("td")
+        expect(overall.nth(1)).to_have_text(summary_cells([r["distance_m"] for r in residuals])[0])
+        assert overall.all_inner_texts()[1:] == summary_cells([r["distance_m"] for r in residuals])
         p.get_by_test_id("grounding-drive-filter").select_option(str(first["drive_id"]))
         rows = p.get_by_test_id("groundings-table").locator("tbody tr")
         expect(rows).to_have_count(sum(g["drive_id"] == first["drive_id"] for g in groundings(server)))
-        expect(p.get_by_test_id(f"residual-summary-{first['drive']}")).to_be_visible()
+        line = p.get_by_test_id(f"residual-summary-{first['drive']}")
+        expect(line).to_be_visible()
+        of_drive = [r["distance_m"] for r in residuals if r["drive"] == first["drive"]]
+        assert line.locator("td").all_inner_texts() == [first["drive"], *summary_cells(of_drive)]
         assert page.errors == []
 
     def test_a_second_build_is_refused_and_each_preset_is_explained(
@@ -604,7 +662,13 @@ class TestGrounding:
         selected = p.get_by_test_id("selected-frame")
         expect(selected).to_have_attribute("data-frame", str(last["frame"]))
         expect(p.get_by_test_id("drive-select")).to_have_value(str(last["drive_id"]))
+        # the residual arrows: to the keyframe's pose, then ten times as long
+        residuals = server.api("GET", "/api/sites/1/maps/1/residuals").json()
+        longest = max(r["distance_m"] for r in residuals)
+        assert longest > 0.01, residuals
+        wait_for_number(p, "map", "data-longest-arrow-m", longest)
         p.get_by_test_id("residual-exaggeration").select_option("10")
+        wait_for_number(p, "map", "data-longest-arrow-m", 10 * longest)
 
         # any frame, not only the strip's keyframes; the strip turns to the keyframe before it
         p.get_by_test_id("goto-frame").fill("13")
@@ -633,6 +697,17 @@ class TestGrounding:
         p.get_by_test_id("frame-view").locator(".frameview-box").hover()
         p.mouse.wheel(0, -100)
         expect(view).to_have_attribute("data-scale", "1.88")
+        # a drag pans the zoomed image by as much as the pointer moved
+        expect(view).to_have_attribute("data-shift", re.compile(r"^-\d+,-\d+$"))
+        x0, y0 = (int(v) for v in (view.get_attribute("data-shift") or "").split(","))
+        image = view.locator(".frameview-box").bounding_box()
+        assert image is not None
+        centre = (image["x"] + image["width"] / 2, image["y"] + image["height"] / 2)
+        p.mouse.move(*centre)
+        p.mouse.down()
+        p.mouse.move(centre[0] + 30, centre[1] + 20, steps=5)
+        p.mouse.up()
+        expect(view).to_have_attribute("data-shift", f"{x0 + 30},{y0 + 20}")
         p.get_by_test_id("frame-fit").click()
         expect(view).to_have_attribute("data-scale", "1.00")
         p.get_by_test_id("frame-view-close").click()
@@ -695,10 +770,20 @@ class TestGrounding:
         reused = server.api("GET", "/api/sites/1/maps/2").json()["stats"]
         assert reused["segments_reused"] > 0 and reused["segments_prepared"] == 0, reused
         p.get_by_test_id("build-full").check()
+        p.evaluate(WATCH_BUILD_JOB)
         p.get_by_test_id("build-map").click()
         expect(p.get_by_test_id("map-version")).to_have_text("map v3", timeout=BUILD_DEADLINE_MS)
         full = server.api("GET", "/api/sites/1/maps/3").json()["stats"]
         assert full["segments_reused"] == 0 and full["segments_prepared"] == reused["segments_reused"], full
+        # the progress shown is the whole build's: it never goes back (a stage's restart at 0 % included),
+        # and once under way it says about how long is left
+        lines: list[list[str]] = p.evaluate("window.buildJobShown")
+        job_of = [int(m.group(1)) if (m := re.search(r"job (\d+) ", text)) else -1 for _, text in lines]
+        shown = [line for line, job_id in zip(lines, job_of, strict=True) if job_id == max(job_of)]
+        progress = [float(value) for value, _ in shown]
+        assert progress == sorted(progress) and any(0 < f < 1 for f in progress), shown
+        assert progress[-1] == 1.0, shown
+        assert any(re.search(r"\d+% · .+ · about .+ left", text) for _, text in shown), shown
         assert page.errors == []
 
 
@@ -752,6 +837,22 @@ class TestAdmin:
         refused = p.get_by_test_id("upload-zip")
         expect(refused).to_have_attribute("data-state", "refused")
         expect(refused).to_contain_text("zip")
+        # a drive folder's zip: its progress in megabytes, then the job that imports it
+        drive_zip = tmp_path / "map-02.zip"
+        drive_zip.write_bytes(zip_folder(tiny_site_dir / "drives" / "map-02"))
+        megabytes = f"{drive_zip.stat().st_size / 1e6:.1f}"
+        p.get_by_test_id("upload-zip-file").set_input_files(drive_zip)
+        p.evaluate(WATCH_UPLOAD, "upload-zip")
+        p.get_by_test_id("upload-zip-send").click()
+        expect(refused).to_have_attribute("data-state", "done")
+        expect(refused).to_contain_text(re.compile(r"uploaded; imported by job \d+ \(queued\)"))
+        shown: list[list[str]] = p.evaluate("window.uploadShown")
+        sending = [text for state, text in shown if state == "sending"]
+        assert any(re.fullmatch(rf"[\d.]+ of {megabytes} MB \(\d+%\)", t) for t in sending), shown
+        job_id = int(re.findall(r"job (\d+)", refused.inner_text())[0])
+        job = server.api("GET", f"/api/jobs/{job_id}").json()
+        assert job["status"] == "queued" and job["site_id"] == site.json()["id"], job
+        assert server.api("POST", f"/api/jobs/{job_id}/cancel").status_code == 200
         p.get_by_test_id("upload-video-send").click()  # nothing chosen: said before anything is sent
         expect(p.get_by_test_id("upload-video")).to_contain_text("choose a video file")
         video, calibration = tmp_path / "run-9.mp4", tmp_path / "camera.json"

@@ -1,5 +1,6 @@
 """Position history retention on the run's real database: every position kept while young, then one per
-bucket per vehicle, then none; the same rows whichever pass runs; a bad policy named."""
+bucket per vehicle, then none; the same rows whichever pass runs; of the event log only the ended,
+acknowledged events past the same age deleted; a bad policy named."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from driftmap.services import sites as site_service
 from driftmap.services import vehicles as vehicle_service
 from driftmap.services.retention import RetentionPolicy, apply_retention
 from driftmap.store.access_models import VehiclePosition
+from driftmap.store.event_models import VehicleEvent
 from driftmap.store.storage import Storage
 
 NOW = datetime(2026, 12, 5, 12, 0, 0, tzinfo=UTC)
@@ -99,3 +101,58 @@ def test_a_bad_policy_is_named(kwargs: dict[str, float], field: str) -> None:
     with pytest.raises(BadInputError) as caught:
         RetentionPolicy(**kwargs)
     assert caught.value.field == field
+
+
+def _events(storage: Storage) -> dict[str, int]:
+    """One vehicle's events of several ages and states; returns a label -> event id."""
+    old, young = NOW - timedelta(days=40), NOW - timedelta(days=3)
+    shapes = {  # label: (started, ended, acknowledged)
+        "old, ended, acknowledged": (old, old + timedelta(minutes=5), old + timedelta(minutes=1)),
+        "old, ended, never acknowledged": (old, old + timedelta(minutes=5), None),
+        "old, still open, acknowledged": (old, None, old + timedelta(minutes=1)),
+        "old, ended, acknowledged lately": (old, old + timedelta(minutes=5), young),
+        "young, ended, acknowledged": (young, young + timedelta(minutes=5), young),
+    }
+    ids = {}
+    with storage.db.session() as session:
+        site = site_service.create_site(session, "east")
+        vehicle, _token = vehicle_service.create_vehicle(session, "dozer", site.id)
+        for label, (started, ended, acknowledged) in shapes.items():
+            kind = "obscured" if ended is None else "lost"  # one open event of a kind per vehicle
+            row = VehicleEvent(
+                site_id=site.id,
+                vehicle_id=vehicle.id,
+                kind=kind,
+                started_at=started,
+                ended_at=ended,
+                acknowledged_by=None if acknowledged is None else "admin",
+                acknowledged_at=acknowledged,
+            )
+            row.updated_at = max(t for t in (started, ended, acknowledged) if t is not None)
+            session.add(row)
+            session.flush()
+            ids[label] = row.id
+    return ids
+
+
+def _event_ids(storage: Storage) -> set[int]:
+    with storage.db.session() as session:
+        return set(session.scalars(select(VehicleEvent.id)).all())
+
+
+def test_ended_acknowledged_events_past_keep_days_go_the_rest_stay(storage: Storage) -> None:
+    ids = _events(storage)
+    with storage.db.session() as session:
+        done = apply_retention(session, POLICY, NOW)
+    assert done.events_dropped == 1
+    assert _event_ids(storage) == set(ids.values()) - {ids["old, ended, acknowledged"]}
+    with storage.db.session() as session:
+        assert apply_retention(session, POLICY, NOW).events_dropped == 0
+
+
+def test_zero_keep_days_keeps_every_event(storage: Storage) -> None:
+    ids = _events(storage)
+    with storage.db.session() as session:
+        done = apply_retention(session, RetentionPolicy(2.0, 10.0, 0.0, 7.0), NOW)
+    assert done.events_dropped == 0
+    assert _event_ids(storage) == set(ids.values())

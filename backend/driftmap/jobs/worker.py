@@ -153,6 +153,10 @@ class Reaper(threading.Thread):
                 )
             if done.partition_compacted:
                 log.info("position history: thinned week %s compacted", done.partition_compacted)
+            if done.events_dropped:
+                log.info(
+                    "event log: %d ended, acknowledged events past retention deleted", done.events_dropped
+                )
         except Exception:
             log.warning("position history retention failed", exc_info=True)
 

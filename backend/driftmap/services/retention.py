@@ -8,6 +8,10 @@ The retention policy (:class:`RetentionPolicy`, from the ``DRIFTMAP_HISTORY_*`` 
   room or an export can still follow: at 10 s, 8,640 rows per vehicle-day, a hundredth);
 * none older than ``keep_days``.
 
+The event log (:class:`~driftmap.store.event_models.VehicleEvent`) follows the same ``keep_days``: an event
+that ended and was acknowledged more than ``keep_days`` ago is deleted; an open event or one nobody
+acknowledged stays, however old (the control room still has to see it).
+
 The age of a position is by ``received_at`` (server time). :func:`apply_retention` is idempotent and safe
 when several workers run it at once: the positions a pass keeps are fixed by the rows (the smallest id of
 each vehicle and time bucket), so two passes delete the same rows. A pass thins only the positions that aged
@@ -39,6 +43,7 @@ from driftmap.config import Settings
 from driftmap.errors import BadInputError
 from driftmap.store import position_partitions
 from driftmap.store.access_models import VehiclePosition
+from driftmap.store.event_models import VehicleEvent
 
 __all__ = ["RetentionPolicy", "RetentionResult", "apply_retention"]
 
@@ -84,6 +89,8 @@ class RetentionResult:
     partitions_created: tuple[str, ...] = ()
     partitions_dropped: tuple[str, ...] = ()
     partition_compacted: str | None = None
+    events_dropped: int = 0
+    """Ended, acknowledged events deleted for being older than ``keep_days``."""
 
 
 def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) -> RetentionResult:
@@ -91,11 +98,12 @@ def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) ->
     cutoff = now - timedelta(days=policy.keep_days) if policy.keep_days > 0 else None
     partitioned = position_partitions.is_partitioned(session.connection())
     upkeep = _partition_upkeep(session, now, cutoff) if partitioned else position_partitions.Upkeep((), ())
-    dropped = 0
+    dropped = events_dropped = 0
     if cutoff is not None:
         dropped = _deleted(
             session.execute(delete(VehiclePosition).where(VehiclePosition.received_at < cutoff))
         )
+        events_dropped = _drop_old_events(session, cutoff)
     thinned = 0
     bucket_s = round(policy.downsample_s)
     if bucket_s > 0:
@@ -118,7 +126,17 @@ def apply_retention(session: Session, policy: RetentionPolicy, now: datetime) ->
     compacted = None
     if partitioned and upkeep.locked:
         compacted = _compact(session, now - timedelta(days=policy.full_days), cutoff)
-    return RetentionResult(thinned, dropped, upkeep.created, upkeep.dropped, compacted)
+    return RetentionResult(thinned, dropped, upkeep.created, upkeep.dropped, compacted, events_dropped)
+
+
+def _drop_old_events(session: Session, cutoff: datetime) -> int:
+    """Delete the events that ended and were acknowledged before ``cutoff``; how many."""
+    old = delete(VehicleEvent).where(
+        VehicleEvent.ended_at < cutoff,
+        VehicleEvent.acknowledged_at.is_not(None),
+        VehicleEvent.acknowledged_at < cutoff,
+    )
+    return _deleted(session.execute(old))
 
 
 def _partition_upkeep(session: Session, now: datetime, cutoff: datetime | None) -> position_partitions.Upkeep:

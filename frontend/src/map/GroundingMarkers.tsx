@@ -1,6 +1,8 @@
 // Groundings on the plan: a square at each surveyed point with an arrow towards its keyframe's optimised pose
-// (the residual vector, drawn ``exaggeration`` times its length so that centimetres show at mine scale). When editable, a square can be dragged to adjust its surveyed point: ``onMove`` gets the
-// grounding's id and its new position in mine-grid metres once the drag ends.
+// (the residual vector, drawn ``exaggeration`` times its length so that centimetres show at mine scale; the map
+// element's ``data-longest-arrow-m`` is the longest arrow as drawn, metres). When editable, a square can be
+// dragged to adjust its surveyed point: ``onMove`` gets the grounding's id and its new position in mine-grid
+// metres once the drag ends.
 import { useEffect, useRef } from "react";
 import { useLatest } from "../lib/useLatest";
 import Feature from "ol/Feature";
@@ -133,6 +135,7 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId,
     const { squares, links } = sources.current;
     squares.clear();
     links.clear();
+    let longestM = 0;
     for (const g of groundings) {
       const at = ctx.origin.toLocal(g.x, g.y);
       const square = new Feature(new Point(at));
@@ -141,7 +144,9 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId,
       const pose = poses.get(`${g.driveId}#${g.frame}`);
       if (pose) {
         const local = ctx.origin.toLocal(...pose);
-        const link = new Feature(new LineString([at, arrowEnd(at, local, exaggeration)]));
+        const end = arrowEnd(at, local, exaggeration);
+        longestM = Math.max(longestM, Math.hypot(end[0] - at[0], end[1] - at[1]));
+        const link = new Feature(new LineString([at, end]));
         link.setStyle(arrowStyle);
         links.addFeature(link);
         square.set("link", link);
@@ -150,6 +155,8 @@ export function GroundingMarkers({ ctx, groundings, poses, editable, selectedId,
       }
       squares.addFeature(square);
     }
+    const target = ctx.map.getTargetElement();
+    if (target) target.dataset.longestArrowM = longestM.toFixed(3);
   }, [ctx, groundings, poses, selectedId, exaggeration]);
 
   return null;

@@ -5,7 +5,8 @@
 // glide to each new estimate (lib/interpolate.ts) on the animation frame. Names are decluttered (an overlapped
 // name is left out, never the marker; the selected vehicle's name always shows). With ``follow`` the map stays
 // centred on that vehicle (the map element's ``data-follow-offset`` says how far off, metres) until the user
-// drags the map. The map element's ``data-trail-colours`` lists each drawn trail's colour by vehicle name.
+// drags the map. The map element's ``data-trail-colours`` lists each drawn trail's colour by vehicle name, and
+// ``data-trail-pieces`` how many pieces each vehicle's trail is cut into at its jumps.
 import { useEffect, useRef } from "react";
 import { useLatest } from "../lib/useLatest";
 import Feature from "ol/Feature";
@@ -20,7 +21,7 @@ import type ImageStyle from "ol/style/Image";
 import { Glide } from "../lib/interpolate";
 import { bandCss, confidenceBand, type ConfidenceBand } from "../lib/confidence";
 import { yawToRotation } from "../lib/motion";
-import { isJump, trailRuns } from "../lib/trail";
+import { isJump, splitJumps, trailRuns } from "../lib/trail";
 import { trailStroke, vehicleCss } from "../lib/vehicleColours";
 import type { VehicleState } from "../lib/liveState";
 import type { MapCtx } from "./MineMap";
@@ -217,6 +218,7 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, 
     const now = performance.now();
     const seen = new Set<number>();
     const trailColours: Record<string, string> = {};
+    const trailPieces: Record<string, number> = {};
     for (const v of vehicles) {
       if (!v.position) continue;
       seen.add(v.id);
@@ -258,9 +260,13 @@ export function VehicleLayer({ ctx, vehicles, selectedId, onSelect, selectable, 
       entry.trail.setProperties({ vehicleId: v.id, points: v.trail.length }, true);
       entry.trail.setStyle(trailStyles(v.id, runs, selected));
       if (runs.length > 0) trailColours[v.name] = trailStroke(v.id, runs[runs.length - 1]!.band).colour;
+      trailPieces[v.name] = splitJumps(v.trail).length;
     }
     const target = ctx.map.getTargetElement();
-    if (target) target.dataset.trailColours = JSON.stringify(trailColours);
+    if (target) {
+      target.dataset.trailColours = JSON.stringify(trailColours);
+      target.dataset.trailPieces = JSON.stringify(trailPieces);
+    }
     for (const [id, entry] of glides.current) {
       if (!seen.has(id)) {
         source.current.removeFeatures([entry.marker, entry.trail]);

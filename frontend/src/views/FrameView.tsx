@@ -42,7 +42,13 @@ export function FrameView({ driveId, driveName, frame, onClose }: Props) {
   };
 
   return (
-    <section className="frameview" data-testid="frame-view" data-frame={frame} data-scale={view.scale.toFixed(2)}>
+    <section
+      className="frameview"
+      data-testid="frame-view"
+      data-frame={frame}
+      data-scale={view.scale.toFixed(2)}
+      data-shift={`${view.x.toFixed(0)},${view.y.toFixed(0)}`}
+    >
       <div className="row">
         <strong>
           {driveName} frame {frame}
