@@ -98,7 +98,9 @@ function markerImage(band: ConfidenceBand, yaw: number | null, selected: boolean
   });
 }
 
-function markerStyle(feature: FeatureLike): Style[] {
+/** A vehicle marker and its name: the marker an obstacle to other names, an unselected name decluttered (hidden
+ * where it would overlap another name or a marker), the selected one always drawn. */
+export function markerStyle(feature: FeatureLike): Style[] {
   const band = feature.get("band") as ConfidenceBand;
   const yaw = feature.get("yaw") as number | null;
   const selected = feature.get("selected") as boolean;
