@@ -10,13 +10,13 @@ function vehicle(selected: boolean, band = "confident"): Feature<Point> {
 
 describe("markerStyle", () => {
   it("declutters an unselected vehicle's name and keeps its marker as an obstacle", () => {
-    const [style] = markerStyle(vehicle(false));
+    const style = markerStyle(vehicle(false))[0]!;
     expect((style.getText() as Text).getDeclutterMode()).toBe("declutter");
     expect(style.getImage()!.getDeclutterMode()).toBe("obstacle");
   });
 
   it("always draws the selected vehicle's name", () => {
-    const [style] = markerStyle(vehicle(true));
+    const style = markerStyle(vehicle(true))[0]!;
     expect((style.getText() as Text).getText()).toBe("loc-01");
     expect((style.getText() as Text).getDeclutterMode()).toBe("none");
   });
@@ -24,7 +24,8 @@ describe("markerStyle", () => {
   it("marks a lost vehicle with a question mark that is never hidden", () => {
     const styles = markerStyle(vehicle(false, "lost"));
     expect(styles).toHaveLength(2);
-    expect((styles[1].getText() as Text).getText()).toBe("?");
-    expect((styles[1].getText() as Text).getDeclutterMode()).toBe("none");
+    const mark = styles[1]!.getText() as Text;
+    expect(mark.getText()).toBe("?");
+    expect(mark.getDeclutterMode()).toBe("none");
   });
 });
