@@ -5,12 +5,14 @@ Every wait polls the DOM or the API up to a deadline (Playwright's ``expect``); 
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import time
 from pathlib import Path
 from typing import Any
 
+import cv2
 import pytest
 from playwright.sync_api import Page, Request, expect
 
@@ -864,6 +866,28 @@ class TestAdmin:
         expect(p.get_by_test_id("upload-video")).to_have_attribute("data-state", "refused")
         expect(p.get_by_test_id("upload-video")).to_contain_text("calibration must be a JSON object")
         screenshot(p, "ui_uploads")
+        # a clip of the drive's camera with that camera's calibration: sent, then the job that imports it
+        folder = tiny_site_dir / "drives" / "map-02"
+        camera = json.loads((folder / "drive.json").read_text())["camera"]
+        clip = tmp_path / "run-10.avi"
+        writer = cv2.VideoWriter(
+            str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 5.0, (camera["width"], camera["height"])
+        )
+        for png in sorted((folder / "frames").glob("*.png"))[:6]:
+            writer.write(cv2.imread(str(png)))
+        writer.release()
+        calibration.write_text(json.dumps({"camera": camera}))
+        p.get_by_test_id("upload-video-file").set_input_files(clip)
+        p.get_by_test_id("upload-video-calibration").set_input_files(calibration)
+        p.get_by_test_id("upload-video-send").click()
+        sent = p.get_by_test_id("upload-video")
+        expect(sent).to_have_attribute("data-state", "done")
+        expect(sent).to_contain_text(re.compile(r"uploaded; imported by job \d+ \(queued\)"))
+        video_job = int(re.findall(r"job (\d+)", sent.inner_text())[0])
+        job = server.api("GET", f"/api/jobs/{video_job}").json()
+        facts = (job["kind"], job["args"]["format"], job["args"]["name"], job["status"], job["site_id"])
+        assert facts == ("drive.import", "video", "run-10", "queued", site.json()["id"]), job
+        assert server.api("POST", f"/api/jobs/{job['id']}/cancel").status_code == 200
         # the browser logs the two refused requests, and nothing else
         assert [e for e in page.errors if "Failed to load resource" not in e] == [], page.errors
 
