@@ -69,5 +69,5 @@ def groundings_residuals(
         text = residuals_csv(session, record)
         write_text_atomic(out, text)
     console.print(
-        f"wrote {text.count(chr(10)) - 1} residuals of map version {record.version} of {site!r} to {out}"
+        f"wrote {len(text.splitlines()) - 1} residuals of map version {record.version} of {site!r} to {out}"
     )
