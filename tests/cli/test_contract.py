@@ -139,7 +139,7 @@ class TestChoices:
             (["user", "add"], "admin|surveyor|viewer"),
             (["camera", "intrinsics"], "pinhole|fisheye"),
             (["map", "export"], "csv|"),
-            (["positions", "export"], "csv|geojson|kml|tum"),
+            (["positions", "export"], "csv|geojson|dxf|kml|tum|kitti"),
             (["report", "localisation"], "SAD|SAD+SESAME|HMM+SAD|HMM+SESAME|HMM+SESAME+odometry"),
         ],
     )
