@@ -99,7 +99,7 @@ pytest: $(VENV)/.installed-dev frontend system-packages
 test: lint typecheck imports frontend-lint frontend-test pytest
 
 BENCHES := bench_import bench_simulate bench_sad kitti_odometry bench_loops bench_posegraph bench_topomap bench_mapping \
-	bench_localise bench_thumbnails vpr_outside bench_survey_layers bench_live bench_fleet soak_live bench_refusals bench_history bench_incremental bench_ui fuzz_api
+	bench_localise bench_thumbnails vpr_outside bench_survey_layers bench_live bench_fleet soak_live bench_refusals bench_history bench_incremental bench_scaling bench_ui fuzz_api
 
 bench: $(VENV)/.installed-dev frontend system-packages
 	@for b in $(BENCHES); do echo "== bench/$$b.py"; $(BIN)/python bench/$$b.py || exit 1; done
