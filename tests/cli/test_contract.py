@@ -20,26 +20,9 @@ from driftmap.errors import BadInputError
 from driftmap.services import maps as map_service
 from driftmap.services.users import ROLES
 from driftmap.sim.params import RIGS, SIZES
-from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
 from tests.cli.in_process import point_cli_at
 
 runner = CliRunner()
-
-
-@pytest.fixture
-def built_env(
-    tmp_path_factory: pytest.TempPathFactory,
-    tiny_site_dir: Path,
-    tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,
-) -> Iterator[None]:
-    """The CLI pointed at a private copy of the built tiny site."""
-    data_dir, url = copy_data_to_new_database(
-        built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data"
-    )
-    point_cli_at(monkeypatch, Settings(data_dir=data_dir, database_url=url))
-    yield
-    get_settings.cache_clear()
 
 
 @pytest.fixture
@@ -61,7 +44,7 @@ def _refused(*args: str) -> Result:
 
 
 class TestJsonOutput:
-    def test_site_drive_and_map(self, built_env: None) -> None:
+    def test_site_drive_and_map(self, built_tiny_cli: None) -> None:
         sites = _json("site", "list", "--json")
         assert [s["name"] for s in sites] == ["tiny"] and sites[0]["drives"] > 0
         drives = _json("drive", "list", "tiny", "--json")
@@ -72,7 +55,9 @@ class TestJsonOutput:
         assert shown["summary"]["overall"]["count"] == len(shown["residuals"])
         assert {"drive", "frame", "dx_m", "dy_m", "distance_m"} <= set(shown["residuals"][0])
 
-    def test_build_prints_the_new_version(self, built_env: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    def test_build_prints_the_new_version(
+        self, built_tiny_cli: None, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
         """The build itself is the mapping tests' (stood in for here): --json prints its version and figures."""
         built = (
             SimpleNamespace(version=7),
@@ -99,7 +84,7 @@ class TestJsonOutput:
 
 class TestMethodChoice:
     def test_the_chosen_methods_reach_the_report(
-        self, built_env: None, monkeypatch: pytest.MonkeyPatch
+        self, built_tiny_cli: None, monkeypatch: pytest.MonkeyPatch
     ) -> None:
         """The report itself is the reports tests' (stood in for here): it is given the labels chosen."""
         given: list[object] = []

@@ -17,13 +17,12 @@ from evo.tools import file_interface
 from typer.testing import CliRunner
 
 from driftmap.cli import app
-from driftmap.config import Settings, get_settings
+from driftmap.config import get_settings
 from driftmap.formats.csv_exports import parse_poses_csv, read_poses_csv
 from driftmap.formats.g2o import read_g2o
 from driftmap.formats.position_exports import parse_positions_csv
 from driftmap.formats.site_crs import SiteCrs
 from driftmap.formats.trajectory_exports import COORDINATES_MEMBER, KML_NAMESPACE, PLANE_COORDINATES
-from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
 from tests.cli.in_process import point_cli_at
 from tests.export_site import LOADER, SITE, TRACKS, TRUCK, export_store
 
@@ -141,28 +140,12 @@ class TestPositionsExport:
         assert not out.exists()
 
 
-@pytest.fixture
-def crs_env(
-    tmp_path_factory: pytest.TempPathFactory,
-    tiny_site_dir: Path,
-    tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,
-) -> Iterator[None]:
-    """The CLI on a private copy of the built tiny site (its coordinates are changed)."""
-    data, url = copy_data_to_new_database(
-        built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data"
-    )
-    point_cli_at(monkeypatch, Settings(data_dir=data, database_url=url))
-    yield
-    get_settings.cache_clear()
-
-
 def _xy(collection: dict[str, Any]) -> list[np.ndarray]:
     return [np.array(f["geometry"]["coordinates"], dtype=float) for f in collection["features"]]
 
 
 class TestSiteCrs:
-    def test_mine_grid_then_wgs84_then_plane_again(self, crs_env: None, tmp_path: Path) -> None:
+    def test_mine_grid_then_wgs84_then_plane_again(self, built_tiny_cli: None, tmp_path: Path) -> None:
         plane = json.loads(_run_to_text(tmp_path, "geojson"))
         assert plane[COORDINATES_MEMBER] == PLANE_COORDINATES
 

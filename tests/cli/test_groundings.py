@@ -4,33 +4,14 @@ of the built tiny site: files written and read back, a bad row named, nothing ha
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from driftmap.cli import app
-from driftmap.config import Settings, get_settings
-from tests.api.access_helpers import built_tiny_data, copy_data_to_new_database
-from tests.cli.in_process import point_cli_at
 
 runner = CliRunner()
-
-
-@pytest.fixture
-def env(
-    tmp_path_factory: pytest.TempPathFactory,
-    tiny_site_dir: Path,
-    tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,
-) -> Iterator[None]:
-    data, url = copy_data_to_new_database(
-        built_tiny_data(tmp_path_factory.getbasetemp(), tiny_site_dir), tmp_path / "data"
-    )
-    point_cli_at(monkeypatch, Settings(data_dir=data, database_url=url))
-    yield
-    get_settings.cache_clear()
 
 
 def _run(*args: str, code: int = 0) -> str:
@@ -40,7 +21,7 @@ def _run(*args: str, code: int = 0) -> str:
 
 
 class TestControlFile:
-    def test_export_edit_import(self, env: None, tmp_path: Path) -> None:
+    def test_export_edit_import(self, built_tiny_cli: None, tmp_path: Path) -> None:
         out = tmp_path / "control.csv"
         assert "wrote" in _run("groundings", "export", "tiny", "--out", str(out))
         header, *rows = out.read_text().splitlines()
@@ -53,7 +34,7 @@ class TestControlFile:
         _run("groundings", "export", "tiny", "--out", str(out))
         assert out.read_text() == edited.read_text()
 
-    def test_a_bad_row_is_named_and_nothing_changes(self, env: None, tmp_path: Path) -> None:
+    def test_a_bad_row_is_named_and_nothing_changes(self, built_tiny_cli: None, tmp_path: Path) -> None:
         before = tmp_path / "before.csv"
         _run("groundings", "export", "tiny", "--out", str(before))
         bad = tmp_path / "bad.csv"
@@ -66,13 +47,13 @@ class TestControlFile:
         assert after.read_text() == before.read_text()
 
 
-def test_map_show_prints_the_residual_summary(env: None) -> None:
+def test_map_show_prints_the_residual_summary(built_tiny_cli: None) -> None:
     output = _run("map", "show", "tiny")
     assert "RMS m" in output and "mean m" in output and "max m" in output
     assert "all" in output
 
 
-def test_the_residuals_csv_matches_map_show(env: None, tmp_path: Path) -> None:
+def test_the_residuals_csv_matches_map_show(built_tiny_cli: None, tmp_path: Path) -> None:
     out = tmp_path / "residuals.csv"
     assert "of map version 1 of 'tiny'" in _run("groundings", "residuals", "tiny", "--out", str(out))
     header, *lines = out.read_text().splitlines()
