@@ -18,12 +18,16 @@ Usage: ``PYTHONPATH=backend .venv/bin/python bench/bench_incremental.py [--size 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from sqlalchemy import select
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpers
+
 from tests.sim_site import create_site, import_folders, version_poses
 
 from bench_mapping import PRESETS, mapping_folders, site_dir

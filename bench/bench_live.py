@@ -21,9 +21,7 @@ import asyncio
 import contextlib
 import itertools
 import os
-import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -34,6 +32,10 @@ from typing import Any
 
 import httpx
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpers
+
+from tests.processes import start_server, stop
 
 from driftmap.config import Settings
 from driftmap.core.mapping.pipeline import MAPPING_FAST
@@ -113,13 +115,6 @@ def baseline_ms(
     return statistics.median(times[1:])
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
-
-
 @contextlib.contextmanager
 def serving(
     data: Path, work: Path, *options: str, env: dict[str, str] | None = None
@@ -127,32 +122,12 @@ def serving(
     """``driftmap serve`` on ``data`` at a free loopback port (``env``: more of its environment), logging to
     ``work/serve.log``; yields its base URL and process id once ``/api/health`` answers 200, and terminates
     it on leaving."""
-    port = free_port()
     env = {**os.environ, "DRIFTMAP_DATA_DIR": str(data), **(env or {})}
-    log = work / "serve.log"
-    with log.open("wb") as sink:
-        server = subprocess.Popen(
-            [sys.executable, "-m", "driftmap", "serve", "--port", str(port), *options],
-            env=env,
-            stdout=sink,
-            stderr=sink,
-        )
+    server, base = start_server(env, work / "serve.log", *options)
     try:
-        base = f"http://127.0.0.1:{port}"
-        deadline = time.monotonic() + 120.0
-        while True:
-            try:
-                if httpx.get(f"{base}/api/health").status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if time.monotonic() > deadline or server.poll() is not None:
-                sys.exit(f"server did not start:\n{log.read_text()}")
-            time.sleep(0.2)
         yield base, server.pid
     finally:
-        server.terminate()
-        server.wait(30)
+        stop(server)
 
 
 AnswerSink = Callable[[float, str, float | None], None]

@@ -27,11 +27,14 @@ import math
 import multiprocessing
 import os
 import resource
+import sys
 import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpers
 
 from tests.sim_site import create_site, import_folders
 

@@ -16,7 +16,6 @@ import json
 import math
 import os
 import shutil
-import socket
 import sys
 import tempfile
 import threading
@@ -32,6 +31,10 @@ import numpy as np
 import uvicorn
 from ezdxf.document import Drawing
 from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpers
+
+from tests.processes import free_port
 
 from driftmap.api.app import create_app, ui_dir
 from driftmap.config import Settings
@@ -123,13 +126,6 @@ def plan_dxf(segments: int, seed: int = 0) -> tuple[bytes, int]:
 def renderer_query(args: argparse.Namespace) -> str:
     """The page URL's query choosing the survey renderer (empty: the app's own choice)."""
     return "" if args.renderer == "auto" else f"?renderer={args.renderer}"
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
 
 
 class ServerThread:
