@@ -71,7 +71,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         await live.start()
         # What the process holds once started (modules, the app, its caches) leaves the collector's full
         # passes: a long position history allocates enough objects to start one, which would otherwise walk
-        # the whole heap (about 100 ms; bench/bench_history.py --database postgresql).
+        # the whole heap on every such answer (bench/bench_history.py --database postgresql).
         gc.freeze()
         yield
         gc.unfreeze()
