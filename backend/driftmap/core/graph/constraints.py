@@ -105,6 +105,10 @@ class PoseGraphParams:
     anchor_sigma_rad: float = 0.1  # its heading sigma, also for groundings that fix no rotation, radians
     placement_inlier_m: float = 5.0  # closures agreeing within this place a drive before optimising, m
     align_min_baseline_m: float = 5.0  # groundings spanning less do not rotate a drive before optimising, m
+    node_spacing_m: float = (
+        5.0  # odometry travel between graph nodes where no constraint needs one, m (0: all)
+    )
+    node_max_steps: int = 50  # most odometry steps between two graph nodes
     solver: Literal["lm", "isam2"] = "lm"  # batch Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame
     max_iterations: int = 100  # Levenberg-Marquardt iterations (also of the polish after iSAM2)
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
@@ -117,6 +121,8 @@ class PoseGraphParams:
             raise ValueError(f"PoseGraphParams: unknown solver {self.solver!r}")
         if min(self.min_sigma_m, self.min_sigma_rad, self.anchor_sigma_m, self.anchor_sigma_rad) <= 0:
             raise ValueError("PoseGraphParams: sigmas must be positive")
+        if self.node_spacing_m < 0 or self.node_max_steps < 1:
+            raise ValueError("PoseGraphParams: node_spacing_m must be >= 0 and node_max_steps >= 1")
         if self.max_iterations < 1 or self.kernel_width <= 0:
             raise ValueError("PoseGraphParams: max_iterations and kernel_width must be positive")
 

@@ -2,13 +2,17 @@
 
 Every mapping drive is an odometry chain of Pose2 frames; loop closures join any two frames of any drives
 under a robust kernel (false closures from look-alike tunnels must not bend the map); groundings pin
-frames to surveyed positions (position only, no heading). Frames are addressed by ``(chain, frame)``.
+frames to surveyed positions (position only, no heading). Frames are addressed by ``(chain, frame)``. The
+graph holds a node only for the frames a closure, grounding or anchor names and one every
+``node_spacing_m`` of travel between them, with the odometry composed between nodes; every frame's pose is
+expanded back from them (:mod:`~driftmap.core.graph.reduction`), so a build's graph grows with the closures
+and the tunnel driven, not with the frame rate.
 Poses are [x_m, y_m, yaw_rad] rows; ``wTi`` is frame i in the survey (world) frame, ``aTb`` frame b in
 frame a. Before optimising, every drive is moved rigidly into the survey frame (:mod:`~driftmap.core.graph.alignment`), then
-Levenberg-Marquardt solves the graph (optionally after iSAM2 fed frame by frame, which escapes local
+Levenberg-Marquardt solves the graph (optionally after iSAM2 fed node by node, which escapes local
 minima that stop batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information
 makes LM take zero steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
-last solution when only groundings change. The default kernel, DCS with Phi = 1, keeps M3500 within
+last solution when only groundings move. The default kernel, DCS with Phi = 1, keeps M3500 within
 0.005 m of its outlier-free map with 20 % or 50 % random false closures, where plain least squares,
 Huber and Cauchy end 20-30 m off (``bench/bench_posegraph.py``).
 """
@@ -34,7 +38,8 @@ from driftmap.core.graph.constraints import (
     PoseGraphParams,
     PoseGraphResult,
 )
-from driftmap.core.types import F64
+from driftmap.core.graph.reduction import compose_segments, expand_chain, node_frames
+from driftmap.core.types import F64, I64
 from driftmap.errors import BadInputError
 
 __all__ = ["PoseGraphSession", "optimise_pose_graph"]
@@ -63,13 +68,12 @@ def _sigmas(values: object, count: int, field: str) -> F64:
     return s
 
 
-def _noise_models(
-    sigmas: F64, information: F64 | None, params: PoseGraphParams, field: str
-) -> list[gtsam.noiseModel.Base]:
-    """Gaussian noise models with sigmas clamped to the minimum (information to the matching maximum)."""
+def _information(sigmas: F64, information: F64 | None, params: PoseGraphParams, field: str) -> F64:
+    """(K, 3, 3) information matrices, sigmas clamped to the minimum (information to the matching maximum)."""
     floor = np.array([params.min_sigma_m, params.min_sigma_m, params.min_sigma_rad])
     if information is None:
-        return [_NM.Diagonal.Sigmas(row) for row in np.maximum(sigmas, floor)]
+        inverse = 1.0 / np.maximum(sigmas, floor) ** 2
+        return np.asarray(np.einsum("ki,ij->kij", inverse, np.eye(3)), dtype=np.float64)
     info = np.asarray(information, dtype=np.float64)
     if info.shape != (sigmas.shape[0], 3, 3) or not np.all(np.isfinite(info)):
         raise _fail(f"information must be ({sigmas.shape[0]}, 3, 3) and finite", field)
@@ -78,7 +82,7 @@ def _noise_models(
     if np.any(w <= 0):
         raise _fail(f"matrix {int(np.flatnonzero((w <= 0).any(axis=1))[0])} is not positive definite", field)
     clamped = np.einsum("kij,kj,klj->kil", V, np.minimum(w, 1.0), V) / floor[:, None] / floor[None, :]
-    return [_NM.Gaussian.Information(m) for m in clamped]
+    return np.asarray(clamped, dtype=np.float64)
 
 
 class PoseGraphSession:
@@ -86,8 +90,9 @@ class PoseGraphSession:
 
     The first :meth:`solve` starts from the aligned dead-reckoning, or where ``warm`` gives a chain's
     poses, from those; later ones start from the previous solution (LM warm start) unless the gauge anchors
-    changed, which reaches the same optimum faster. A warm start changes only where LM starts, never the
-    graph: the placement and the gauge anchors are those of the cold start.
+    or the graph's nodes changed (a grounding on a frame that was no node adds one), which reaches the same
+    optimum faster. A warm start changes only where LM starts, never the graph: the placement and the gauge
+    anchors are those of the cold start.
 
     Args:
         chains: the drives' odometry, chain c has N_c frames.
@@ -117,53 +122,93 @@ class PoseGraphSession:
         self._warm = None if warm is None or all(w is None for w in warm) else list(warm)
         self.params = params
         self._sizes = [c.num_frames for c in chains]
-        self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).astype(np.int64)
-        self._graph = gtsam.NonlinearFactorGraph()  # odometry, then closures; groundings added per solve
-        self._steps: list[F64] = []
+        self._steps: list[F64] = []  # per chain (N_c - 1, 3) odometry steps
+        self._covariance: list[F64] = []  # per chain (N_c - 1, 3, 3) their covariances, sigmas clamped
         self._chain_init: list[F64] = []  # dead-reckoned, or given in the survey frame
         for c, chain in enumerate(chains):
             steps = np.asarray(chain.iTj, dtype=np.float64)
             if steps.ndim != 2 or steps.shape[1] != 3 or not np.all(np.isfinite(steps)):
                 raise _fail("iTj must be (N-1, 3) and finite", f"chains[{c}].iTj")
             sigmas = _sigmas(chain.sigmas, steps.shape[0], f"chains[{c}].sigmas")
-            models = _noise_models(sigmas, chain.information, params, f"chains[{c}].information")
-            first = self.key((c, 0))
-            for i, model in enumerate(models):
-                self._graph.add(
-                    gtsam.BetweenFactorPose2(first + i, first + i + 1, gtsam.Pose2(*steps[i]), model)
-                )
+            info = _information(sigmas, chain.information, params, f"chains[{c}].information")
             init = chain.wTi_init
             if init is not None and (np.shape(init) != (len(steps) + 1, 3) or not np.all(np.isfinite(init))):
                 raise _fail(f"wTi_init must be ({len(steps) + 1}, 3) and finite", f"chains[{c}].wTi_init")
             self._steps.append(steps)
+            self._covariance.append(np.asarray(np.linalg.inv(info), dtype=np.float64))
             self._chain_init.append(dead_reckon(steps) if init is None else np.array(init, dtype=np.float64))
         self._given = [c.wTi_init is not None for c in chains]
-        self._first_closure = self._graph.size()
         self._closure_frames = np.zeros((len(closures), 4), dtype=np.int64)
         self._closure_aTb = np.zeros((len(closures), 3))
-        self._closures: list[tuple[gtsam.BetweenFactorPose2, gtsam.noiseModel.Base]] = []  # Gaussian part
+        self._closure_models: list[tuple[gtsam.noiseModel.Base, gtsam.noiseModel.Base]] = []  # (base, robust)
         for k, lc in enumerate(closures):
             field = f"closures[{k}]"
             a, b = self._check_ref(lc.a, field + ".a"), self._check_ref(lc.b, field + ".b")
             self._closure_frames[k], self._closure_aTb[k] = (*a, *b), lc.aTb
-            info = None if lc.information is None else np.asarray(lc.information)[None]
+            given = None if lc.information is None else np.asarray(lc.information)[None]
             sigmas = _sigmas(lc.sigmas, 1, field + ".sigmas")
-            base = _noise_models(sigmas, info, params, field + ".information")[0]
+            base = _NM.Gaussian.Information(_information(sigmas, given, params, field + ".information")[0])
             kernel = _ESTIMATORS.get(params.loop_kernel)
             model = base if kernel is None else _NM.Robust.Create(kernel(params.kernel_width), base)
-            factor = gtsam.BetweenFactorPose2(self.key(a), self.key(b), gtsam.Pose2(*lc.aTb), model)
-            self._graph.add(factor)
-            self._closures.append((factor, base))
+            self._closure_models.append((base, model))
         self._groundings: dict[int, GroundingConstraint] = {}
         self._next_id = 0
         for g in groundings:
             self.add_grounding(g)
+        # The graph over the current nodes (built by _build when the nodes change).
+        self._nodes: list[I64] = []
+        self._offsets = np.zeros(1, dtype=np.int64)
+        self._graph = gtsam.NonlinearFactorGraph()  # odometry between nodes, then closures
+        self._node_steps: list[F64] = []
+        self._closures: list[tuple[gtsam.BetweenFactorPose2, gtsam.noiseModel.Base]] = []  # Gaussian part
+        self._first_closure = 0
         self._previous: gtsam.Values | None = None
         self._previous_gauge: list[tuple[int, int, bool]] = []
 
     def key(self, ref: FrameRef) -> int:
-        """The GTSAM key of frame ``(chain, frame)``."""
-        return int(self._offsets[ref[0]] + ref[1])
+        """The GTSAM key of frame ``(chain, frame)``, which must be a node of the last solve."""
+        c, i = ref
+        k = int(np.searchsorted(self._nodes[c], i))
+        if k >= self._nodes[c].size or self._nodes[c][k] != i:
+            raise KeyError(f"frame {tuple(ref)} is not a node of the graph")
+        return int(self._offsets[c] + k)
+
+    def _node_frames(self, required: Sequence[tuple[int, int]]) -> list[I64]:
+        """Per chain, the frames the graph keeps (see :func:`~driftmap.core.graph.reduction.node_frames`)."""
+        per_chain: list[list[int]] = [[] for _ in self._sizes]
+        for c, i in itertools.chain(required, self._closure_frames[:, :2], self._closure_frames[:, 2:]):
+            per_chain[int(c)].append(int(i))
+        p = self.params
+        return [
+            node_frames(steps, np.asarray(frames, dtype=np.int64), p.node_spacing_m, p.node_max_steps)
+            for steps, frames in zip(self._steps, per_chain, strict=True)
+        ]
+
+    def _build(self, nodes: list[I64]) -> None:
+        """The graph's odometry between ``nodes`` and its closures."""
+        self._nodes = nodes
+        self._offsets = np.concatenate([[0], np.cumsum([n.size for n in nodes])]).astype(np.int64)
+        self._graph = gtsam.NonlinearFactorGraph()
+        self._node_steps = []
+        for c, (steps, covariance) in enumerate(zip(self._steps, self._covariance, strict=True)):
+            node_steps, node_covariance = compose_segments(steps, covariance, nodes[c])
+            first = int(self._offsets[c])
+            for i, (step, cov) in enumerate(zip(node_steps, node_covariance, strict=True)):
+                between = gtsam.BetweenFactorPose2(
+                    first + i, first + i + 1, gtsam.Pose2(*step), _NM.Gaussian.Covariance(cov)
+                )
+                self._graph.add(between)
+            self._node_steps.append(node_steps)
+        self._first_closure = self._graph.size()
+        self._closures = []
+        for (ca, ia, cb, ib), aTb, (base, model) in zip(
+            self._closure_frames, self._closure_aTb, self._closure_models, strict=True
+        ):
+            factor = gtsam.BetweenFactorPose2(
+                self.key((ca, ia)), self.key((cb, ib)), gtsam.Pose2(*aTb), model
+            )
+            self._graph.add(factor)
+            self._closures.append((factor, base))
 
     def _check_ref(self, ref: FrameRef, field: str) -> FrameRef:
         c, i = int(ref[0]), int(ref[1])
@@ -212,6 +257,12 @@ class PoseGraphSession:
             self._chain_init, self._given, self._closure_frames, self._closure_aTb, g_frames, g_xy,
             p.placement_inlier_m, p.align_min_baseline_m,
         )  # fmt: skip
+        nodes = self._node_frames([(a.chain, a.frame) for a in anchors] + [tuple(f) for f in g_frames])
+        if len(nodes) != len(self._nodes) or any(
+            n.shape != m.shape or np.any(n != m) for n, m in zip(nodes, self._nodes, strict=False)
+        ):
+            self._build(nodes)
+            self._previous = None
         graph = gtsam.NonlinearFactorGraph(self._graph)
         for a in anchors:
             xy_sigma = _FREE_SIGMA_M if a.heading_only else p.anchor_sigma_m
@@ -221,31 +272,32 @@ class PoseGraphSession:
             g = self._groundings[i]
             model = _NM.Isotropic.Sigma(2, max(g.sigma_m, p.min_sigma_m))
             graph.add(gtsam.PoseTranslationPrior2D(self.key(g.frame), np.array(g.xy_m), model))
-        initial = gtsam.Values()
-        for key, pose in enumerate(np.concatenate(poses)):
-            initial.insert(key, gtsam.Pose2(*pose))
+        initial = _values(poses, nodes)
         gauge = [(a.chain, a.frame, a.heading_only) for a in anchors]
         t0 = time.perf_counter()
         if self._previous is not None and gauge == self._previous_gauge:
             start = self._previous  # warm start: only groundings changed
         elif self._warm is not None:  # warm start: an earlier solution where given
-            start = gtsam.Values()
-            chosen = [p if w is None else w for p, w in zip(poses, self._warm, strict=True)]
-            for key, pose in enumerate(np.concatenate(chosen)):
-                start.insert(key, gtsam.Pose2(*pose))
+            start = _values([p if w is None else w for p, w in zip(poses, self._warm, strict=True)], nodes)
         else:
             start = self._isam2(graph, initial, anchors) if p.solver == "isam2" else initial
         values, iterations, weights = self._batch(graph, start)
         elapsed = time.perf_counter() - t0
         self._previous, self._previous_gauge = values, gauge
-        all_wTi = gtsam.utilities.extractPose2(values)
+        node_wTi = gtsam.utilities.extractPose2(values)
+        wTi = tuple(
+            expand_chain(node_wTi[a:b], n, steps, cov)
+            for (a, b), n, steps, cov in zip(
+                itertools.pairwise(self._offsets), nodes, self._steps, self._covariance, strict=True
+            )
+        )
         whitened = np.array([m.whiten(f.unwhitenedError(values)) for f, m in self._closures]).reshape(-1, 3)
         if weights is None and p.loop_kernel in _ESTIMATORS:
             kernel = _ESTIMATORS[p.loop_kernel](p.kernel_width)
             weights = np.array([kernel.weight(float(n)) for n in np.linalg.norm(whitened, axis=1)])
-        d = all_wTi[[self.key(self._groundings[i].frame) for i in ids], :2] - g_xy
+        d = np.array([wTi[c][i, :2] for c, i in g_frames]).reshape(-1, 2) - g_xy
         return PoseGraphResult(
-            wTi=tuple(all_wTi[a:b].copy() for a, b in itertools.pairwise(self._offsets)),
+            wTi=wTi,
             closure_whitened_error=whitened,
             closure_weight=np.ones(len(self._closures)) if weights is None else weights,
             closure_accepted=(whitened**2).sum(axis=1) < p.accept_chi2,
@@ -282,9 +334,9 @@ class PoseGraphSession:
     def _isam2(
         self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, anchors: list[Anchor]
     ) -> gtsam.Values:
-        """Feed the frames in key order to iSAM2 (QR factorisation survives long weak chains).
+        """Feed the nodes in key order to iSAM2 (QR factorisation survives long weak chains).
 
-        A factor joins when its last frame arrives; each chain's first frame is held by a temporary prior
+        A factor joins when its last node arrives; each chain's first node is held by a temporary prior
         at its initial guess (not in ``graph``, so the LM polish that follows drops it).
         """
         p = self.params
@@ -296,11 +348,11 @@ class PoseGraphSession:
             due[max(graph.at(i).keys())].add(graph.at(i))
         anchored = {self.key((a.chain, a.frame)) for a in anchors if not a.heading_only}
         hold = _NM.Diagonal.Sigmas(np.array([p.anchor_sigma_m, p.anchor_sigma_m, p.anchor_sigma_rad]))
-        for c, size in enumerate(self._sizes):
-            for i in range(size):
-                key, values = self.key((c, i)), gtsam.Values()
+        for c, chain_nodes in enumerate(self._nodes):
+            for i in range(chain_nodes.size):
+                key, values = int(self._offsets[c]) + i, gtsam.Values()
                 if i > 0:  # dead-reckon from the current estimate of the previous frame
-                    step = gtsam.Pose2(*self._steps[c][i - 1])
+                    step = gtsam.Pose2(*self._node_steps[c][i - 1])
                     values.insert(key, isam.calculateEstimatePose2(key - 1).compose(step))
                 else:
                     values.insert(key, initial.atPose2(key))
@@ -308,6 +360,14 @@ class PoseGraphSession:
                         due[key].add(gtsam.PriorFactorPose2(key, initial.atPose2(key), hold))
                 isam.update(due[key], values)
         return isam.calculateEstimate()
+
+
+def _values(poses: Sequence[F64], nodes: Sequence[I64]) -> gtsam.Values:
+    """GTSAM values of the nodes' poses, key by key, from per chain (N_c, 3) frame poses."""
+    values = gtsam.Values()
+    for key, pose in enumerate(np.concatenate([p[n] for p, n in zip(poses, nodes, strict=True)])):
+        values.insert(key, gtsam.Pose2(*pose))
+    return values
 
 
 def optimise_pose_graph(
