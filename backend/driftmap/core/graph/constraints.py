@@ -147,6 +147,7 @@ class PoseGraphResult:
         final_error: graph error at the solution.
         iterations: LM iterations (after the feed for solver isam2); 0 for GNC (GTSAM does not say).
         solve_time_s: wall time of the optimisation, seconds.
+        num_nodes: poses the optimiser solved (frames kept as nodes, see ``node_spacing_m``).
     """
 
     wTi: tuple[F64, ...]
@@ -159,6 +160,7 @@ class PoseGraphResult:
     final_error: float
     iterations: int
     solve_time_s: float
+    num_nodes: int = 0
 
     @property
     def closure_chi2(self) -> F64:

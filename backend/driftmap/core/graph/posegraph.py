@@ -307,6 +307,7 @@ class PoseGraphSession:
             final_error=float(graph.error(values)),
             iterations=iterations,
             solve_time_s=elapsed,
+            num_nodes=int(self._offsets[-1]),
         )
 
     def _batch(

@@ -206,6 +206,7 @@ def solve_map(
         "graph_final_error": graph.final_error,
         "graph_warm_drives": 0 if warm is None else sum(w is not None for w in warm),
         "graph_iterations": graph.iterations,
+        "graph_nodes": graph.num_nodes,
         "calibrated_drives": sum(b != NO_BIAS for b in biases),
         "max_scale_error": max(abs(b.scale - 1.0) for b in biases),
         "max_heading_rate_deg_per_100m": max(abs(np.degrees(b.yaw_rate_rad_per_m)) * 100.0 for b in biases),
