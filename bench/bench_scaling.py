@@ -204,23 +204,28 @@ def _print_size(r: SizeResult) -> None:
         print(f"  {stage:<16} wall {c.wall_s:8.1f} s  CPU {c.cpu_s:8.1f} s  peak {c.peak_mb:8,.0f} MB")
 
 
-def _exponent(a: float, b: float, km_a: float, km_b: float) -> float:
+def _exponent(a: float, b: float, size_a: float, size_b: float) -> float:
+    """log(b / a) / log(size_b / size_a): how a cost grows with a size (1 is linear)."""
     if a <= 0 or b <= 0:
         return float("nan")
-    return math.log(b / a) / math.log(km_b / km_a)
+    return math.log(b / a) / math.log(size_b / size_a)
 
 
 def _print_growth(results: list[SizeResult]) -> None:
     if len(results) < 2:
         return
-    print("growth exponent of each stage's wall / CPU time with tunnel length, between consecutive sizes:")
+    print(
+        "growth exponent of each stage's wall / CPU time with tunnel length (and of its CPU time with the"
+        " mapping frames), between consecutive sizes:"
+    )
     for stage in STAGES:
         parts = []
         for a, b in itertools.pairwise(results):
             ca, cb = a.costs[stage], b.costs[stage]
             wall = _exponent(ca.wall_s, cb.wall_s, a.km, b.km)
             cpu = _exponent(ca.cpu_s, cb.cpu_s, a.km, b.km)
-            parts.append(f"{a.size}->{b.size} {wall:.2f} / {cpu:.2f}")
+            per_frame = _exponent(ca.cpu_s, cb.cpu_s, a.frames, b.frames)
+            parts.append(f"{a.size}->{b.size} {wall:.2f} / {cpu:.2f} ({per_frame:.2f})")
         per_km = ", ".join(f"{r.size} {r.costs[stage].cpu_s / r.km:.1f}" for r in results)
         print(f"  {stage:<16} {'; '.join(parts)}   (CPU s per km: {per_km})")
 

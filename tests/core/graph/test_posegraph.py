@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from driftmap.core.graph.alignment import dead_reckon, initial_guess, umeyama_2d
+from driftmap.core.graph.alignment import dead_reckon, umeyama_2d
 from driftmap.core.graph.constraints import (
     POSEGRAPH_DEFAULT,
     GroundingConstraint,
@@ -15,6 +15,7 @@ from driftmap.core.graph.constraints import (
     OdometryChain,
     PoseGraphParams,
 )
+from driftmap.core.graph.placement import initial_guess
 from driftmap.core.graph.posegraph import PoseGraphSession, optimise_pose_graph
 from driftmap.errors import BadInputError
 from tests.outside_data import SHARED_DATA
@@ -88,7 +89,7 @@ class TestAlignment:
         _, _, s_rigid = umeyama_2d(src, dst)
         assert s_rigid == 1.0
 
-    def test_straight_chain_is_rotated_then_stretched_onto_its_end_groundings(self) -> None:
+    def test_straight_chain_is_turned_and_stretched_onto_its_end_groundings(self) -> None:
         chain = OdometryChain(np.tile([1.0, 0.0, 0.0], (10, 1)), np.array([0.5, 0.05, 0.01]))
         marks = [
             GroundingConstraint((0, 0), (100.0, 200.0), 0.01),
@@ -99,8 +100,8 @@ class TestAlignment:
         (guess,), anchors = initial_guess(
             [dead_reckon(chain.iTj)], [False], np.zeros((0, 4), np.int64), np.zeros((0, 3)), frames, xy, 5.0
         )
-        np.testing.assert_allclose(guess[:, 0], 100.0, atol=1e-9)  # rigid: rotated, not yet stretched
-        np.testing.assert_allclose(guess[:, 1], 201.0 + np.arange(11), atol=1e-9)
+        np.testing.assert_allclose(guess[:, 0], 100.0, atol=1e-9)  # turned, and the 2 m it misses spread
+        np.testing.assert_allclose(guess[:, 1], 200.0 + 1.2 * np.arange(11), atol=1e-9)
         np.testing.assert_allclose(guess[:, 2], np.pi / 2, atol=1e-12)
         assert anchors == []
         result = optimise_pose_graph([chain], [], marks)

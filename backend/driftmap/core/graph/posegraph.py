@@ -8,7 +8,7 @@ graph holds a node only for the frames a closure, grounding or anchor names and 
 expanded back from them (:mod:`~driftmap.core.graph.reduction`), so a build's graph grows with the closures
 and the tunnel driven, not with the frame rate.
 Poses are [x_m, y_m, yaw_rad] rows; ``wTi`` is frame i in the survey (world) frame, ``aTb`` frame b in
-frame a. Before optimising, every drive is moved rigidly into the survey frame (:mod:`~driftmap.core.graph.alignment`), then
+frame a. Before optimising, every drive is moved rigidly into the survey frame (:mod:`~driftmap.core.graph.placement`), then
 Levenberg-Marquardt solves the graph (optionally after iSAM2 fed node by node, which escapes local
 minima that stop batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information
 makes LM take zero steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
@@ -28,7 +28,7 @@ from typing import Any
 import gtsam
 import numpy as np
 
-from driftmap.core.graph.alignment import Anchor, dead_reckon, initial_guess
+from driftmap.core.graph.alignment import dead_reckon
 from driftmap.core.graph.constraints import (
     POSEGRAPH_DEFAULT,
     FrameRef,
@@ -38,6 +38,7 @@ from driftmap.core.graph.constraints import (
     PoseGraphParams,
     PoseGraphResult,
 )
+from driftmap.core.graph.placement import Anchor, initial_guess
 from driftmap.core.graph.reduction import compose_segments, expand_chain, node_frames
 from driftmap.core.types import F64, I64
 from driftmap.errors import BadInputError
