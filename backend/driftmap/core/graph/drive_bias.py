@@ -143,7 +143,6 @@ def solve_with_calibration(
     graph_params: PoseGraphParams,
     rounds: int,
     window_m: float,
-    warm: Sequence[F64 | None] | None = None,
 ) -> tuple[PoseGraphResult, list[OdometryBias]]:
     """Alternate odometry self-calibration and the pose-graph solve ``rounds`` times after a first solve.
 
@@ -154,7 +153,8 @@ def solve_with_calibration(
     (:func:`estimate_bias`). The loose solve still goes only part of the way from the odometry to the
     constraints, so the plain fit closes only part of the gap each round (about half on the simulated
     sites); from the second round on, the step is extrapolated (:func:`_accelerated`). The last solve
-    uses the corrected steps with their own noise.
+    uses the corrected steps with their own noise. Every solve starts from the previous one's poses (a warm
+    start: the placement and gauge anchors stay the cold start's, only where the solver starts changes).
 
     Args:
         graph: the first solution of the graph of ``chains``, ``closures`` and ``groundings``.
@@ -162,8 +162,6 @@ def solve_with_calibration(
             :func:`driftmap.core.graph.posegraph.optimise_pose_graph`.
         rounds: at most this many calibration passes; fewer when the fit settles (0: ``graph`` as it is).
         window_m: travel per fitting window, metres.
-        warm: per chain, poses every solve starts from where given (see
-            :class:`~driftmap.core.graph.posegraph.PoseGraphSession`).
 
     Returns:
         The last solution and each chain's fitted bias (:data:`NO_BIAS` for drives left alone).
@@ -177,9 +175,11 @@ def solve_with_calibration(
         return graph, biases
     history: list[tuple[F64, F64] | None] = [None] * len(chains)
     fixed = list(chains)
+    start: Sequence[F64 | None] = list(graph.wTi)  # each solve starts from the previous solution
     for _ in range(rounds):
         loose = [_loosened(chain, LOOSE_ODOMETRY_GAIN) for chain in fixed]
-        fitted = posegraph.optimise_pose_graph(loose, closures, groundings, graph_params, warm)
+        fitted = posegraph.optimise_pose_graph(loose, closures, groundings, graph_params, start)
+        start = list(fitted.wTi)
         previous = biases
         biases = []
         for k, (chain, wTi, ok) in enumerate(zip(chains, fitted.wTi, informed, strict=True)):
@@ -192,7 +192,7 @@ def solve_with_calibration(
         fixed = [_corrected(chain, bias) for chain, bias in zip(chains, biases, strict=True)]
         if all(_settled(a, b) for a, b in zip(previous, biases, strict=True)):
             break
-    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params, warm), biases
+    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params, start), biases
 
 
 def _as_vector(bias: OdometryBias) -> F64:

@@ -175,7 +175,6 @@ def solve_map(
         params.graph,
         params.calibration_rounds,
         params.calibration_window_m,
-        warm,
     )
     report("pose graph", 1.0)
     timings["pose_graph_s"] = time.perf_counter() - start
