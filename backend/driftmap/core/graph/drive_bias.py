@@ -153,8 +153,10 @@ def solve_with_calibration(
     (:func:`estimate_bias`). The loose solve still goes only part of the way from the odometry to the
     constraints, so the plain fit closes only part of the gap each round (about half on the simulated
     sites); from the second round on, the step is extrapolated (:func:`_accelerated`). The last solve
-    uses the corrected steps with their own noise. Every solve starts from the previous one's poses (a warm
-    start: the placement and gauge anchors stay the cold start's, only where the solver starts changes).
+    uses the corrected steps with their own noise. Each loose solve starts from the previous solve's poses (a
+    warm start: the placement and gauge anchors stay the cold start's); the last one starts cold from the
+    placement of the corrected steps (on the 20 km site a warm last solve kept 334 closures a loose round had
+    turned down, and its map was 0.55 m worse on average).
 
     Args:
         graph: the first solution of the graph of ``chains``, ``closures`` and ``groundings``.
@@ -175,7 +177,7 @@ def solve_with_calibration(
         return graph, biases
     history: list[tuple[F64, F64] | None] = [None] * len(chains)
     fixed = list(chains)
-    start: Sequence[F64 | None] = list(graph.wTi)  # each solve starts from the previous solution
+    start: Sequence[F64 | None] = list(graph.wTi)  # each loose solve starts from the previous solution
     for _ in range(rounds):
         loose = [_loosened(chain, LOOSE_ODOMETRY_GAIN) for chain in fixed]
         fitted = posegraph.optimise_pose_graph(loose, closures, groundings, graph_params, start)
@@ -192,7 +194,7 @@ def solve_with_calibration(
         fixed = [_corrected(chain, bias) for chain, bias in zip(chains, biases, strict=True)]
         if all(_settled(a, b) for a, b in zip(previous, biases, strict=True)):
             break
-    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params, start), biases
+    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params), biases
 
 
 def _as_vector(bias: OdometryBias) -> F64:
