@@ -9,8 +9,9 @@ of the child and its worker processes (``/proc``); the CPU used between two samp
 running. Stages: loading the stored drives, odometry (with the frame statistics of the place database's
 filter), loop closure, pose graph, topological map (with its place database), storing the new version.
 
-Prints per size: tunnel length, frames and keyframes, and per stage wall s, CPU s and peak MB (the build's
-whole process tree); then per stage the growth exponent of its wall and CPU time between consecutive sizes
+Prints per size: tunnel length, frames and keyframes, the map's error against the simulator's truth (every
+mapping frame's distance to its true position), and per stage wall s, CPU s and peak MB (the build's whole
+process tree); then per stage the growth exponent of its wall and CPU time between consecutive sizes
 (``log(cost ratio) / log(length ratio)``: 1 is linear, the issue's target is at most 1.1 from medium up) and
 the CPU seconds per km. (How the loop-closure search's comparisons grow: ``bench_mapping.py --growth``.)
 
@@ -34,12 +35,15 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpers
 
 from tests.sim_site import create_site, import_folders
 
 from bench_mapping import PRESETS, mapping_folders, site_dir
 from driftmap.config import Settings
+from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
@@ -67,6 +71,7 @@ class SizeResult:
     frames: int
     keyframes: int
     costs: dict[str, StageCost]
+    error_m: tuple[float, float, float]  # mean, median, max distance of every frame to its true position
 
 
 @dataclass
@@ -132,7 +137,17 @@ def measure(size: str, seed: int, preset: str, workers: int) -> SizeResult:
             storage.close()
     km = float(meta["tunnel_length_m"]) / 1000.0
     frames, keyframes = int(build.stats["frames"]), int(build.stats["keyframes"])
-    return SizeResult(size, km, frames, keyframes, {s: sampler.costs.get(s, StageCost()) for s in STAGES})
+    truth = [
+        np.array([(row.x_m, row.y_m) for row in read_drive_folder(path).frames], dtype=np.float64)
+        for path in mapping_folders(site)
+    ]
+    error = np.concatenate(
+        [np.linalg.norm(w[:, :2] - t, axis=1) for w, t in zip(build.wTi, truth, strict=True)]
+    )
+    costs = {s: sampler.costs.get(s, StageCost()) for s in STAGES}
+    return SizeResult(
+        size, km, frames, keyframes, costs, (float(error.mean()), float(np.median(error)), float(error.max()))
+    )
 
 
 def _child(size: str, seed: int, preset: str, workers: int, out: multiprocessing.Queue) -> None:  # type: ignore[type-arg]
@@ -198,7 +213,8 @@ def _print_size(r: SizeResult) -> None:
     print(
         f"{r.size}: {r.km:.2f} km, {r.frames:,} frames, {r.keyframes:,} keyframes; build "
         f"{sum(c.wall_s for c in costs):.1f} s wall, {sum(c.cpu_s for c in costs):.1f} s CPU, "
-        f"peak {max(c.peak_mb for c in costs):,.0f} MB"
+        f"peak {max(c.peak_mb for c in costs):,.0f} MB; mapping error mean {r.error_m[0]:.2f} m (median "
+        f"{r.error_m[1]:.2f}, max {r.error_m[2]:.2f})"
     )
     for stage, c in r.costs.items():
         print(f"  {stage:<16} wall {c.wall_s:8.1f} s  CPU {c.cpu_s:8.1f} s  peak {c.peak_mb:8,.0f} MB")
