@@ -28,6 +28,7 @@ from driftmap.core.graph.alignment import (
     fit_rigid_robust,
     inverse,
     transform_poses,
+    umeyama_2d,
     wrap_angle,
 )
 from driftmap.core.types import F64, I64
@@ -86,7 +87,8 @@ def bend_onto_points(wTi: F64, frames: I64, xy_m: F64, min_baseline_m: float) ->
     two consecutive grounded frames is instead turned so that its chord points at the second grounding
     (when both chords span ``min_baseline_m``; else it turns like its neighbour), moved onto the first, and
     the distance it still misses at the second spread along it by travel. Frames before the first and after
-    the last grounding follow the nearest stretch rigidly. Every grounded frame lands on its point.
+    the last grounding follow the nearest stretch rigidly. Every grounded frame lands on its point. With a
+    single point, or none far enough apart, the drive is moved by one rigid fit (:func:`umeyama_2d`).
 
     Args:
         wTi: (N, 3) poses of the drive, any frame.
@@ -103,17 +105,16 @@ def bend_onto_points(wTi: F64, frames: I64, xy_m: F64, min_baseline_m: float) ->
     target = np.zeros((at.size, 2))
     np.add.at(target, where, np.asarray(xy_m, dtype=np.float64))
     target /= np.bincount(where, minlength=at.size)[:, None]
-    if at.size < 2:
-        return poses.copy()
     chord_dr, chord_s = np.diff(poses[at, :2], axis=0), np.diff(target, axis=0)
     turn = wrap_angle(np.arctan2(chord_s[:, 1], chord_s[:, 0]) - np.arctan2(chord_dr[:, 1], chord_dr[:, 0]))
     known = (np.hypot(*chord_dr.T) >= min_baseline_m) & (np.hypot(*chord_s.T) >= min_baseline_m)
-    if not known.any():
-        return poses.copy()
+    if not known.any():  # one point, or none far enough apart to turn a stretch: one rigid fit
+        R, t, _ = umeyama_2d(poses[at, :2], target)
+        return transform_poses(poses, R, t)
     idx = np.arange(turn.size)
     nearest = np.flatnonzero(known)[np.abs(idx[:, None] - np.flatnonzero(known)[None, :]).argmin(axis=1)]
     turn = turn[nearest]
-    travel = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses[:, :2], axis=0).T))])
+    travel = _travel(poses)
     out = np.empty_like(poses)
     for k in range(turn.size):  # stretch k: frames at[k] .. at[k + 1] (the first from 0, the last to the end)
         lo, hi = (0 if k == 0 else int(at[k])), (poses.shape[0] if k == turn.size - 1 else int(at[k + 1]) + 1)
