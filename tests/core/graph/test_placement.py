@@ -107,3 +107,13 @@ def test_bridging_only_moves_frames_far_from_groundings() -> None:
     far = slice(700, 2300)
     assert np.linalg.norm(placed[1][far, :2] - truth[1][far, :2], axis=1).min() > 10.0
     assert np.linalg.norm(bridged[1][far, :2] - truth[1][far, :2], axis=1).max() < 5.0
+
+
+def test_points_too_close_together_move_the_drive_rigidly() -> None:
+    out_and_back = np.zeros((200, 3))
+    out_and_back[:, 0] = STEP_M
+    out_and_back[99, 2] = np.pi  # turns round at 50 m
+    dead = dead_reckon(out_and_back)
+    bent = bend_onto_points(dead, np.array([0, 200]), np.array([[10.0, 20.0], [10.0, 21.0]]), 5.0)
+    np.testing.assert_allclose(bent[:, :2] - bent[0, :2], dead[:, :2] - dead[0, :2], atol=1e-9)  # its shape
+    np.testing.assert_allclose(bent[[0, 200], :2].mean(axis=0), [10.0, 20.5], atol=1e-9)
