@@ -8,7 +8,8 @@ graph holds a node only for the frames a closure, grounding or anchor names and 
 expanded back from them (:mod:`~driftmap.core.graph.reduction`), so a build's graph grows with the closures
 and the tunnel driven, not with the frame rate.
 Poses are [x_m, y_m, yaw_rad] rows; ``wTi`` is frame i in the survey (world) frame, ``aTb`` frame b in
-frame a. Before optimising, every drive is moved rigidly into the survey frame (:mod:`~driftmap.core.graph.placement`), then
+frame a. Before optimising, every drive is placed in the survey frame, bent onto its groundings and bridged
+through its closures where it runs far from any (:mod:`~driftmap.core.graph.placement`); then
 Levenberg-Marquardt solves the graph (optionally after iSAM2 fed node by node, which escapes local
 minima that stop batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information
 makes LM take zero steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
@@ -167,10 +168,10 @@ class PoseGraphSession:
         self._previous_gauge: list[tuple[int, int, bool]] = []
 
     def key(self, ref: FrameRef) -> int:
-        """The GTSAM key of frame ``(chain, frame)``, which must be a node of the last solve."""
+        """The GTSAM key of frame ``(chain, frame)``, which must be a node of the last solve (KeyError)."""
         c, i = ref
-        k = int(np.searchsorted(self._nodes[c], i))
-        if k >= self._nodes[c].size or self._nodes[c][k] != i:
+        k = int(np.searchsorted(self._nodes[c], i)) if c < len(self._nodes) else 0
+        if c >= len(self._nodes) or k >= self._nodes[c].size or self._nodes[c][k] != i:
             raise KeyError(f"frame {tuple(ref)} is not a node of the graph")
         return int(self._offsets[c] + k)
 
