@@ -84,6 +84,14 @@ def mapping_folders(site: Path) -> list[Path]:
     return [p for p in sorted((site / "drives").iterdir()) if read_drive_folder(p).meta.kind == "mapping"]
 
 
+def mapping_truth(site: Path) -> list[np.ndarray]:
+    """Per mapping drive (in :func:`mapping_folders` order), (N, 2) true floor positions of its frames, m."""
+    return [
+        np.array([(row.x_m, row.y_m) for row in read_drive_folder(path).frames], dtype=np.float64)
+        for path in mapping_folders(site)
+    ]
+
+
 def folder_drive(path: Path) -> MappingDrive:
     """One drive folder as the pipeline takes it (frames decoded lazily from disk)."""
     folder = read_drive_folder(path)

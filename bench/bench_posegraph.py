@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench_mapping import mapping_drives, mapping_folders, site_dir
+from bench_mapping import mapping_drives, mapping_truth, site_dir
 from driftmap.core.graph.alignment import umeyama_2d
 from driftmap.core.graph.constraints import (
     GroundingConstraint,
@@ -43,7 +43,6 @@ from driftmap.core.graph.constraints import (
 )
 from driftmap.core.graph.posegraph import PoseGraphSession, optimise_pose_graph
 from driftmap.core.mapping.pipeline import MAPPING_DEFAULT, prepare_drives, solve_map
-from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.formats.g2o import read_g2o, read_pose_table, to_pose_graph
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "posegraphs"
@@ -162,10 +161,7 @@ def warm_start(runs: int) -> None:
 def keyframe_graph(size: str, seed: int, runs: int) -> None:
     site = site_dir(size, seed)
     drives = mapping_drives(site)
-    truth = [
-        np.array([(row.x_m, row.y_m) for row in read_drive_folder(path).frames], dtype=np.float64)
-        for path in mapping_folders(site)
-    ]
+    truth = mapping_truth(site)
     prepared = prepare_drives(drives, MAPPING_DEFAULT, workers=2)
     default = MAPPING_DEFAULT.graph
     variants = {

@@ -41,9 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpe
 
 from tests.sim_site import create_site, import_folders
 
-from bench_mapping import PRESETS, mapping_folders, site_dir
+from bench_mapping import PRESETS, mapping_folders, mapping_truth, site_dir
 from driftmap.config import Settings
-from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.storage import Storage
@@ -137,10 +136,7 @@ def measure(size: str, seed: int, preset: str, workers: int) -> SizeResult:
             storage.close()
     km = float(meta["tunnel_length_m"]) / 1000.0
     frames, keyframes = int(build.stats["frames"]), int(build.stats["keyframes"])
-    truth = [
-        np.array([(row.x_m, row.y_m) for row in read_drive_folder(path).frames], dtype=np.float64)
-        for path in mapping_folders(site)
-    ]
+    truth = mapping_truth(site)
     error = np.concatenate(
         [np.linalg.norm(w[:, :2] - t, axis=1) for w, t in zip(build.wTi, truth, strict=True)]
     )

@@ -105,9 +105,7 @@ class PoseGraphParams:
     anchor_sigma_rad: float = 0.1  # its heading sigma, also for groundings that fix no rotation, radians
     placement_inlier_m: float = 5.0  # closures agreeing within this place a drive before optimising, m
     align_min_baseline_m: float = 5.0  # groundings spanning less do not rotate a drive before optimising, m
-    node_spacing_m: float = (
-        5.0  # odometry travel between graph nodes where no constraint needs one, m (0: all)
-    )
+    node_spacing_m: float = 5.0  # travel between graph nodes where no constraint needs one, m (0: all)
     node_max_steps: int = 50  # most odometry steps between two graph nodes
     solver: Literal["lm", "isam2"] = "lm"  # batch Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame
     max_iterations: int = 100  # Levenberg-Marquardt iterations (also of the polish after iSAM2)

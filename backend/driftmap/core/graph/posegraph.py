@@ -260,9 +260,7 @@ class PoseGraphSession:
             p.placement_inlier_m, p.align_min_baseline_m,
         )  # fmt: skip
         nodes = self._node_frames([(a.chain, a.frame) for a in anchors] + [tuple(f) for f in g_frames])
-        if len(nodes) != len(self._nodes) or any(
-            n.shape != m.shape or np.any(n != m) for n, m in zip(nodes, self._nodes, strict=False)
-        ):
+        if len(nodes) != len(self._nodes) or not all(map(np.array_equal, nodes, self._nodes)):
             self._build(nodes)
             self._previous = None
         graph = gtsam.NonlinearFactorGraph(self._graph)
