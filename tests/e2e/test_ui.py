@@ -632,6 +632,8 @@ class TestGrounding:
         expect(explained).to_contain_text("the full loop-closure search")
         preset.select_option("fast")
         expect(explained).to_contain_text("far fewer loop closures")
+        # the panel has looked for a build under way and found none; one queued now is met only by the click
+        expect(p.get_by_test_id("build-map")).to_have_attribute("data-looked", "yes")
         queued = server.api("POST", "/api/sites/1/maps", json={"preset": "fast"})  # no worker: stays queued
         assert queued.status_code == 202, queued.text
         job = p.get_by_test_id("build-job")

@@ -27,6 +27,7 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
   const [preset, setPreset] = useState<Preset["name"]>("paper");
   const [full, setFull] = useState(false);
   const [refused, setRefused] = useState<string | null>(null);
+  const [looked, setLooked] = useState(false); // the panel has asked for a build under way
   const running = job !== null && !ENDED.includes(job.status);
   const now = useNow(POLL_MS);
 
@@ -44,7 +45,9 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
   useEffect(() => {
     // attach sets state only after its requests resolve
     // eslint-disable-next-line react-hooks/set-state-in-effect
-    void attach().catch(() => undefined);
+    void attach()
+      .catch(() => undefined)
+      .finally(() => setLooked(true));
   }, [attach]);
 
   const build = async () => {
@@ -112,7 +115,13 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
               full rebuild
             </label>
             <span className="spacer" />
-            <button className="primary" data-testid="build-map" onClick={() => void build()} disabled={running}>
+            <button
+              className="primary"
+              data-testid="build-map"
+              data-looked={looked ? "yes" : "no"}
+              onClick={() => void build()}
+              disabled={running}
+            >
               Build map
             </button>
           </div>
