@@ -17,7 +17,9 @@ from driftmap.core.imaging.images import patch_normalise
 from driftmap.core.loop_closure.blocks import (
     LoopSearch,
     QueryScores,
+    SearchBasis,
     plan_search,
+    resumable_blocks,
     score_queries,
     split_queries,
 )
@@ -69,6 +71,33 @@ def test_blocks_scored_apart_decide_exactly_like_one_run(three_passes: list[F32]
     assert split.stats.d_t == one_run.stats.d_t
     assert split.stats.n_full_candidates == one_run.stats.n_full_candidates
     assert split.stats.n_coarse == one_run.stats.n_coarse
+
+
+def test_a_search_over_one_more_chain_resumes_the_earlier_one_exactly(three_passes: list[F32]) -> None:
+    params = LOOPS_DEFAULT
+    earlier = plan(three_passes[:2], params)
+    earlier_blocks = [
+        score_queries(earlier, params, q0, q1) for q0, q1 in split_queries(earlier, params, 256)
+    ]
+    basis = SearchBasis.from_arrays(npz_round_trip(earlier.basis().to_arrays()))
+    later = plan_search(three_passes, params, basis=basis)
+    assert later is not None and later.n_background == 0  # the thresholds are the earlier search's
+    kept = resumable_blocks(later, params, earlier_blocks, earlier.n)
+    start = kept[-1].q0 + kept[-1].checked.size
+    assert 0 < start <= earlier.n and len(kept) == len(earlier_blocks) - 1  # the last ended off the new grid
+    fresh = [score_queries(later, params, q0, q1) for q0, q1 in split_queries(later, params, 256, start)]
+    resumed = decide_loops(later, kept + fresh, params)
+    # The same closures as a search over all three chains from scratch in the earlier search's basis.
+    scratch = [score_queries(later, params, q0, q1) for q0, q1 in split_queries(later, params, 256)]
+    assert resumed.closures == decide_loops(later, scratch, params).closures
+    assert len([c for c in resumed.closures if c.chain_a == 2]) > 150  # the third pass closes on the others
+    assert np.array_equal(later.desc[: earlier.n], earlier.desc)  # the earlier keyframes' descriptors kept
+    # A chain changed before the end: nothing after it is kept.
+    with pytest.raises(ValueError, match="more than the 300 searched"):
+        plan_search(three_passes[:1], params, basis=basis)
+    assert resumable_blocks(later, params, earlier_blocks, N_VIEWS) == [
+        b for b in kept if b.q0 + b.checked.size <= N_VIEWS
+    ]
 
 
 def test_blocks_that_miss_or_repeat_queries_are_refused(three_passes: list[F32]) -> None:

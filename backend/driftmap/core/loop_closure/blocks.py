@@ -14,6 +14,13 @@
    on the closures already accepted.
 
 Both results convert to flat arrays (``to_arrays`` / ``from_arrays``) for a blob store.
+
+A search can resume an earlier one (an incremental map build): when the first chains are those of the earlier
+search, its :class:`SearchBasis` (descriptor mean and axes, the descriptors of those chains' keyframes,
+background, thresholds) plans the new one (``plan_search(..., basis=)``), and its query blocks ending within those chains on the block grid
+(:func:`resumable_blocks`) are the new search's blocks too: their queries' references are all earlier frames,
+ranked and scored exactly as the new search would. Only the queries after them are scored
+(``split_queries(..., start=)``).
 """
 
 from __future__ import annotations
@@ -26,12 +33,62 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.loop_closure.descriptors import coarse_candidates, describe, query_blocks, thumbnails
+from driftmap.core.loop_closure.descriptors import (
+    coarse_candidates,
+    descriptor_basis,
+    project,
+    query_blocks,
+    thumbnails,
+)
 from driftmap.core.loop_closure.pair_scores import DiagonalScorer, PairCache
 from driftmap.core.loop_closure.params import LoopParams
 from driftmap.core.types import F32, I64
 
-__all__ = ["LoopSearch", "QueryScores", "plan_search", "score_queries", "split_queries"]
+__all__ = [
+    "LoopSearch",
+    "QueryScores",
+    "SearchBasis",
+    "plan_search",
+    "resumable_blocks",
+    "score_queries",
+    "split_queries",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class SearchBasis:
+    """What a search's scores depend on besides the frames: the descriptors' basis and the thresholds.
+
+    Attributes:
+        mean: ``(P,)`` float32 mean coarse thumbnail (``P`` pixels, :func:`~driftmap.core.loop_closure.descriptors.thumbnails`).
+        axes: ``(P, d)`` float32 principal axes of the descriptors (``(P, 0)``: centred thumbnails).
+        desc: ``(G0, d)`` float32 descriptors of the search's first ``G0`` keyframes (a matrix product's
+            rounding depends on its other rows: a later search takes them as they were).
+        background: ``(4,)`` float64 median and sigma of d over random eligible pairs, ``d_t``, ``d_hit``.
+    """
+
+    mean: F32
+    axes: F32
+    desc: F32
+    background: NDArray[np.float64]
+
+    def prefix(self, frames: int) -> SearchBasis:
+        """The basis with the descriptors of the first ``frames`` keyframes only."""
+        return SearchBasis(self.mean, self.axes, self.desc[:frames], self.background)
+
+    def to_arrays(self) -> dict[str, NDArray]:
+        """Flat arrays for ``np.savez``."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, NDArray]) -> SearchBasis:
+        """Inverse of :meth:`to_arrays`."""
+        return cls(
+            mean=np.asarray(arrays["mean"], dtype=np.float32),
+            axes=np.asarray(arrays["axes"], dtype=np.float32),
+            desc=np.asarray(arrays["desc"], dtype=np.float32),
+            background=np.asarray(arrays["background"], dtype=np.float64),
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +101,7 @@ class LoopSearch:
         limit: ``(G,)`` exclusive end of each query's eligible references (earlier chains entirely, its
             own chain outside the recent window).
         desc: ``(G, D)`` float32 unit coarse descriptors.
+        mean: ``(P,)`` float32 and ``axes`` ``(P, D)`` (or ``(P, 0)``) float32: their basis.
         background: ``(4,)`` float64 median and sigma of d over random eligible pairs, ``d_t``, ``d_hit``.
         n_background: full SAD comparisons of the background sample.
         descriptors_s: seconds the descriptors took.
@@ -54,6 +112,8 @@ class LoopSearch:
     pos: I64
     limit: I64
     desc: F32
+    mean: F32
+    axes: F32
     background: NDArray[np.float64]
     n_background: int
     descriptors_s: float
@@ -62,6 +122,10 @@ class LoopSearch:
     def n(self) -> int:
         """Keyframes of all chains."""
         return int(self.chain.size)
+
+    def basis(self) -> SearchBasis:
+        """The basis a later search over more chains can resume this one with."""
+        return SearchBasis(self.mean, self.axes, self.desc, self.background)
 
     def to_arrays(self) -> dict[str, NDArray]:
         """Flat arrays (scalars as 0-d) for ``np.savez``."""
@@ -76,6 +140,8 @@ class LoopSearch:
             pos=np.asarray(arrays["pos"], dtype=np.int64),
             limit=np.asarray(arrays["limit"], dtype=np.int64),
             desc=np.asarray(arrays["desc"], dtype=np.float32),
+            mean=np.asarray(arrays["mean"], dtype=np.float32),
+            axes=np.asarray(arrays["axes"], dtype=np.float32),
             background=np.asarray(arrays["background"], dtype=np.float64),
             n_background=int(arrays["n_background"]),
             descriptors_s=float(arrays["descriptors_s"]),
@@ -166,7 +232,10 @@ def _stack(
 
 
 def plan_search(
-    chains: Sequence[NDArray], p: LoopParams, timestamps_s: Sequence[NDArray] | None = None
+    chains: Sequence[NDArray],
+    p: LoopParams,
+    timestamps_s: Sequence[NDArray] | None = None,
+    basis: SearchBasis | None = None,
 ) -> LoopSearch | None:
     """Step 1 (see the module docstring); None when no frame has an eligible earlier one.
 
@@ -174,15 +243,32 @@ def plan_search(
         chains: one ``(N_i, H, W)`` float32 stack of pre-processed keyframes per drive, in recording order.
         p: the search parameters.
         timestamps_s: optional ``(N_i,)`` non-decreasing seconds per chain, for ``recent_s``.
+        basis: an earlier search's (:meth:`LoopSearch.basis`, or its :meth:`SearchBasis.prefix`), whose
+            descriptors are those of these chains' first keyframes: its descriptors, their basis for the other
+            keyframes and its thresholds instead of new ones (no background pairs compared).
 
     Raises:
-        ValueError: chains not 3-D or of different image sizes, or timestamps of the wrong shape.
+        ValueError: chains not 3-D or of different image sizes, timestamps of the wrong shape, or a basis
+            of other thumbnails or of more keyframes.
     """
     frames, chain, pos, limit = _stack(chains, timestamps_s, p)
     if frames.shape[0] == 0 or limit[-1] == 0:
         return None
     t0 = time.perf_counter()
-    desc = describe(thumbnails(frames, p.coarse_size_px, p.coarse_blur_px), p.coarse_dims)
+    if basis is not None:
+        known = basis.desc.shape[0]
+        if known > frames.shape[0]:
+            raise ValueError(
+                f"the basis describes {known} keyframes, more than the {frames.shape[0]} searched"
+            )
+        thumbs = thumbnails(frames[known:], p.coarse_size_px, p.coarse_blur_px)
+        mean, axes = basis.mean, basis.axes
+        desc = np.concatenate([basis.desc, project(thumbs, mean, axes)])
+        t1 = time.perf_counter()
+        return LoopSearch(frames, chain, pos, limit, desc, mean, axes, basis.background, 0, t1 - t0)
+    thumbs = thumbnails(frames, p.coarse_size_px, p.coarse_blur_px)
+    mean, axes = descriptor_basis(thumbs, p.coarse_dims)
+    desc = project(thumbs, mean, axes)
     t1 = time.perf_counter()
     cache = PairCache(frames, p.sad)
     median, sigma = cache.background(limit, p.background_pairs, p.seed)
@@ -190,16 +276,45 @@ def plan_search(
     d_t = p.d_t if p.d_t is not None else median - p.d_t_sigmas * sigma
     d_hit = d_t if p.d_t is not None else median - p.hit_sigmas * sigma
     background = np.array([median, sigma, d_t, d_hit], dtype=np.float64)
-    return LoopSearch(frames, chain, pos, limit, desc, background, cache.n_computed, t1 - t0)
+    return LoopSearch(frames, chain, pos, limit, desc, mean, axes, background, cache.n_computed, t1 - t0)
 
 
-def split_queries(search: LoopSearch, p: LoopParams, queries: int) -> list[tuple[int, int]]:
-    """Query ranges ``(q0, q1)`` of about ``queries`` frames covering every query, on the grid of
-    :func:`~driftmap.core.loop_closure.descriptors.query_blocks` (whole blocks of ``p.coarse_block``)."""
+def split_queries(search: LoopSearch, p: LoopParams, queries: int, start: int = 0) -> list[tuple[int, int]]:
+    """Query ranges ``(q0, q1)`` of about ``queries`` frames covering every query from ``start`` (a point of
+    the grid of :func:`~driftmap.core.loop_closure.descriptors.query_blocks`, or 0) on, on that grid (whole
+    blocks of ``p.coarse_block``)."""
     grid = query_blocks(search.limit, p.coarse_block)
     step = max(1, round(queries / p.coarse_block))
-    cuts = [0, *grid[step:-1:step], search.n]
+    ahead = grid if start == 0 else [g for g in grid if g >= start]
+    cuts = [start, *ahead[step:-1:step], search.n]
     return [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
+
+
+def resumable_blocks(
+    search: LoopSearch, p: LoopParams, blocks: Sequence[QueryScores], kept: int
+) -> list[QueryScores]:
+    """Of an earlier search's ``blocks``, those this ``search`` (planned with its basis) would score the same.
+
+    Args:
+        search: the new search, whose first ``kept`` keyframes are the earlier search's first ``kept``.
+        p: the parameters of both.
+        blocks: the earlier search's query blocks, in any order.
+        kept: keyframes of the chains both searches share.
+
+    Returns:
+        The blocks from query 0 on, in order and without gaps, that end at a grid point of ``search`` (or at
+        its end) no later than ``kept``; scoring may resume at the last one's end.
+    """
+    grid = set(query_blocks(search.limit, p.coarse_block))
+    out: list[QueryScores] = []
+    for b in sorted(blocks, key=lambda b: b.q0):
+        q1 = b.q0 + b.checked.size
+        if b.q0 != (out[-1].q0 + out[-1].checked.size if out else 0) or q1 > kept:
+            break
+        if q1 not in grid and q1 != search.n:
+            break
+        out.append(b)
+    return out
 
 
 def score_queries(search: LoopSearch, p: LoopParams, q0: int = 0, q1: int | None = None) -> QueryScores:

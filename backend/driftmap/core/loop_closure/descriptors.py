@@ -29,6 +29,8 @@ __all__ = [
     "CoarseCandidates",
     "coarse_candidates",
     "describe",
+    "descriptor_basis",
+    "project",
     "query_blocks",
     "thumbnails",
 ]
@@ -78,17 +80,49 @@ def describe(thumbs: NDArray, dims: int) -> NDArray[np.float32]:
         ``(N, d)`` float32 unit vectors (zero vectors stay zero), ``d = dims`` or ``D``; the dot
         product of two rows is their cosine similarity in [-1, 1].
     """
+    return project(thumbs, *descriptor_basis(thumbs, dims))
+
+
+def descriptor_basis(thumbs: NDArray, dims: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """The mean ``(D,)`` and principal axes ``(D, d)`` (float32) of :func:`describe`; ``(D, 0)`` axes when
+    ``dims`` keeps the centred thumbnail (0, >= D, or too few frames).
+
+    Raises:
+        ValueError: ``thumbs`` is not ``(N, D)``.
+    """
     x = np.asarray(thumbs, dtype=np.float32)
     if x.ndim != 2:
         raise ValueError(f"thumbs must be (N, D), got shape {x.shape}")
-    if x.shape[0] == 0:
-        return x.copy()
-    x = x - x.mean(axis=0, dtype=np.float64).astype(np.float32)
+    mean = (
+        x.mean(axis=0, dtype=np.float64).astype(np.float32)
+        if x.shape[0]
+        else np.zeros(x.shape[1], np.float32)
+    )
+    axes = np.zeros((x.shape[1], 0), dtype=np.float32)
     if 0 < dims < min(x.shape):
         # Principal axes from the D x D covariance: cheap for any N.
-        cov = (x.T.astype(np.float64) @ x.astype(np.float64)) / max(1, x.shape[0] - 1)
+        c = (x - mean).astype(np.float64)
+        cov = (c.T @ c) / max(1, x.shape[0] - 1)
         _, vecs = np.linalg.eigh(cov)
-        x = x @ vecs[:, ::-1][:, :dims].astype(np.float32)
+        axes = np.ascontiguousarray(vecs[:, ::-1][:, :dims], dtype=np.float32)
+    return mean, axes
+
+
+def project(thumbs: NDArray, mean: NDArray[np.float32], axes: NDArray[np.float32]) -> NDArray[np.float32]:
+    """``(N, d)`` unit descriptors of ``(N, D)`` thumbnails in a basis of :func:`descriptor_basis` (of these
+    or of other frames of the site): centred on ``mean``, projected on ``axes`` unless they are ``(D, 0)``.
+
+    Raises:
+        ValueError: ``thumbs`` is not ``(N, D)`` with the basis' ``D``.
+    """
+    x = np.asarray(thumbs, dtype=np.float32)
+    if x.ndim != 2 or x.shape[1] != mean.shape[0]:
+        raise ValueError(f"thumbs must be (N, {mean.shape[0]}), got shape {x.shape}")
+    if x.shape[0] == 0:
+        return x.copy()
+    x = x - mean
+    if axes.shape[1]:
+        x = x @ axes
     norm = np.linalg.norm(x, axis=1, keepdims=True)
     return np.asarray(x / np.maximum(norm, np.float32(1e-12)), dtype=np.float32)
 
