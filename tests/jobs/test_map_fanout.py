@@ -18,15 +18,16 @@ from sqlalchemy import func, select
 from driftmap.core.mapping import prepare as map_prepare
 from driftmap.core.mapping.pipeline import MAP_PRESETS, MAPPING_FAST, build_map
 from driftmap.core.topomap import database as place_database
-from driftmap.jobs import loop_tasks, map_tasks
+from driftmap.jobs import map_tasks
 from driftmap.jobs.map_tasks import map_build
 from driftmap.jobs.queue import JobQueue
 from driftmap.jobs.runtime import JobContext, JobRuntime, process_worker_prefix, run_job
 from driftmap.services import jobs as job_service
+from driftmap.services import loop_searches
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
-from driftmap.store.models import Frame, MapNode, MapPiece, MapPose, MapVersion
+from driftmap.store.models import Frame, MapLoopSearch, MapNode, MapPiece, MapPose, MapVersion
 from driftmap.store.storage import Storage
 from tests.sim_site import import_site
 
@@ -60,7 +61,7 @@ class TestFanOut:
             segment_frames=64,
         )
         monkeypatch.setitem(MAP_PRESETS, "fast", params)
-        monkeypatch.setattr(loop_tasks, "QUERIES_PER_TASK", 32)
+        monkeypatch.setattr(loop_searches, "QUERIES_PER_BLOCK", 32)
         import_site(storage, mini_site)
         parent, subtasks = _jobs(storage, _submit(storage, queue))
         assert parent.status == "succeeded", parent.error
@@ -90,12 +91,18 @@ class TestFanOut:
         assert {k: version.stats[k] for k in figures} == pytest.approx(figures, rel=0, abs=0)
         with storage.db.session() as session:
             kept = set(session.scalars(select(MapPiece.blob_sha256)))
-        for job in subtasks:  # once the version was stored: the loop search's blobs dropped, the pieces kept
+            search = session.scalars(select(MapLoopSearch)).one()
+        assert [tuple(b[:2]) for b in search.blocks] == blocks  # the site's kept search: the blocks as scored
+        for job in (
+            subtasks
+        ):  # once the version was stored: the pieces and the blocks' scores kept, the plan dropped
             shas = [v for d in (job.args, job.result or {}) for k, v in d.items() if k.endswith("_sha256")]
             if job.kind == "map.drive":
                 assert shas and all(sha in kept and storage.blobs.exists(sha) for sha in shas)
             else:
-                assert shas and not any(storage.blobs.exists(sha) for sha in shas)
+                assert not storage.blobs.exists(job.args["search_sha256"])
+                assert job.result is not None and storage.blobs.exists(job.result["scores_sha256"])
+                assert [job.args["q0"], job.args["q1"], job.result["scores_sha256"]] in search.blocks
         assert (version.stats["segments_reused"], version.stats["segments_prepared"]) == (0, 4)
 
     def test_one_worker_alone_runs_every_subtask_itself(

@@ -2,9 +2,9 @@
 
 On the mini site (two mapping drives of 100 frames, one segment each) on a real database: a build after no
 change prepares nothing and gives the same map (its pose graph started from the last version's poses); a
-build after a new mapping drive prepares only it and equals a full build; a moved grounding re-solves the
-graph from the kept odometry; a full build prepares everything and replaces the kept
-pieces; deleting the site leaves no piece and no blob.
+build after a new mapping drive prepares only it and equals a full build, its loop-closure search scoring only
+the new drive's keyframes; a moved grounding re-solves the graph from the kept odometry; a full build prepares
+everything and replaces the kept pieces; deleting the site leaves no piece, no kept search and no blob.
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ from sqlalchemy import select
 
 from driftmap.core.mapping.pipeline import MAP_PRESETS, MAPPING_FAST
 from driftmap.jobs.queue import JobQueue
-from driftmap.services import deletion
+from driftmap.services import deletion, loop_searches
 from driftmap.services import groundings as grounding_service
 from driftmap.services import jobs as job_service
 from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, Grounding, MapPiece, MapVersion
+from driftmap.store.models import Drive, Grounding, MapLoopSearch, MapPiece, MapVersion
 from driftmap.store.storage import Storage
 from tests.jobs.mini_site import drive_folders
 from tests.sim_site import create_site, import_folders, version_poses
@@ -73,6 +73,12 @@ def _kept(storage: Storage) -> dict[str, str]:
         return {k: s for k, s in session.execute(select(MapPiece.piece_key, MapPiece.blob_sha256))}
 
 
+def _search(storage: Storage) -> MapLoopSearch:
+    """The site's kept loop-closure search."""
+    with storage.db.session() as session:
+        return session.scalars(select(MapLoopSearch)).one()
+
+
 def _reuse(version: MapVersion) -> tuple[int, int]:
     return int(version.stats["segments_reused"]), int(version.stats["segments_prepared"])
 
@@ -118,6 +124,47 @@ class TestIncrementalBuild:
         assert all(storage.blobs.exists(sha) for sha in replaced.values())
         assert not any(storage.blobs.exists(sha) for sha in set(kept.values()) - set(replaced.values()))
 
+    def test_a_new_drive_s_keyframes_are_the_only_loop_closure_queries_scored(
+        self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        # Keyframes every 0.25 m in blocks of 8, one block to a map.loops subtask: several blocks per drive.
+        params = replace(
+            MAPPING_FAST, keyframe_spacing_m=0.25, loops=replace(MAPPING_FAST.loops, coarse_block=8)
+        )
+        monkeypatch.setitem(MAP_PRESETS, "fast", params)
+        monkeypatch.setattr(loop_searches, "QUERIES_PER_BLOCK", 8)
+        monkeypatch.setattr(loop_searches, "MIN_KEPT_SHARE", 0.4)  # the first drive has 64 of 133 keyframes
+        folders = drive_folders(mini_site, "map")
+        _import(storage, mini_site, folders[:1], create=True)
+        alone, _subtasks = _build(storage, queue)
+        first = _search(storage)
+        _import(storage, mini_site, folders[1:], create=False)
+        grown, subtasks = _build(storage, queue)
+        second = _search(storage)
+        reused, keyframes = grown.stats["loop_queries_reused"], grown.stats["keyframes"]
+        assert (alone.stats["loop_queries_reused"], alone.stats["loop_queries_scored"]) == (
+            0,
+            alone.stats["keyframes"],
+        )
+        assert (
+            0 < reused <= alone.stats["keyframes"]
+            and grown.stats["loop_queries_scored"] == keyframes - reused
+        )
+        scored = [(j.args["q0"], j.args["q1"]) for j in subtasks if j.kind == "map.loops"]
+        assert scored[0][0] == reused and scored[-1][1] == keyframes  # only the queries after the kept blocks
+        assert second.chains[0] == first.chains[0] and len(second.chains) == 2
+        assert [b for b in second.blocks if b[1] <= reused] == [b for b in first.blocks if b[1] <= reused]
+        # The blobs of the first search the second does not hold are gone; the second's are there.
+        dropped = ({first.basis_sha256} | {b[2] for b in first.blocks}) - (
+            {second.basis_sha256} | {b[2] for b in second.blocks}
+        )
+        assert dropped and not any(storage.blobs.exists(sha) for sha in dropped)
+        assert all(storage.blobs.exists(sha) for sha in [second.basis_sha256, *(b[2] for b in second.blocks)])
+        full, subtasks = _build(storage, queue, full=True)  # a full build searches afresh
+        assert (full.stats["loop_queries_reused"], full.stats["loop_queries_scored"]) == (0, keyframes)
+        gap = np.linalg.norm(_poses(storage, grown)[:, :2] - _poses(storage, full)[:, :2], axis=1)
+        assert gap.max() <= POSE_TOLERANCE_M
+
     def test_a_moved_grounding_re_solves_the_graph_from_the_kept_odometry(
         self, storage: Storage, queue: JobQueue, mini_site: Path
     ) -> None:
@@ -149,18 +196,22 @@ class TestIncrementalBuild:
         assert len(kept) == 2 and not kept.keys() & before.keys()
         assert not any(storage.blobs.exists(sha) for sha in before.values())
 
-    def test_deleting_the_site_leaves_no_kept_piece_and_no_blob(
+    def test_deleting_the_site_leaves_no_kept_piece_or_search_and_no_blob(
         self, storage: Storage, queue: JobQueue, mini_site: Path
     ) -> None:
         _import(storage, mini_site, drive_folders(mini_site, "map"), create=True)
         _build(storage, queue)
         kept = _kept(storage)
-        assert kept
+        search = _search(storage)
+        searched = [search.basis_sha256, *(b[2] for b in search.blocks)]
+        assert kept and all(storage.blobs.exists(sha) for sha in searched)
         with storage.db.session() as session:
             candidates = deletion.delete_site(session, site_service.get_site(session, "tiny"))
         deletion.delete_unreferenced_blobs(storage, candidates)
         assert not _kept(storage)
-        assert not any(storage.blobs.exists(sha) for sha in kept.values())
+        assert not any(storage.blobs.exists(sha) for sha in [*kept.values(), *searched])
+        with storage.db.session() as session:
+            assert session.scalars(select(MapLoopSearch)).first() is None
 
 
 def _drive_ids(storage: Storage) -> list[int]:

@@ -1,39 +1,35 @@
 """A map build's loop-closure search as ``map.loops`` subtasks, one per block of query keyframes.
 
-After the drives' odometry (``map.drive`` subtasks), the ``map.build`` parent plans the search once
-(:func:`driftmap.core.loop_closure.blocks.plan_search`: descriptors, background, thresholds), stores the plan as a
-blob and queues one ``map.loops`` job per block of about :data:`QUERIES_PER_TASK` query keyframes (args
-``search_sha256``, ``q0``, ``q1``, ``preset``). Any worker, the waiting parent included
-(:mod:`driftmap.jobs.subtasks`), scores a block and stores its scores as a blob. The parent then decides
-the closures query by query (:func:`driftmap.core.loop_closure.search.decide_loops`): the same closures as one
-process's search, whatever the split and whoever ran it. A re-run of the parent reuses its plan and the
-blocks already scored.
+After the drives' odometry (``map.drive`` subtasks), the ``map.build`` parent plans the search once,
+resuming the site's kept search where its first chains allow (:func:`driftmap.services.loop_searches.plan_loops`),
+stores the plan as a blob and queues one ``map.loops`` job per block of about
+:data:`~driftmap.services.loop_searches.QUERIES_PER_BLOCK` query keyframes still to score (args ``search_sha256``,
+``q0``, ``q1``, ``preset``). Any worker, the waiting parent included (:mod:`driftmap.jobs.subtasks`), scores a
+block and stores its scores as a blob. The parent then decides the closures query by query
+(:func:`driftmap.core.loop_closure.search.decide_loops`): the same closures as one process's search, whatever
+the split and whoever ran it. The blocks' scores become the site's kept search when the version is stored;
+the plan blob is dropped. A re-run of the parent plans again (the same blocks) and reuses the subtasks
+already finished.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 
-from driftmap.core.loop_closure.blocks import (
-    LoopSearch,
-    QueryScores,
-    plan_search,
-    score_queries,
-    split_queries,
-)
-from driftmap.core.loop_closure.search import LoopMatch, decide_loops
+from driftmap.core.loop_closure.blocks import LoopSearch, QueryScores, score_queries
+from driftmap.core.loop_closure.search import LoopMatch
 from driftmap.core.mapping.drive import PreparedDrive
 from driftmap.core.mapping.prepare import MappingDrive, MappingParams, loop_inputs
-from driftmap.errors import NotFoundError
+from driftmap.errors import ConflictError, NotFoundError
 from driftmap.jobs.presets import preset_params
 from driftmap.jobs.runtime import JobContext
 from driftmap.jobs.subtasks import await_subtasks, existing_subtasks, submit_subtasks
+from driftmap.services import loop_searches
 from driftmap.services.map_drives import arrays_bytes, bytes_arrays
 
 KIND = "map.loops"
-QUERIES_PER_TASK = 1024
-"""Query keyframes per ``map.loops`` subtask (whole blocks of 256: a few seconds each on a medium site)."""
 
 
 def _blob(ctx: JobContext, sha: str, what: str) -> bytes:
@@ -59,40 +55,73 @@ def find_loops(
     pieces: Sequence[PreparedDrive],
     drives: Sequence[MappingDrive],
     params: MappingParams,
-) -> tuple[tuple[LoopMatch, ...], float, list[str]]:
-    """The closures of the build's keyframes, searched in ``map.loops`` subtasks.
+    chains: Sequence[str],
+    full: bool = False,
+) -> tuple[tuple[LoopMatch, ...], float, FoundLoops | None]:
+    """The closures of the build's keyframes, the site's kept search resumed, the rest searched in ``map.loops``
+    subtasks.
+
+    Args:
+        ctx: the build.
+        pieces: its drives' stage-1 pieces.
+        drives: its drives.
+        params: its parameters.
+        chains: its chain keys (:func:`driftmap.services.loop_searches.chain_keys`).
+        full: search afresh whatever the site kept.
 
     Returns:
-        (closures, wall seconds, the blobs handed over: the plan and the blocks' scores, to drop once stored).
+        (closures, wall seconds, the search to keep with the blob to drop once stored: the plan the subtasks
+        read; None when no keyframe has an eligible earlier one).
 
     Raises:
         DriftmapError: a subtask failed; NotFoundError: a plan or scores blob of an earlier run is gone.
         JobCancelled: the build or a subtask was cancelled.
+        ConflictError: a re-run planned other query blocks than the first run.
     """
     start = time.monotonic()
+    ctx.report("loop closure", 0.0)
+    _keyframes, key_thumbs, key_times = loop_inputs(pieces, drives, params)
+    storage = ctx.runtime.storage
+    with storage.blobs.batch() as batch, storage.db.session() as session:
+        plan = loop_searches.plan_loops(
+            session, storage.blobs, batch, ctx.job.site_id or 0, (chains, key_thumbs, key_times), params, full
+        )
+    if plan is None:  # no keyframe has an eligible earlier one
+        return (), time.monotonic() - start, None
     earlier = existing_subtasks(ctx, KIND)
-    if earlier:  # a re-run: the plan of the first run, whose blocks may be scored already
+    if earlier:  # a re-run: the blocks of the first run, which may be scored already
+        if [(int(a["q0"]), int(a["q1"])) for _i, a in earlier] != plan.ranges:
+            raise ConflictError(
+                f"job {ctx.job.id}: the loop-closure search planned other blocks than its first run"
+            )
         sha = str(earlier[0][1]["search_sha256"])
-        search = LoopSearch.from_arrays(bytes_arrays(_blob(ctx, sha, "the loop-closure plan"), f"blob {sha}"))
         ids = [job_id for job_id, _args in earlier]
     else:
-        ctx.report("loop closure", 0.0)
-        _keyframes, key_thumbs, key_times = loop_inputs(pieces, drives, params)
-        planned = plan_search(key_thumbs, params.loops, key_times)
-        if planned is None:  # no keyframe has an eligible earlier one
-            return (), time.monotonic() - start, []
-        search = planned
-        with ctx.runtime.storage.blobs.batch() as batch:
-            sha = batch.put(arrays_bytes(search.to_arrays()))
+        with storage.blobs.batch() as batch:
+            sha = batch.put(arrays_bytes(plan.search.to_arrays()))
         preset = str(ctx.args.get("preset", "paper"))
-        ranges = split_queries(search, params.loops, QUERIES_PER_TASK)
-        args = [{"search_sha256": sha, "q0": q0, "q1": q1, "preset": preset} for q0, q1 in ranges]
-        ids = submit_subtasks(ctx, KIND, args)
+        args = [{"search_sha256": sha, "q0": q0, "q1": q1, "preset": preset} for q0, q1 in plan.ranges]
+        ids = submit_subtasks(ctx, KIND, args) if args else []
     results = await_subtasks(ctx, ids, "loop closure", map_loops)
     shas = [str(r["scores_sha256"]) for r in results]
-    blocks = [
-        QueryScores.from_arrays(bytes_arrays(_blob(ctx, s, "a block's loop-closure scores"), f"blob {s}"))
+    scored = [
+        (
+            QueryScores.from_arrays(
+                bytes_arrays(_blob(ctx, s, "a block's loop-closure scores"), f"blob {s}")
+            ),
+            s,
+        )
         for s in shas
     ]
-    found = decide_loops(search, blocks, params.loops)
-    return tuple(found.closures), time.monotonic() - start, [sha, *shas]
+    found = loop_searches.decide(plan, params, scored)
+    return tuple(found.closures), time.monotonic() - start, FoundLoops(plan, scored, sha)
+
+
+@dataclass(frozen=True)
+class FoundLoops:
+    """A build's search: to keep (:func:`driftmap.services.loop_searches.keep_search`) once the version is
+    stored, with ``plan_sha256``, the plan the subtasks read, to drop then."""
+
+    plan: loop_searches.LoopPlan
+    scored: list[loop_searches.ScoredBlock]
+    plan_sha256: str

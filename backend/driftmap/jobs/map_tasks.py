@@ -10,7 +10,8 @@ transaction. The parent joins each drive's segments, then searches loop closures
 them. The pose graph, topological map and new map version happen once, in the parent's final
 transaction, which also keeps the pieces for the next build (:mod:`driftmap.services.map_pieces`: a
 segment whose piece is kept gets no subtask; args ``full`` prepares every segment again) and starts the
-pose graph from the latest version's poses (not with ``full``); the loop-closure blobs are then dropped. A parent re-run (its worker died; the reaper
+pose graph from the latest version's poses (not with ``full``) and keeps the loop-closure search for the next
+build to resume (:mod:`driftmap.services.loop_searches`); the plan blob is then dropped. A parent re-run (its worker died; the reaper
 re-queued it) reuses the subtasks already finished; a subtask whose worker died is re-queued by the
 reaper of any live worker and taken by whoever is free, the waiting parent included. Cancelling the
 parent cancels its subtasks; a failed subtask fails the parent and the parent cancels the rest. The
@@ -40,7 +41,7 @@ from driftmap.core.mapping.pipeline import (
     solve_map,
 )
 from driftmap.errors import ConflictError, DriftmapError, NotFoundError
-from driftmap.jobs.loop_tasks import find_loops
+from driftmap.jobs.loop_tasks import FoundLoops, find_loops
 from driftmap.jobs.presets import preset_params
 from driftmap.jobs.runtime import JobContext
 from driftmap.jobs.subtasks import (
@@ -51,7 +52,7 @@ from driftmap.jobs.subtasks import (
     submit_subtasks,
 )
 from driftmap.services import jobs as job_service
-from driftmap.services import map_drives, map_pieces
+from driftmap.services import loop_searches, map_drives, map_pieces
 from driftmap.services import maps as map_service
 from driftmap.store.models import Drive, MapVersion, Site
 
@@ -163,9 +164,10 @@ def map_build(ctx: JobContext) -> None:
         pieces = _pieces(ctx, [shas[k] for k in keys], params, inputs)
         odometry_s = time.monotonic() - start
         loops: tuple[tuple[LoopMatch, ...], float] | None = None
-        loop_blobs: list[str] = []
+        chains = loop_searches.chain_keys(keys, inputs, params)
+        search: FoundLoops | None = None
         if params.use_loop_closures:
-            closures, loop_s, loop_blobs = find_loops(ctx, pieces, inputs, params)
+            closures, loop_s, search = find_loops(ctx, pieces, inputs, params, chains, full)
             loops = (closures, loop_s)
     except (DriftmapError, job_service.JobCancelled):
         stop_subtasks(ctx)
@@ -184,11 +186,15 @@ def map_build(ctx: JobContext) -> None:
             else map_pieces.previous_solution(session, site.id, [d for d, _n in drives], loaded.frame_ids)
         )
         build = solve_map(prepared, loaded.inputs, params, ctx.report, warm)
-        build.stats.update(map_service.reuse_stats(len(keys) - len(ids), len(keys)))
+        queries = (search.plan.queries_kept, search.plan.search.n) if search else (0, 0)
+        build.stats.update(map_service.reuse_stats(len(keys) - len(ids), len(keys), queries))
         dropped = map_pieces.keep_pieces(session, [d for d, _n in drives], segments)
+        if search is not None:
+            dropped |= loop_searches.keep_search(session, site.id, params, chains, search.plan, search.scored)
         version = map_service.store_map_version(session, batch, site, loaded, build, params, label)
         ctx.succeed(session, _result(version))  # no progress report from here: this transaction writes
-    drop_blobs(ctx, loop_blobs)
+    if search is not None:
+        drop_blobs(ctx, [search.plan_sha256])
     map_pieces.drop_stale(storage, dropped)
 
 

@@ -16,6 +16,7 @@ from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
 from driftmap.errors import ConflictError
+from driftmap.services import loop_searches
 from driftmap.services.localisation import LOCALISER_DB_KEY
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
@@ -92,6 +93,7 @@ def delete_site(session: Session, site: Site) -> set[str]:
             .where(Drive.site_id == site.id)
         )
     )
+    candidates |= loop_searches.site_blobs(session, site.id)
     for version in session.scalars(select(MapVersion).where(MapVersion.site_id == site.id)):
         candidates |= _version_blobs(version)
     candidates |= _named_blobs(
@@ -102,7 +104,8 @@ def delete_site(session: Session, site: Site) -> set[str]:
 
 
 def referenced(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` that a frame, a survey map, a map version, a kept map piece or a job still refers to."""
+    """Those of ``shas`` that a frame, a survey map, a map version, a kept map piece or loop-closure search or a
+    job still refers to."""
     wanted = set(shas)
     found: set[str] = set()
     items = sorted(wanted)
@@ -114,13 +117,14 @@ def referenced(session: Session, shas: Iterable[str]) -> set[str]:
             session.scalars(select(MapVersion.topomap_sha256).where(MapVersion.topomap_sha256.in_(chunk)))
         )
         found |= set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.blob_sha256.in_(chunk))))
+    found |= loop_searches.held_blobs(session, wanted)
     for stats in session.scalars(select(MapVersion.stats)):
         extra = (stats or {}).get(LOCALISER_DB_KEY)
         if extra in wanted:
             found.add(extra)
     finished = select(Job.id).where(Job.status.not_in(UNFINISHED))
-    naming = select(Job.args, Job.result).where(  # a finished build's pieces are held by map_pieces, if kept
-        ~((Job.kind == "map.drive") & Job.parent_id.in_(finished))
+    naming = select(Job.args, Job.result).where(  # a finished build's pieces and scores are held by its
+        ~(Job.kind.in_(("map.drive", "map.loops")) & Job.parent_id.in_(finished))  # kept ones, if kept
     )
     found |= _named_blobs(session.execute(naming).all()) & wanted
     return found

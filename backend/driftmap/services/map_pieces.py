@@ -27,6 +27,7 @@ from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
 from driftmap.core.mapping.pipeline import MappingDrive, MappingParams, build_segments
+from driftmap.services import loop_searches
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, Frame, MapPiece, MapPose
@@ -142,11 +143,12 @@ def drive_piece_blobs(session: Session, drive_ids: Iterable[int]) -> set[str]:
 
 
 def stale_blobs(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` no kept piece holds and no unfinished job names (keys ending in ``_sha256``)."""
+    """Those of ``shas`` no kept piece or kept loop-closure search holds and no unfinished job names (keys ending in ``_sha256``)."""
     wanted = set(shas)
     if not wanted:
         return set()
     held = set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.blob_sha256.in_(sorted(wanted)))))
+    held |= loop_searches.held_blobs(session, wanted)
     unfinished = session.execute(select(Job.args, Job.result).where(Job.status.in_(("queued", "running"))))
     named = {
         str(v)

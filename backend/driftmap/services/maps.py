@@ -22,12 +22,13 @@ from driftmap.core.mapping.pipeline import (
     join_drives,
     solve_map,
 )
+from driftmap.core.mapping.prepare import loop_inputs
 from driftmap.core.topomap.model import TopoMap
 from driftmap.core.types import ProgressFn
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
 from driftmap.services import jobs as job_service
-from driftmap.services import map_pieces
+from driftmap.services import loop_searches, map_pieces
 from driftmap.services.jobs import Enqueue
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_site_drives
 from driftmap.store.blobs import BlobBatch, BlobStore
@@ -234,21 +235,44 @@ def build_site_map(
         workers,
         progress,
     )
-    prepared = join_drives(stage.pieces, loaded.inputs, params, progress, time.perf_counter() - start)
+    odometry_s = time.perf_counter() - start
+    keys = [key for _d, _s, key, _sha in stage.segments]
+    chains = loop_searches.chain_keys(keys, loaded.inputs, params)
+    loops, plan, scored = None, None, []
+    if params.use_loop_closures:
+        start = time.perf_counter()
+        _keyframes, thumbs, times = loop_inputs(stage.pieces, loaded.inputs, params)
+        plan = loop_searches.plan_loops(session, blobs, batch, site.id, (chains, thumbs, times), params, full)
+        found = []
+        if plan is not None:
+            scored = loop_searches.score_here(plan, params, batch, progress)
+            found = loop_searches.decide(plan, params, scored).closures
+        loops = (tuple(found), time.perf_counter() - start)
+    prepared = join_drives(stage.pieces, loaded.inputs, params, progress, odometry_s, loops)
     warm = None
     if warm_start and not full:
         warm = map_pieces.previous_solution(session, site.id, ids, loaded.frame_ids)
     build = solve_map(prepared, loaded.inputs, params, progress, warm)
-    build.stats.update(reuse_stats(stage.reused, len(stage.segments)))
+    queries = (plan.queries_kept, plan.search.n) if plan else (0, 0)
+    build.stats.update(reuse_stats(stage.reused, len(stage.segments), queries))
     dropped = map_pieces.keep_pieces(session, ids, stage.segments)
+    if plan is not None:
+        dropped |= loop_searches.keep_search(session, site.id, params, chains, plan, scored)
     if stale is not None:
         stale |= dropped
     return store_map_version(session, batch, site, loaded, build, params, created_by), build
 
 
-def reuse_stats(reused: int, segments: int) -> dict[str, float | int]:
-    """The figures of a version saying what its build reused of earlier builds."""
-    return {"segments_reused": reused, "segments_prepared": segments - reused}
+def reuse_stats(reused: int, segments: int, queries: tuple[int, int] = (0, 0)) -> dict[str, float | int]:
+    """The figures of a version saying what its build reused of earlier builds: drive segments (of
+    ``segments``) and loop-closure queries (kept, of all)."""
+    kept, total = queries
+    return {
+        "segments_reused": reused,
+        "segments_prepared": segments - reused,
+        "loop_queries_reused": kept,
+        "loop_queries_scored": total - kept,
+    }
 
 
 def get_map_version(session: Session, site: Site, version: int | None = None) -> MapVersion:

@@ -254,6 +254,28 @@ class MapPiece(Base):
     created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
 
+class MapLoopSearch(Base):
+    """A site's latest loop-closure search, kept for the site's next map build to resume.
+
+    ``chains`` lists the key of each chain the search covered (a drive's keyframes), in search order;
+    ``search_key`` hashes its parameters and the code's search version; ``basis_sha256`` names the search's
+    basis (``.npz``: descriptor mean, axes and descriptors, thresholds) and ``blocks`` its query blocks'
+    scores as ``[q0, q1, blob SHA-256]`` rows (:mod:`driftmap.services.loop_searches`). A build whose first
+    chains are those of the kept search scores only the queries after them.
+    """
+
+    __tablename__ = "map_loop_searches"
+    __table_args__ = (UniqueConstraint("site_id", name="uq_map_loop_searches_site_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"))
+    search_key: Mapped[str] = mapped_column(String(64))
+    chains: Mapped[list[str]] = mapped_column(JSON)
+    basis_sha256: Mapped[str] = mapped_column(String(64))
+    blocks: Mapped[list[list[Any]]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+
+
 class MapPose(Base):
     """The optimised pose of one mapping frame in one map version (survey frame, metres, radians)."""
 
