@@ -27,7 +27,7 @@ from driftmap.jobs.presets import preset_params
 from driftmap.jobs.runtime import JobContext
 from driftmap.jobs.subtasks import await_subtasks, existing_subtasks, submit_subtasks
 from driftmap.services import loop_searches
-from driftmap.services.map_drives import arrays_bytes, bytes_arrays
+from driftmap.store.npz import arrays_bytes, bytes_arrays
 
 KIND = "map.loops"
 

@@ -41,9 +41,9 @@ from driftmap.core.loop_closure.blocks import (
 from driftmap.core.loop_closure.search import LoopResult, decide_loops
 from driftmap.core.mapping.pipeline import MappingDrive, MappingParams, build_segments
 from driftmap.core.types import ProgressFn
-from driftmap.services.map_drives import arrays_bytes, bytes_arrays
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import MapLoopSearch
+from driftmap.store.npz import arrays_bytes, bytes_arrays
 
 SEARCH_VERSION = 1
 """Version of the search's algorithm and of its kept blobs: bump it when either changes, and the next build

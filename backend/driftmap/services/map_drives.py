@@ -11,14 +11,11 @@ store.
 
 from __future__ import annotations
 
-import io
 import multiprocessing
-import zipfile
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
@@ -37,13 +34,14 @@ from driftmap.core.mapping.pipeline import (
     restride_segment,
 )
 from driftmap.core.types import ProgressFn
-from driftmap.errors import BadInputError, NotFoundError
+from driftmap.errors import NotFoundError
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.drives import drive_meta, frame_rows
 from driftmap.services.map_pieces import drive_content, segment_keys
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.db import Database
 from driftmap.store.models import Drive, Grounding, Site
+from driftmap.store.npz import arrays_bytes, bytes_arrays
 
 
 def _frame_range(blobs: BlobStore, shas: list[str]) -> Callable[[int, int], Iterator[NDArray[np.uint8]]]:
@@ -116,26 +114,6 @@ def mapping_drives(session: Session, site: Site) -> list[Drive]:
     if not drives:
         raise NotFoundError(f"site {site.name!r} has no mapping drive to build a map from")
     return drives
-
-
-def arrays_bytes(arrays: dict[str, NDArray[Any]]) -> bytes:
-    """Named arrays as an uncompressed ``.npz`` (thumbnails are noise-like: compression gains little)."""
-    buffer = io.BytesIO()
-    np.savez(buffer, **arrays)  # type: ignore[arg-type]
-    return buffer.getvalue()
-
-
-def bytes_arrays(data: bytes, what: str) -> dict[str, NDArray[Any]]:
-    """The arrays :func:`arrays_bytes` wrote.
-
-    Raises:
-        BadInputError: ``data`` (named ``what`` in the message) is no ``.npz``.
-    """
-    try:
-        with np.load(io.BytesIO(data), allow_pickle=False) as arrays:
-            return {k: arrays[k] for k in arrays.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise BadInputError(f"{what} is not a readable .npz: {exc}") from exc
 
 
 def piece_bytes(piece: PreparedSegment) -> bytes:
