@@ -2,10 +2,11 @@
 
 Imports a simulated site's mapping drives but the last into a fresh SQLite store and builds its map (what
 ``driftmap map build`` does: :func:`driftmap.services.maps.build_site_map`, stage 1 in ``--workers``
-processes), which keeps every drive segment's odometry piece. Then it imports the last mapping drive and
-builds three times on the same data: incrementally (the kept pieces loaded, only the new drive's segments
-prepared, the pose graph started from the first version's poses), incrementally with a cold pose graph, and
-in full (``--full``: every segment prepared again, cold pose graph). It prints each build's wall time and
+processes), which keeps every drive segment's odometry piece and its loop-closure search. Then it imports the
+last mapping drive and builds three times on the same data: incrementally (the kept pieces loaded, only the
+new drive's segments prepared, only its keyframes' loop-closure queries scored, the pose graph started from the
+first version's poses), incrementally with a cold pose graph, and in full (``--full``: every segment prepared
+again, the search planned afresh, cold pose graph). It prints each build's wall time and
 stages, the ratio full / incremental, the pose graph's time cold / warm, what each build reused, and the
 largest distance between an incremental build's pose of a frame and the full build's (target: 0.1 m).
 
@@ -83,8 +84,14 @@ def _line(name: str, seconds: float, stats: dict) -> str:
     stages = ", ".join(f"{k[:-2].replace('_', ' ')} {float(stats.get(k, 0.0)):.1f}" for k in STAGES)
     rest = seconds - sum(float(stats.get(k, 0.0)) for k in STAGES)
     reused = f"{stats['segments_reused']} of {stats['segments_reused'] + stats['segments_prepared']}"
+    queries = (
+        f"{stats['loop_queries_reused']} of {stats['loop_queries_reused'] + stats['loop_queries_scored']}"
+    )
     graph = f"{stats['graph_warm_drives']} drives warm, {stats['graph_iterations']} final LM iterations"
-    return f"{name:<18}{seconds:6.1f} s ({stages}, other {rest:.1f}); segments reused {reused}; graph {graph}"
+    return (
+        f"{name:<18}{seconds:6.1f} s ({stages}, other {rest:.1f}); segments reused {reused}; "
+        f"loop-closure queries reused {queries}; graph {graph}"
+    )
 
 
 def main() -> None:

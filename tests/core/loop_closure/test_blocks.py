@@ -93,6 +93,8 @@ def test_a_search_over_one_more_chain_resumes_the_earlier_one_exactly(three_pass
     assert len([c for c in resumed.closures if c.chain_a == 2]) > 150  # the third pass closes on the others
     assert np.array_equal(later.desc[: earlier.n], earlier.desc)  # the earlier keyframes' descriptors kept
     # A chain changed before the end: nothing after it is kept.
+    same = plan_search(three_passes[:2], params, basis=basis)  # no new keyframe: the earlier descriptors
+    assert same is not None and np.array_equal(same.desc, earlier.desc)
     with pytest.raises(ValueError, match="more than the 300 searched"):
         plan_search(three_passes[:1], params, basis=basis)
     assert resumable_blocks(later, params, earlier_blocks, N_VIEWS) == [

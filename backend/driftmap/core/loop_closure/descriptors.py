@@ -119,7 +119,7 @@ def project(thumbs: NDArray, mean: NDArray[np.float32], axes: NDArray[np.float32
     if x.ndim != 2 or x.shape[1] != mean.shape[0]:
         raise ValueError(f"thumbs must be (N, {mean.shape[0]}), got shape {x.shape}")
     if x.shape[0] == 0:
-        return x.copy()
+        return np.zeros((0, axes.shape[1] or x.shape[1]), dtype=np.float32)
     x = x - mean
     if axes.shape[1]:
         x = x @ axes
