@@ -105,7 +105,7 @@ class LoopPlan:
     @property
     def queries_kept(self) -> int:
         """Queries whose scores are taken from the kept search."""
-        return sum(b.checked.size for b, _sha in self.kept)
+        return self.kept[-1][0].q1 if self.kept else 0
 
 
 def plan_loops(
@@ -143,9 +143,9 @@ def plan_loops(
     kept: list[ScoredBlock] = []
     if earlier is not None:
         _basis, blocks, kept_frames = earlier
-        sha_of = {id(b): sha for b, sha in blocks}
-        kept = [(b, sha_of[id(b)]) for b in resumable_blocks(search, p, [b for b, _ in blocks], kept_frames)]
-    start = kept[-1][0].q0 + kept[-1][0].checked.size if kept else 0
+        sha_of = {b.q0: sha for b, sha in blocks}
+        kept = [(b, sha_of[b.q0]) for b in resumable_blocks(search, p, [b for b, _ in blocks], kept_frames)]
+    start = kept[-1][0].q1 if kept else 0
     basis_sha = batch.put(arrays_bytes(search.basis().to_arrays()))
     return LoopPlan(search, basis_sha, kept, split_queries(search, p, QUERIES_PER_BLOCK, start))
 
@@ -186,10 +186,11 @@ def _kept(
     if basis.desc.shape[0] < kept_frames:
         return None
     blocks: list[ScoredBlock] = []
-    for _q0, q1, sha in sorted(row.blocks):
-        if q1 > kept_frames or not blobs.exists(sha):
+    for q0, q1, sha in sorted(row.blocks):
+        if q0 >= kept_frames or not blobs.exists(sha):
             break
-        blocks.append((QueryScores.from_arrays(bytes_arrays(blobs.get(sha), f"blob {sha}")), str(sha)))
+        scores = QueryScores.from_arrays(bytes_arrays(blobs.get(sha), f"blob {sha}"))
+        blocks.append((scores.head(int(q1)), str(sha)))  # a block an earlier build cut short stays cut
     return basis.prefix(kept_frames), blocks, kept_frames
 
 
@@ -216,7 +217,7 @@ def keep_search(
         :func:`driftmap.services.map_pieces.drop_stale` once committed.
     """
     row = session.scalar(select(MapLoopSearch).where(MapLoopSearch.site_id == site_id))
-    blocks = [[b.q0, b.q0 + b.checked.size, sha] for b, sha in [*plan.kept, *scored]]
+    blocks = [[b.q0, b.q1, sha] for b, sha in [*plan.kept, *scored]]
     held = {plan.basis_sha256, *(sha for _q0, _q1, sha in blocks)}
     if row is None:
         row = MapLoopSearch(site_id=site_id)

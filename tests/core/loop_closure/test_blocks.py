@@ -75,31 +75,36 @@ def test_blocks_scored_apart_decide_exactly_like_one_run(three_passes: list[F32]
 
 def test_a_search_over_one_more_chain_resumes_the_earlier_one_exactly(three_passes: list[F32]) -> None:
     params = LOOPS_DEFAULT
-    earlier = plan(three_passes[:2], params)
+    earlier = plan(three_passes[:2], params)  # two blocks of two grid blocks each: 0 .. 543 and 543 .. 600
     earlier_blocks = [
-        score_queries(earlier, params, q0, q1) for q0, q1 in split_queries(earlier, params, 256)
+        score_queries(earlier, params, q0, q1) for q0, q1 in split_queries(earlier, params, 512)
     ]
     basis = SearchBasis.from_arrays(npz_round_trip(earlier.basis().to_arrays()))
     later = plan_search(three_passes, params, basis=basis)
     assert later is not None and later.n_background == 0  # the thresholds are the earlier search's
+    assert np.array_equal(later.desc[: earlier.n], earlier.desc)  # the earlier keyframes' descriptors kept
+    grid = query_blocks(later.limit)
     kept = resumable_blocks(later, params, earlier_blocks, earlier.n)
-    start = kept[-1].q0 + kept[-1].checked.size
-    assert 0 < start <= earlier.n and len(kept) == len(earlier_blocks) - 1  # the last ended off the new grid
-    fresh = [score_queries(later, params, q0, q1) for q0, q1 in split_queries(later, params, 256, start)]
+    # The block ending at 600, off the new grid (its last grid block then held 256 queries), is scored again.
+    assert kept == earlier_blocks[:1] and kept[0].q1 == max(g for g in grid if g <= earlier.n) < earlier.n
+    fresh = [score_queries(later, params, q0, q1) for q0, q1 in split_queries(later, params, 256, kept[0].q1)]
     resumed = decide_loops(later, kept + fresh, params)
     # The same closures as a search over all three chains from scratch in the earlier search's basis.
     scratch = [score_queries(later, params, q0, q1) for q0, q1 in split_queries(later, params, 256)]
     assert resumed.closures == decide_loops(later, scratch, params).closures
     assert len([c for c in resumed.closures if c.chain_a == 2]) > 150  # the third pass closes on the others
-    assert np.array_equal(later.desc[: earlier.n], earlier.desc)  # the earlier keyframes' descriptors kept
-    # A chain changed before the end: nothing after it is kept.
+    # The second chain changed: the queries up to the last grid point in the first are kept, cut out of the
+    # first block, every score as the new search computes it.
+    (cut,) = resumable_blocks(later, params, earlier_blocks, N_VIEWS)
+    assert cut.q0 == 0 and cut.q1 == max(g for g in grid if g <= N_VIEWS) < earlier_blocks[0].q1
+    again = score_queries(later, params, 0, cut.q1).to_arrays()
+    for name, array in cut.to_arrays().items():
+        if name not in ("counts", "seconds"):
+            np.testing.assert_array_equal(array, again[name], err_msg=name)
     same = plan_search(three_passes[:2], params, basis=basis)  # no new keyframe: the earlier descriptors
     assert same is not None and np.array_equal(same.desc, earlier.desc)
     with pytest.raises(ValueError, match="more than the 300 searched"):
         plan_search(three_passes[:1], params, basis=basis)
-    assert resumable_blocks(later, params, earlier_blocks, N_VIEWS) == [
-        b for b in kept if b.q0 + b.checked.size <= N_VIEWS
-    ]
 
 
 def test_blocks_that_miss_or_repeat_queries_are_refused(three_passes: list[F32]) -> None:

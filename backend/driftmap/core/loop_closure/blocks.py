@@ -28,7 +28,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -183,6 +183,31 @@ class QueryScores:
         """Flat arrays for ``np.savez``."""
         return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
 
+    @property
+    def q1(self) -> int:
+        """Global index after the last query."""
+        return self.q0 + int(self.checked.size)
+
+    def head(self, q1: int) -> QueryScores:
+        """The scores of queries ``q0 .. q1 - 1`` only (every query's scores are its own); the work figures
+        (``counts``, ``seconds``) stay the whole block's."""
+        if q1 >= self.q1:
+            return self
+        rows = max(0, q1 - self.q0)
+        mine = self.rivals[:, 0] < q1
+        return replace(
+            self,
+            checked=self.checked[:rows],
+            index=self.index[:rows],
+            seq=self.seq[:rows],
+            hits=self.hits[:rows],
+            pair=self.pair[:rows],
+            rivals=self.rivals[mine],
+            rival_seq=self.rival_seq[mine],
+            rival_hits=self.rival_hits[mine],
+            rival_pair=self.rival_pair[mine],
+        )
+
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, NDArray]) -> QueryScores:
         """Inverse of :meth:`to_arrays`."""
@@ -293,7 +318,8 @@ def split_queries(search: LoopSearch, p: LoopParams, queries: int, start: int = 
 def resumable_blocks(
     search: LoopSearch, p: LoopParams, blocks: Sequence[QueryScores], kept: int
 ) -> list[QueryScores]:
-    """Of an earlier search's ``blocks``, those this ``search`` (planned with its basis) would score the same.
+    """Of an earlier search's ``blocks``, the queries this ``search`` (planned with its basis) would score the
+    same.
 
     Args:
         search: the new search, whose first ``kept`` keyframes are the earlier search's first ``kept``.
@@ -302,18 +328,17 @@ def resumable_blocks(
         kept: keyframes of the chains both searches share.
 
     Returns:
-        The blocks from query 0 on, in order and without gaps, that end at a grid point of ``search`` (or at
-        its end) no later than ``kept``; scoring may resume at the last one's end.
+        The blocks from query 0 on, in order and without gaps, up to the last grid point of ``search`` (or its
+        end) no later than ``kept``, the last one cut there (:meth:`QueryScores.head`); scoring may resume at
+        the last one's end.
     """
-    grid = set(query_blocks(search.limit, p.coarse_block))
+    grid = [g for g in query_blocks(search.limit, p.coarse_block) if g <= kept]
+    stop = search.n if kept >= search.n else (grid[-1] if grid else 0)
     out: list[QueryScores] = []
     for b in sorted(blocks, key=lambda b: b.q0):
-        q1 = b.q0 + b.checked.size
-        if b.q0 != (out[-1].q0 + out[-1].checked.size if out else 0) or q1 > kept:
+        if b.q0 != (out[-1].q1 if out else 0) or b.q0 >= stop:
             break
-        if q1 not in grid and q1 != search.n:
-            break
-        out.append(b)
+        out.append(b.head(stop))
     return out
 
 

@@ -225,7 +225,7 @@ def decide_loops(
     """
     p = params
     blocks = sorted(blocks, key=lambda b: b.q0)
-    cuts = [0, *(b.q0 + b.checked.size for b in blocks)]
+    cuts = [0, *(b.q1 for b in blocks)]
     if [b.q0 for b in blocks] != cuts[:-1] or cuts[-1] != search.n:
         raise ValueError(f"query blocks starting at {cuts[:-1]} do not cover the {search.n} queries once")
     t0 = time.perf_counter()
