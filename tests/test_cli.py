@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -112,6 +113,7 @@ class TestMapping:
         )  # nothing changed: all reused
         assert again.exit_code == 0, again.output
         assert "map version 2" in again.output and "odometry of 3 of 3 drive segments reused" in again.output
+        assert re.search(r"loop-closure scores of (\d+) of \1 keyframes", again.output), again.output
 
         shown = runner.invoke(app, ["map", "show", "tiny"])
         assert shown.exit_code == 0, shown.output

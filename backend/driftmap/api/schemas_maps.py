@@ -17,8 +17,9 @@ class MapBuildCreate(BaseModel):
     preset: Literal["paper", "fast"] = "paper"
     full: bool = Field(
         default=False,
-        description="Prepare every drive's odometry again instead of reusing what earlier builds kept for "
-        "drives that did not change (the version's stats count segments_reused and segments_prepared).",
+        description="Prepare every drive's odometry again and search loop closures afresh instead of reusing "
+        "what earlier builds kept for drives that did not change (the version's stats count segments_reused "
+        "and segments_prepared, loop_queries_reused and loop_queries_scored).",
     )
 
 

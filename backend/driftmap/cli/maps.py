@@ -86,11 +86,15 @@ def map_build(
     workers: WorkersOption = DEFAULT_WORKERS,
     as_json: JsonOption = False,
     full: Annotated[
-        bool, typer.Option("--full", help="Prepare every drive again instead of reusing the kept odometry.")
+        bool,
+        typer.Option(
+            "--full",
+            help="Prepare every drive again and search loop closures afresh instead of reusing what was kept.",
+        ),
     ] = False,
 ) -> None:
-    """Build a new immutable map version from the site's mapping drives and groundings (the odometry of
-    drives unchanged since the last build reused)."""
+    """Build a new immutable map version from the site's mapping drives and groundings (the odometry and the
+    loop-closure scores of drives unchanged since the last build reused)."""
     storage = open_storage()
     with user_errors():
         params = _preset(preset)
@@ -125,6 +129,9 @@ def _stats_line(stats: dict[str, float | int]) -> str:
     if "segments_reused" in stats:
         reused, prepared = stats["segments_reused"], stats.get("segments_prepared", 0)
         line += f"; odometry of {reused} of {reused + prepared} drive segments reused"
+    if "loop_queries_reused" in stats:
+        kept, scored = stats["loop_queries_reused"], stats.get("loop_queries_scored", 0)
+        line += f", loop-closure scores of {kept} of {kept + scored} keyframes"
     return line
 
 

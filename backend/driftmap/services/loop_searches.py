@@ -122,7 +122,7 @@ def plan_loops(
     Args:
         session: for the kept search.
         blobs: where its blobs are.
-        batch: receives the basis blob of a search planned afresh.
+        batch: receives the basis blob of the search.
         site_id: the site built.
         chains: per drive in recording order, its chain key (:func:`chain_keys`), ``(K_d, h, w)`` keyframe
             thumbnails and ``(K_d,)`` times, s (:func:`driftmap.core.mapping.prepare.loop_inputs`).

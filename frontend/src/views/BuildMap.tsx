@@ -104,7 +104,7 @@ export function BuildMap({ siteId, version, editable, onBuilt, onError }: Props)
                 ))}
               </select>
             </label>
-            <label title="Prepare every drive's odometry again instead of reusing what earlier builds kept for drives that did not change">
+            <label title="Prepare every drive's odometry again and search loop closures afresh instead of reusing what earlier builds kept for drives that did not change">
               <input
                 type="checkbox"
                 data-testid="build-full"
