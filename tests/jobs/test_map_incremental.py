@@ -93,7 +93,8 @@ class TestIncrementalBuild:
         kept = _kept(storage)
         assert len(kept) == 2 and all(storage.blobs.exists(sha) for sha in kept.values())
         second, subtasks = _build(storage, queue)
-        assert _reuse(second) == (2, 0) and not any(j.kind == "map.drive" for j in subtasks)
+        assert _reuse(second) == (2, 0) and not subtasks  # no odometry, no loop-closure query to score
+        assert second.stats["loop_queries_reused"] == second.stats["keyframes"] == first.stats["keyframes"]
         assert (first.stats["graph_warm_drives"], second.stats["graph_warm_drives"]) == (0, 2)
         np.testing.assert_allclose(_poses(storage, second), _poses(storage, first), rtol=0, atol=SAME_M)
         assert _kept(storage) == kept

@@ -52,6 +52,7 @@ def map_loops(ctx: JobContext) -> None:
 
 def find_loops(
     ctx: JobContext,
+    site_id: int,
     pieces: Sequence[PreparedDrive],
     drives: Sequence[MappingDrive],
     params: MappingParams,
@@ -63,6 +64,7 @@ def find_loops(
 
     Args:
         ctx: the build.
+        site_id: its site.
         pieces: its drives' stage-1 pieces.
         drives: its drives.
         params: its parameters.
@@ -71,7 +73,7 @@ def find_loops(
 
     Returns:
         (closures, wall seconds, the search to keep with the blob to drop once stored: the plan the subtasks
-        read; None when no keyframe has an eligible earlier one).
+        read, if any had anything to score; None when no keyframe has an eligible earlier one).
 
     Raises:
         DriftmapError: a subtask failed; NotFoundError: a plan or scores blob of an earlier run is gone.
@@ -84,24 +86,28 @@ def find_loops(
     storage = ctx.runtime.storage
     with storage.blobs.batch() as batch, storage.db.session() as session:
         plan = loop_searches.plan_loops(
-            session, storage.blobs, batch, ctx.job.site_id or 0, (chains, key_thumbs, key_times), params, full
+            session, storage.blobs, batch, site_id, (chains, key_thumbs, key_times), params, full
         )
     if plan is None:  # no keyframe has an eligible earlier one
         return (), time.monotonic() - start, None
     earlier = existing_subtasks(ctx, KIND)
-    if earlier:  # a re-run: the blocks of the first run, which may be scored already
+    # With every query's scores kept there is nothing to score and no plan (the frames of every keyframe) to
+    # hand over.
+    sha: str | None = None
+    ids: list[int] = []
+    if plan.ranges and earlier:  # a re-run: the blocks of the first run, which may be scored already
         if [(int(a["q0"]), int(a["q1"])) for _i, a in earlier] != plan.ranges:
             raise ConflictError(
                 f"job {ctx.job.id}: the loop-closure search planned other blocks than its first run"
             )
         sha = str(earlier[0][1]["search_sha256"])
         ids = [job_id for job_id, _args in earlier]
-    else:
+    elif plan.ranges:
         with storage.blobs.batch() as batch:
             sha = batch.put(arrays_bytes(plan.search.to_arrays()))
         preset = str(ctx.args.get("preset", "paper"))
         args = [{"search_sha256": sha, "q0": q0, "q1": q1, "preset": preset} for q0, q1 in plan.ranges]
-        ids = submit_subtasks(ctx, KIND, args) if args else []
+        ids = submit_subtasks(ctx, KIND, args)
     results = await_subtasks(ctx, ids, "loop closure", map_loops)
     shas = [str(r["scores_sha256"]) for r in results]
     scored = [
@@ -124,4 +130,4 @@ class FoundLoops:
 
     plan: loop_searches.LoopPlan
     scored: list[loop_searches.ScoredBlock]
-    plan_sha256: str
+    plan_sha256: str | None

@@ -141,6 +141,7 @@ def map_build(ctx: JobContext) -> None:
     ctx.report("loading drives", 0.0)
     with storage.db.session() as session:
         site = _site(ctx, session)
+        site_id = site.id
         version = session.scalar(
             select(MapVersion).where(MapVersion.site_id == site.id, MapVersion.created_by == label)
         )
@@ -167,7 +168,7 @@ def map_build(ctx: JobContext) -> None:
         chains = loop_searches.chain_keys(keys, inputs, params)
         search: FoundLoops | None = None
         if params.use_loop_closures:
-            closures, loop_s, search = find_loops(ctx, pieces, inputs, params, chains, full)
+            closures, loop_s, search = find_loops(ctx, site_id, pieces, inputs, params, chains, full)
             loops = (closures, loop_s)
     except (DriftmapError, job_service.JobCancelled):
         stop_subtasks(ctx)
@@ -193,7 +194,7 @@ def map_build(ctx: JobContext) -> None:
             dropped |= loop_searches.keep_search(session, site.id, params, chains, search.plan, search.scored)
         version = map_service.store_map_version(session, batch, site, loaded, build, params, label)
         ctx.succeed(session, _result(version))  # no progress report from here: this transaction writes
-    if search is not None:
+    if search is not None and search.plan_sha256 is not None:
         drop_blobs(ctx, [search.plan_sha256])
     map_pieces.drop_stale(storage, dropped)
 
