@@ -216,10 +216,12 @@ def build_site_map(
     """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
 
     Segments whose stage-1 piece an earlier build kept are loaded, the rest prepared (with ``workers`` > 1 in
-    that many worker processes that open the same database and blob store) and kept; ``full`` prepares
-    every segment again. The results are bit-identical either way. Unless ``full`` or not ``warm_start``,
-    the pose graph starts from the latest version's poses of the drives it has (the same map to the solver's
-    tolerance). ``stale``, when given, receives the blobs of the pieces this build dropped:
+    that many worker processes that open the same database and blob store) and kept (bit-identical either
+    way). The loop-closure search resumes the site's kept search over the drives it shares
+    (:mod:`driftmap.services.loop_searches`: in its basis and thresholds) and is kept. ``full`` prepares every
+    segment again and searches afresh. Unless ``full`` or not ``warm_start``, the pose graph starts from the
+    latest version's poses of the drives it has (the same map to the solver's tolerance). ``stale``, when
+    given, receives the blobs of the pieces and search this build dropped:
     :func:`driftmap.services.map_pieces.drop_stale` them once committed.
     """
     loaded = load_site_drives(session, blobs, site)
@@ -243,11 +245,9 @@ def build_site_map(
         start = time.perf_counter()
         _keyframes, thumbs, times = loop_inputs(stage.pieces, loaded.inputs, params)
         plan = loop_searches.plan_loops(session, blobs, batch, site.id, (chains, thumbs, times), params, full)
-        found = []
-        if plan is not None:
-            scored = loop_searches.score_here(plan, params, batch, progress)
-            found = loop_searches.decide(plan, params, scored).closures
-        loops = (tuple(found), time.perf_counter() - start)
+        scored = [] if plan is None else loop_searches.score_here(plan, params, batch, progress)
+        found = () if plan is None else tuple(loop_searches.decide(plan, params, scored).closures)
+        loops = (found, time.perf_counter() - start)
     prepared = join_drives(stage.pieces, loaded.inputs, params, progress, odometry_s, loops)
     warm = None
     if warm_start and not full:
