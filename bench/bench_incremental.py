@@ -7,8 +7,9 @@ last mapping drive and builds three times on the same data: incrementally (the k
 new drive's segments prepared, only its keyframes' loop-closure queries scored, the pose graph started from the
 first version's poses), incrementally with a cold pose graph, and in full (``--full``: every segment prepared
 again, the search planned afresh, cold pose graph). It prints each build's wall time and
-stages, the ratio full / incremental, the pose graph's time cold / warm, what each build reused, and the
-largest distance between an incremental build's pose of a frame and the full build's (target: 0.1 m).
+stages, the ratio full / incremental, the pose graph's time cold / warm, what each build reused, the
+incremental and full maps' distance to the simulator's true positions of the frames, and the largest distance
+between an incremental build's pose of a frame and the full build's (target: 0.1 m).
 
 Sites are simulated into ``bench/out/site-SIZE-SEED`` the first time (bench_mapping.py's ``site_dir``).
 
@@ -31,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' helpe
 
 from tests.sim_site import create_site, import_folders, version_poses
 
-from bench_mapping import PRESETS, mapping_folders, site_dir
+from bench_mapping import PRESETS, mapping_folders, mapping_truth, site_dir
 from driftmap.config import Settings
 from driftmap.core.mapping.pipeline import MappingParams
 from driftmap.services import map_pieces
@@ -114,7 +115,8 @@ def main() -> None:
             cold_v, cold_s, cold = _build(storage, params, args.workers, full=False, warm=False)
             full_v, full_s, full = _build(storage, params, args.workers, full=True)
             rebuilt = _poses(storage, full_v)[:, :2]
-            gap = np.linalg.norm(_poses(storage, incremental_v)[:, :2] - rebuilt, axis=1)
+            grown = _poses(storage, incremental_v)[:, :2]
+            gap = np.linalg.norm(grown - rebuilt, axis=1)
             cold_gap = np.linalg.norm(_poses(storage, cold_v)[:, :2] - rebuilt, axis=1)
         finally:
             storage.close()
@@ -132,6 +134,13 @@ def main() -> None:
     print(
         f"pose graph, cold / warm start: {cold_graph_s:.2f} s / {warm_s:.2f} s = {cold_graph_s / warm_s:.2f}x"
     )
+    truth = np.concatenate(mapping_truth(site))
+    for name, poses in (("incremental", grown), ("full", rebuilt)):
+        error = np.linalg.norm(poses - truth, axis=1)
+        print(
+            f"{name} vs truth: mean {error.mean():.2f} m, median {np.median(error):.2f} m, "
+            f"max {error.max():.1f} m"
+        )
     for name, g in (("incremental", gap), ("incremental, cold", cold_gap)):
         verdict = "within" if g.max() <= TOLERANCE_M else "NOT within"
         print(
