@@ -9,10 +9,10 @@ transaction. The parent joins each drive's segments, then searches loop closures
 ``map.loops`` subtasks, one per block of query keyframes (:mod:`driftmap.jobs.loop_tasks`), and decides
 them. The pose graph, topological map and new map version happen once, in the parent's final
 transaction, which also keeps the pieces for the next build (:mod:`driftmap.services.map_pieces`: a
-segment whose piece is kept gets no subtask; args ``full`` prepares every segment again) and starts the
-pose graph from the latest version's poses (not with ``full``) and keeps the loop-closure search for the next
-build to resume (:mod:`driftmap.services.loop_searches`); the plan blob is then dropped. A parent re-run (its worker died; the reaper
-re-queued it) reuses the subtasks already finished; a subtask whose worker died is re-queued by the
+segment whose piece is kept gets no subtask; args ``full`` prepares every segment again and searches loop
+closures afresh), starts the pose graph from the latest version's poses (not with ``full``) and keeps the
+loop-closure search for the next build to resume (:mod:`driftmap.services.loop_searches`); the plan blob is
+then dropped. A parent re-run (its worker died; the reaper re-queued it) reuses the subtasks already finished; a subtask whose worker died is re-queued by the
 reaper of any live worker and taken by whoever is free, the waiting parent included. Cancelling the
 parent cancels its subtasks; a failed subtask fails the parent and the parent cancels the rest. The
 result is bit-identical to the one-process build.

@@ -143,7 +143,8 @@ def drive_piece_blobs(session: Session, drive_ids: Iterable[int]) -> set[str]:
 
 
 def stale_blobs(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` no kept piece or kept loop-closure search holds and no unfinished job names (keys ending in ``_sha256``)."""
+    """Those of ``shas`` no kept piece or kept loop-closure search holds and no unfinished job names (keys
+    ending in ``_sha256``)."""
     wanted = set(shas)
     if not wanted:
         return set()

@@ -17,10 +17,10 @@ Both results convert to flat arrays (``to_arrays`` / ``from_arrays``) for a blob
 
 A search can resume an earlier one (an incremental map build): when the first chains are those of the earlier
 search, its :class:`SearchBasis` (descriptor mean and axes, the descriptors of those chains' keyframes,
-background, thresholds) plans the new one (``plan_search(..., basis=)``), and its query blocks ending within those chains on the block grid
-(:func:`resumable_blocks`) are the new search's blocks too: their queries' references are all earlier frames,
-ranked and scored exactly as the new search would. Only the queries after them are scored
-(``split_queries(..., start=)``).
+background, thresholds) plans the new one (``plan_search(..., basis=)``), and its query blocks up to the last
+edge of the block grid within those chains, the last cut there (:func:`resumable_blocks`), are the new
+search's blocks too: their queries' references are all earlier frames, ranked and scored exactly as the new
+search would. Only the queries after them are scored (``split_queries(..., start=)``).
 """
 
 from __future__ import annotations
@@ -60,7 +60,8 @@ class SearchBasis:
     """What a search's scores depend on besides the frames: the descriptors' basis and the thresholds.
 
     Attributes:
-        mean: ``(P,)`` float32 mean coarse thumbnail (``P`` pixels, :func:`~driftmap.core.loop_closure.descriptors.thumbnails`).
+        mean: ``(P,)`` float32 mean coarse thumbnail (``P`` pixels,
+            :func:`~driftmap.core.loop_closure.descriptors.thumbnails`).
         axes: ``(P, d)`` float32 principal axes of the descriptors (``(P, 0)``: centred thumbnails).
         desc: ``(G0, d)`` float32 descriptors of the search's first ``G0`` keyframes (a matrix product's
             rounding depends on its other rows: a later search takes them as they were).
