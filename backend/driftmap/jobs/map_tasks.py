@@ -12,10 +12,10 @@ transaction, which also keeps the pieces for the next build (:mod:`driftmap.serv
 segment whose piece is kept gets no subtask; args ``full`` prepares every segment again and searches loop
 closures afresh), starts the pose graph from the latest version's poses (not with ``full``) and keeps the
 loop-closure search for the next build to resume (:mod:`driftmap.services.loop_searches`); the plan blob is
-then dropped. A parent re-run (its worker died; the reaper re-queued it) reuses the subtasks already finished; a subtask whose worker died is re-queued by the
-reaper of any live worker and taken by whoever is free, the waiting parent included. Cancelling the
-parent cancels its subtasks; a failed subtask fails the parent and the parent cancels the rest. The
-result is bit-identical to the one-process build.
+then dropped. A parent re-run (its worker died; the reaper re-queued it) reuses the subtasks already
+finished; a subtask whose worker died is re-queued by the reaper of any live worker and taken by whoever is
+free, the waiting parent included. Cancelling the parent cancels its subtasks; a failed subtask fails the
+parent and the parent cancels the rest. The result is bit-identical to the one-process build.
 """
 
 from __future__ import annotations
