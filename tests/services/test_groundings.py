@@ -15,6 +15,7 @@ from driftmap.errors import BadInputError, ConflictError
 from driftmap.formats.control_csv import parse_control_rows
 from driftmap.services import groundings as grounding_service
 from driftmap.services import maps as map_service
+from driftmap.services import residuals as residual_service
 from driftmap.services import sites as site_service
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives
 from driftmap.store.models import Drive, Grounding, MapPose, MapVersion
@@ -126,7 +127,7 @@ class TestSiteControlFile:
             _build_mini(mini)
         with mini.db.session() as session:
             versions = list(session.scalars(select(MapVersion).order_by(MapVersion.version)))
-            pulled, kept = (map_service.residual_rows(session, v) for v in versions)
+            pulled, kept = (residual_service.residual_rows(session, v) for v in versions)
             moved = [_poses(session, v) for v in versions]
         assert len(pulled) == 3 and len(kept) == 2  # the residuals of the enabled points only
         assert max(r.distance_m for r in pulled) > 5.0 and max(r.distance_m for r in kept) < 2.0

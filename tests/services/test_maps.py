@@ -12,6 +12,7 @@ from driftmap.core.mapping.pipeline import MAPPING_FAST
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import read_poses_csv, write_poses_csv
 from driftmap.services import maps as map_service
+from driftmap.services import residuals as residual_service
 from driftmap.services import sites as site_service
 from driftmap.store.models import Drive, Frame, Grounding, MapNode, MapNodeFrame, MapPose, MapVersion
 from driftmap.store.storage import Storage
@@ -43,7 +44,7 @@ class TestBuild:
             )
             assert poses == frames
             marks = session.scalar(select(func.count()).select_from(Grounding))
-            residuals = map_service.residual_rows(session, version)
+            residuals = residual_service.residual_rows(session, version)
             assert len(residuals) == marks
             assert max(r.distance_m for r in residuals) < 2.0
             nodes = (

@@ -118,7 +118,7 @@ def get_nodes(site_id: Id, version: Id, session: SessionDep, storage: StorageDep
 @router.get("/sites/{site_id}/maps/{version}/residuals", dependencies=[Depends(VIEWER)])
 def get_residuals(site_id: Id, version: Id, session: SessionDep) -> list[ResidualRead]:
     """Grounding residuals (optimised minus surveyed) of the groundings the build used, largest first."""
-    rows = map_service.residual_rows(session, _version(session, site_id, version))
+    rows = residuals.residual_rows(session, _version(session, site_id, version))
     return [ResidualRead(**vars(r)) for r in rows]
 
 

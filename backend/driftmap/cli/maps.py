@@ -24,7 +24,7 @@ from driftmap.reports.mapping_report import run_mapping_report
 from driftmap.services import map_pieces
 from driftmap.services import maps as map_service
 from driftmap.services import sites as site_service
-from driftmap.services.residuals import ResidualSummary, summarise
+from driftmap.services.residuals import ResidualSummary, residual_rows, summarise
 
 map_app = typer.Typer(help="Map versions: build, show, export.", no_args_is_help=True)
 report_app = typer.Typer(help="Evaluation reports against ground truth.", no_args_is_help=True)
@@ -147,7 +147,7 @@ def map_show(
     with user_errors(), storage.db.session() as session:
         record = map_service.get_map_version(session, site_service.get_site(session, site), version)
         if as_json:
-            rows = map_service.residual_rows(session, record)
+            rows = residual_rows(session, record)
             document = {
                 "site": site,
                 "version": record.version,
@@ -163,7 +163,7 @@ def map_show(
             f"map version {record.version} of {site!r}, built {record.created_at:%Y-%m-%d %H:%M} by {record.created_by}"
         )
         console.print(_stats_line(record.stats))
-        rows = map_service.residual_rows(session, record)
+        rows = residual_rows(session, record)
         stations = any(row.station for row in rows)  # the column only when a grounding names its station
         table = Table("drive", "frame", *(["station"] if stations else []), "surveyed x", "surveyed y")
         for header in ("dx m", "dy m", "distance m"):

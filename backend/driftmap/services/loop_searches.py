@@ -32,12 +32,11 @@ from sqlalchemy.orm import Session
 from driftmap.core.loop_closure.blocks import (
     LoopSearch,
     QueryScores,
-    SearchBasis,
     plan_search,
-    resumable_blocks,
     score_queries,
     split_queries,
 )
+from driftmap.core.loop_closure.resume import SearchBasis, resumable_blocks
 from driftmap.core.loop_closure.search import LoopResult, decide_loops
 from driftmap.core.mapping.pipeline import MappingDrive, MappingParams, build_segments
 from driftmap.core.types import ProgressFn

@@ -12,11 +12,55 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from driftmap.formats.control_csv import ResidualCsvRow, residuals_text
-from driftmap.services.maps import ResidualRow, residual_rows
-from driftmap.store.models import MapVersion
+from driftmap.store.models import Drive, Frame, Grounding, MapGroundingResidual, MapVersion
+
+
+@dataclass(frozen=True)
+class ResidualRow:
+    """A grounding residual of a map version (optimised minus surveyed, metres), drive and frame named.
+
+    ``grounding_id``, ``station`` and ``enabled`` are the grounding's as it is now (None when it has been
+    deleted since the build); the surveyed point is the one the build used.
+    """
+
+    drive: str
+    frame: int
+    surveyed_x_m: float
+    surveyed_y_m: float
+    dx_m: float
+    dy_m: float
+    distance_m: float
+    grounding_id: int | None = None
+    station: str | None = None
+    enabled: bool | None = None
+
+
+def residual_rows(session: Session, version: MapVersion) -> list[ResidualRow]:
+    """The grounding residuals of ``version`` (the enabled groundings it was built with), largest first."""
+    query = (
+        select(
+            Drive.name,
+            Frame.index,
+            MapGroundingResidual.surveyed_x_m,
+            MapGroundingResidual.surveyed_y_m,
+            MapGroundingResidual.dx_m,
+            MapGroundingResidual.dy_m,
+            MapGroundingResidual.distance_m,
+            MapGroundingResidual.grounding_id,
+            Grounding.station,
+            Grounding.enabled,
+        )
+        .join(Frame, MapGroundingResidual.frame_id == Frame.id)
+        .join(Drive, Frame.drive_id == Drive.id)
+        .outerjoin(Grounding, MapGroundingResidual.grounding_id == Grounding.id)
+        .where(MapGroundingResidual.map_version_id == version.id)
+        .order_by(MapGroundingResidual.distance_m.desc(), Drive.id, Frame.index)
+    )
+    return [ResidualRow(*tuple(row)) for row in session.execute(query).all()]
 
 
 @dataclass(frozen=True)

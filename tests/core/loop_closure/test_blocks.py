@@ -17,15 +17,14 @@ from driftmap.core.imaging.images import patch_normalise
 from driftmap.core.loop_closure.blocks import (
     LoopSearch,
     QueryScores,
-    SearchBasis,
     plan_search,
-    resumable_blocks,
     score_queries,
     split_queries,
 )
 from driftmap.core.loop_closure.descriptors import coarse_candidates, query_blocks
 from driftmap.core.loop_closure.pair_scores import sad_pairs
 from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams
+from driftmap.core.loop_closure.resume import SearchBasis, resumable_blocks
 from driftmap.core.loop_closure.search import decide_loops, detect_loops
 from tests.core.loop_closure.test_search import make_strip, views
 

@@ -16,9 +16,10 @@
 Both results convert to flat arrays (``to_arrays`` / ``from_arrays``) for a blob store.
 
 A search can resume an earlier one (an incremental map build): when the first chains are those of the earlier
-search, its :class:`SearchBasis` (descriptor mean and axes, the descriptors of those chains' keyframes,
+search, its :class:`~driftmap.core.loop_closure.resume.SearchBasis` (descriptor mean and axes, the descriptors of those chains' keyframes,
 background, thresholds) plans the new one (``plan_search(..., basis=)``), and its query blocks up to the last
-edge of the block grid within those chains, the last cut there (:func:`resumable_blocks`), are the new
+edge of the block grid within those chains, the last cut there
+(:func:`~driftmap.core.loop_closure.resume.resumable_blocks`), are the new
 search's blocks too: their queries' references are all earlier frames, ranked and scored exactly as the new
 search would. Only the queries after them are scored (``split_queries(..., start=)``).
 """
@@ -42,54 +43,16 @@ from driftmap.core.loop_closure.descriptors import (
 )
 from driftmap.core.loop_closure.pair_scores import DiagonalScorer, PairCache
 from driftmap.core.loop_closure.params import LoopParams
+from driftmap.core.loop_closure.resume import SearchBasis
 from driftmap.core.types import F32, I64
 
 __all__ = [
     "LoopSearch",
     "QueryScores",
-    "SearchBasis",
     "plan_search",
-    "resumable_blocks",
     "score_queries",
     "split_queries",
 ]
-
-
-@dataclass(frozen=True, eq=False)
-class SearchBasis:
-    """What a search's scores depend on besides the frames: the descriptors' basis and the thresholds.
-
-    Attributes:
-        mean: ``(P,)`` float32 mean coarse thumbnail (``P`` pixels,
-            :func:`~driftmap.core.loop_closure.descriptors.thumbnails`).
-        axes: ``(P, d)`` float32 principal axes of the descriptors (``(P, 0)``: centred thumbnails).
-        desc: ``(G0, d)`` float32 descriptors of the search's first ``G0`` keyframes (a matrix product's
-            rounding depends on its other rows: a later search takes them as they were).
-        background: ``(4,)`` float64 median and sigma of d over random eligible pairs, ``d_t``, ``d_hit``.
-    """
-
-    mean: F32
-    axes: F32
-    desc: F32
-    background: NDArray[np.float64]
-
-    def prefix(self, frames: int) -> SearchBasis:
-        """The basis with the descriptors of the first ``frames`` keyframes only."""
-        return SearchBasis(self.mean, self.axes, self.desc[:frames], self.background)
-
-    def to_arrays(self) -> dict[str, NDArray]:
-        """Flat arrays for ``np.savez``."""
-        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
-
-    @classmethod
-    def from_arrays(cls, arrays: Mapping[str, NDArray]) -> SearchBasis:
-        """Inverse of :meth:`to_arrays`."""
-        return cls(
-            mean=np.asarray(arrays["mean"], dtype=np.float32),
-            axes=np.asarray(arrays["axes"], dtype=np.float32),
-            desc=np.asarray(arrays["desc"], dtype=np.float32),
-            background=np.asarray(arrays["background"], dtype=np.float64),
-        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -314,33 +277,6 @@ def split_queries(search: LoopSearch, p: LoopParams, queries: int, start: int = 
     ahead = grid if start == 0 else [g for g in grid if g >= start]
     cuts = [start, *ahead[step:-1:step], search.n]
     return [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
-
-
-def resumable_blocks(
-    search: LoopSearch, p: LoopParams, blocks: Sequence[QueryScores], kept: int
-) -> list[QueryScores]:
-    """Of an earlier search's ``blocks``, the queries this ``search`` (planned with its basis) would score the
-    same.
-
-    Args:
-        search: the new search, whose first ``kept`` keyframes are the earlier search's first ``kept``.
-        p: the parameters of both.
-        blocks: the earlier search's query blocks, in any order.
-        kept: keyframes of the chains both searches share.
-
-    Returns:
-        The blocks from query 0 on, in order and without gaps, up to the last grid point of ``search`` (or its
-        end) no later than ``kept``, the last one cut there (:meth:`QueryScores.head`); scoring may resume at
-        the last one's end.
-    """
-    grid = [g for g in query_blocks(search.limit, p.coarse_block) if g <= kept]
-    stop = search.n if kept >= search.n else (grid[-1] if grid else 0)
-    out: list[QueryScores] = []
-    for b in sorted(blocks, key=lambda b: b.q0):
-        if b.q0 != (out[-1].q1 if out else 0) or b.q0 >= stop:
-            break
-        out.append(b.head(stop))
-    return out
 
 
 def score_queries(search: LoopSearch, p: LoopParams, q0: int = 0, q1: int | None = None) -> QueryScores:
