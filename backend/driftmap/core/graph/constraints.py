@@ -27,10 +27,14 @@ __all__ = [
     "OdometryChain",
     "PoseGraphParams",
     "PoseGraphResult",
+    "PoseGraphSolver",
 ]
 
 FrameRef = tuple[int, int]
 LoopKernel = Literal["none", "huber", "cauchy", "dcs", "geman_mcclure", "gnc_tls"]
+# Batch Powell's dog leg (a trust region) or Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame and
+# polished by Levenberg-Marquardt.
+PoseGraphSolver = Literal["dogleg", "lm", "isam2"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,15 +111,15 @@ class PoseGraphParams:
     align_min_baseline_m: float = 5.0  # groundings spanning less do not rotate a drive before optimising, m
     node_spacing_m: float = 5.0  # travel between graph nodes where no constraint needs one, m (0: all)
     node_max_steps: int = 50  # most odometry steps between two graph nodes
-    solver: Literal["lm", "isam2"] = "lm"  # batch Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame
-    max_iterations: int = 100  # Levenberg-Marquardt iterations (also of the polish after iSAM2)
+    solver: PoseGraphSolver = "dogleg"  # see PoseGraphSolver
+    max_iterations: int = 100  # iterations of the batch solver (also of the polish after iSAM2)
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
     absolute_error_tol: float = 1e-5  # or by less than this
 
     def __post_init__(self) -> None:
         if self.loop_kernel not in get_args(LoopKernel):
             raise ValueError(f"PoseGraphParams: unknown loop_kernel {self.loop_kernel!r}")
-        if self.solver not in ("lm", "isam2"):
+        if self.solver not in get_args(PoseGraphSolver):
             raise ValueError(f"PoseGraphParams: unknown solver {self.solver!r}")
         if min(self.min_sigma_m, self.min_sigma_rad, self.anchor_sigma_m, self.anchor_sigma_rad) <= 0:
             raise ValueError("PoseGraphParams: sigmas must be positive")

@@ -155,8 +155,9 @@ def solve_with_calibration(
     sites); from the second round on, the step is extrapolated (:func:`_accelerated`). The last solve
     uses the corrected steps with their own noise. Each loose solve starts from the previous solve's poses (a
     warm start: the placement and gauge anchors stay the cold start's); the last one starts cold from the
-    placement of the corrected steps (on the 20 km site a warm last solve kept 334 closures a loose round had
-    turned down, and its map was 0.55 m worse on average).
+    placement of the corrected steps (on the 20 km site a last solve started from the last loose round's
+    poses settled in a worse minimum: twelve times the final error, 1,000 more closures turned down, 0.5 m
+    worse on average).
 
     Args:
         graph: the first solution of the graph of ``chains``, ``closures`` and ``groundings``.

@@ -313,8 +313,18 @@ class PoseGraphSession:
     def _batch(
         self, graph: gtsam.NonlinearFactorGraph, start: gtsam.Values
     ) -> tuple[gtsam.Values, int, F64 | None]:
-        """Levenberg-Marquardt, or GNC-TLS over it; returns values, iterations and GNC's closure weights."""
+        """The batch solver, or GNC-TLS over LM; returns values, iterations and GNC's closure weights."""
         p = self.params
+        if p.solver == "dogleg" and p.loop_kernel != "gnc_tls":
+            dogleg = gtsam.DoglegParams()
+            dogleg.setMaxIterations(p.max_iterations)
+            dogleg.setRelativeErrorTol(p.relative_error_tol)
+            dogleg.setAbsoluteErrorTol(p.absolute_error_tol)
+            trust_region = gtsam.DoglegOptimizer(graph, start, dogleg)
+            try:
+                return trust_region.optimize(), int(trust_region.iterations()), None
+            except RuntimeError:  # an (almost) indeterminate system, which LM's damping copes with
+                pass
         lm = gtsam.LevenbergMarquardtParams()
         lm.setMaxIterations(p.max_iterations)
         lm.setRelativeErrorTol(p.relative_error_tol)
