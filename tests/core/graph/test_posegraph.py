@@ -295,3 +295,41 @@ def test_m3500_with_20_percent_false_closures_keeps_the_clean_map() -> None:
     ]
     result = optimise_pose_graph(chains, closures + wrong, (), POSEGRAPH_DEFAULT)
     assert ate_m(result.all_poses(), clean) <= ATE_TARGET_M
+
+
+@pytest.mark.skipif(not (DATA / "posegraphs" / "MITb.g2o").exists(), reason="shared/data is absent")
+def test_an_indeterminate_system_for_the_dog_leg_is_solved_by_levenberg_marquardt(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """MIT Killian's plain least-squares graph is too poorly conditioned for the undamped dog leg."""
+    import gtsam
+
+    from driftmap.core.graph import posegraph
+    from driftmap.formats.g2o import read_g2o, to_pose_graph
+
+    raised: list[str] = []
+    real_dogleg = gtsam.DoglegOptimizer
+
+    class Watched:  # the real dog leg, its failure noted
+        def __init__(self, *args: object) -> None:
+            self._real = real_dogleg(*args)
+
+        def optimize(self) -> gtsam.Values:
+            try:
+                return self._real.optimize()
+            except RuntimeError as error:
+                raised.append(str(error))
+                raise
+
+        def iterations(self) -> int:
+            return int(self._real.iterations())
+
+    monkeypatch.setattr(posegraph.gtsam, "DoglegOptimizer", Watched)
+    chains, closures = to_pose_graph(read_g2o(DATA / "posegraphs" / "MITb.g2o"))
+    plain = PoseGraphParams(loop_kernel="none")
+    assert plain.solver == "dogleg"
+    fallback = optimise_pose_graph(chains, closures, (), plain)
+    assert len(raised) == 1 and "Indeterminate" in raised[0]
+    lm = optimise_pose_graph(chains, closures, (), dataclasses.replace(plain, solver="lm"))
+    assert fallback.final_error == pytest.approx(lm.final_error, rel=1e-9)
+    np.testing.assert_allclose(fallback.all_poses(), lm.all_poses(), atol=1e-9)
