@@ -88,7 +88,7 @@ def _line(name: str, seconds: float, stats: dict) -> str:
     queries = (
         f"{stats['loop_queries_reused']} of {stats['loop_queries_reused'] + stats['loop_queries_scored']}"
     )
-    graph = f"{stats['graph_warm_drives']} drives warm, {stats['graph_iterations']} final LM iterations"
+    graph = f"{stats['graph_warm_drives']} drives warm, {stats['graph_iterations']} final solve iterations"
     return (
         f"{name:<18}{seconds:6.1f} s ({stages}, other {rest:.1f}); segments reused {reused}; "
         f"loop-closure queries reused {queries}; graph {graph}"

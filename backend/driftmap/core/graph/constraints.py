@@ -147,7 +147,8 @@ class PoseGraphResult:
         grounding_residual_m: (G, 3) [dx, dy, distance], optimised position minus surveyed, metres.
         initial_error: graph error (sum of factor costs) at the initial guess.
         final_error: graph error at the solution.
-        iterations: LM iterations (after the feed for solver isam2); 0 for GNC (GTSAM does not say).
+        iterations: the batch solver's iterations (after the feed for solver isam2); 0 for GNC (GTSAM does
+            not say).
         solve_time_s: wall time of the optimisation, seconds.
         num_nodes: poses the optimiser solved (frames kept as nodes, see ``node_spacing_m``).
     """

@@ -10,9 +10,10 @@ and the tunnel driven, not with the frame rate.
 Poses are [x_m, y_m, yaw_rad] rows; ``wTi`` is frame i in the survey (world) frame, ``aTb`` frame b in
 frame a. Before optimising, every drive is placed in the survey frame, bent onto its groundings and bridged
 through its closures where it runs far from any (:mod:`~driftmap.core.graph.placement`); then
-Levenberg-Marquardt solves the graph (optionally after iSAM2 fed node by node, which escapes local
-minima that stop batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information
-makes LM take zero steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
+Powell's dog leg solves the graph (Levenberg-Marquardt where the dog leg meets an (almost) indeterminate
+system; or, as options, LM alone or after iSAM2 fed node by node, which escapes local minima that stop
+batch LM on hard graphs). Sigmas are clamped before they reach GTSAM (huge information makes LM take zero
+steps). :class:`PoseGraphSession` keeps the graph and re-solves warm-started from its
 last solution when only groundings move. The default kernel, DCS with Phi = 1, keeps M3500 within
 0.005 m of its outlier-free map with 20 % or 50 % random false closures, where plain least squares,
 Huber and Cauchy end 20-30 m off (``bench/bench_posegraph.py``).
@@ -91,10 +92,10 @@ class PoseGraphSession:
     """A pose graph that keeps its odometry and closures and re-solves after grounding edits.
 
     The first :meth:`solve` starts from the aligned dead-reckoning, or where ``warm`` gives a chain's
-    poses, from those; later ones start from the previous solution (LM warm start) unless the gauge anchors
+    poses, from those; later ones start from the previous solution (a warm start) unless the gauge anchors
     or the graph's nodes changed (a grounding on a frame that was no node adds one), which reaches the same
-    optimum faster. A warm start changes only where LM starts, never the graph: the placement and the gauge
-    anchors are those of the cold start.
+    optimum faster. A warm start changes only where the solver starts, never the graph: the placement and
+    the gauge anchors are those of the cold start.
 
     Args:
         chains: the drives' odometry, chain c has N_c frames.
