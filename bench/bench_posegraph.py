@@ -211,6 +211,9 @@ def main() -> None:
         "--graphs", default="frame,lm,default", help="section 5's graphs, of frame, lm and default"
     )
     args = parser.parse_args()
+    unknown = set(args.graphs.split(",")) - {"frame", "lm", "default"}
+    if unknown:
+        parser.error(f"--graphs: unknown {', '.join(sorted(unknown))}; of frame, lm and default")
     if (DATA / "M3500_olson.g2o").exists():
         m3500(args.runs, args.gnc)
         batch_vs_incremental(args.runs, args.slow)

@@ -25,7 +25,7 @@ import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import gtsam
 import numpy as np
@@ -46,6 +46,8 @@ from driftmap.core.types import F64, I64
 from driftmap.errors import BadInputError
 
 __all__ = ["PoseGraphSession", "optimise_pose_graph"]
+
+_SolverParams = TypeVar("_SolverParams", gtsam.DoglegParams, gtsam.LevenbergMarquardtParams)
 
 _FREE_SIGMA_M = 1e3  # position sigma of a heading-only anchor, metres
 _NM = gtsam.noiseModel
@@ -317,19 +319,12 @@ class PoseGraphSession:
         """The batch solver, or GNC-TLS over LM; returns values, iterations and GNC's closure weights."""
         p = self.params
         if p.solver == "dogleg" and p.loop_kernel != "gnc_tls":
-            dogleg = gtsam.DoglegParams()
-            dogleg.setMaxIterations(p.max_iterations)
-            dogleg.setRelativeErrorTol(p.relative_error_tol)
-            dogleg.setAbsoluteErrorTol(p.absolute_error_tol)
-            trust_region = gtsam.DoglegOptimizer(graph, start, dogleg)
+            trust_region = gtsam.DoglegOptimizer(graph, start, self._stopping(gtsam.DoglegParams()))
             try:
                 return trust_region.optimize(), int(trust_region.iterations()), None
             except RuntimeError:  # an (almost) indeterminate system, which LM's damping copes with
                 pass
-        lm = gtsam.LevenbergMarquardtParams()
-        lm.setMaxIterations(p.max_iterations)
-        lm.setRelativeErrorTol(p.relative_error_tol)
-        lm.setAbsoluteErrorTol(p.absolute_error_tol)
+        lm = self._stopping(gtsam.LevenbergMarquardtParams())
         if p.loop_kernel != "gnc_tls":
             optimizer = gtsam.LevenbergMarquardtOptimizer(graph, start, lm)
             return optimizer.optimize(), int(optimizer.iterations()), None
@@ -342,6 +337,13 @@ class PoseGraphSession:
         values = gnc_optimizer.optimize()
         weights = np.asarray(gnc_optimizer.getWeights(), dtype=np.float64)
         return values, 0, weights[closures.start : closures.stop]
+
+    def _stopping(self, solver: _SolverParams) -> _SolverParams:
+        """``solver`` with the iteration limit and error tolerances of :attr:`params`."""
+        solver.setMaxIterations(self.params.max_iterations)
+        solver.setRelativeErrorTol(self.params.relative_error_tol)
+        solver.setAbsoluteErrorTol(self.params.absolute_error_tol)
+        return solver
 
     def _isam2(
         self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, anchors: list[Anchor]
