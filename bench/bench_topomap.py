@@ -13,12 +13,19 @@ distance limit). Prints medians over several runs and the ratio naive/driftmap, 
 map against the true network: stored A(x, y) against the along-tunnel distance. With --real, also times the
 M3500 ground-truth trajectory from shared/data/posegraphs (a 2-D "Manhattan" world whose blocks are a few
 metres across, finer than N: a timing row, not a tunnel map).
+
+With --site SIZE, the localisation database on a simulated site's map (its drives prepared and solved once):
+the map compressed with each node's frames chosen by the SESAME database (Algorithm 1, then spaced views),
+all nodes in lockstep (the product's path) against the same selector called on one node at a time (the path
+before it), with the two maps' chosen frames compared.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
+import sys
 import time
 from collections.abc import Callable
 from functools import partial
@@ -31,8 +38,13 @@ from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench_mapping import mapping_drives, site_dir
+from driftmap.core.mapping.pipeline import MAPPING_DEFAULT, prepare_drives, solve_map
 from driftmap.core.topomap.build import build_topomap
-from driftmap.core.topomap.model import TOPOMAP_PAPER, TopoMap, TopoMapParams
+from driftmap.core.topomap.database import database_selector
+from driftmap.core.topomap.model import TOPOMAP_PAPER, NodeFrames, TopoMap, TopoMapParams, per_node
 
 F64 = NDArray[np.float64]
 T = TypeVar("T")
@@ -220,11 +232,58 @@ def timed(fn: Callable[[], T], runs: int) -> tuple[float, T]:
     return statistics.median(times), out
 
 
+def site_database(size: str, seed: int, runs: int) -> None:
+    """The database's frame choice on a simulated site's map: all nodes in lockstep vs one node at a time."""
+    drives = mapping_drives(site_dir(size, seed))
+    params = MAPPING_DEFAULT
+    prepared = prepare_drives(drives, params, workers=2)
+    wTi = solve_map(prepared, drives, params).wTi
+    stats = prepared.frame_stats
+    if stats is None:
+        raise SystemExit("the default mapping parameters have the database off: nothing to measure")
+    counts = [t.shape[0] for t in prepared.thumbs]
+    chain_ptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    select = database_selector(
+        stats, np.concatenate(prepared.thumbs), chain_ptr, params.database, params.loops.sad
+    )
+
+    def one_node(cands: NodeFrames, k: int) -> NDArray[np.int64]:
+        return select([cands], k)[0]
+
+    per_node_frames = max(params.topomap.frames_per_node, params.database.frames_per_node)
+    topo_params = dataclasses.replace(params.topomap, frames_per_node=per_node_frames)
+    chains, quality = list(wTi), list(prepared.confidence)
+    lockstep_s, topo = timed(
+        partial(build_topomap, chains, quality=quality, params=topo_params, select_frames=select), runs
+    )
+    alone_s, alone = timed(
+        partial(build_topomap, chains, quality=quality, params=topo_params, select_frames=per_node(one_node)),
+        max(1, runs // 2),
+    )
+    same = np.array_equal(topo.chosen_ptr, alone.chosen_ptr) and np.array_equal(topo.chosen, alone.chosen)
+    print(
+        f"\nLocalisation database of the {size} site, seed {seed}: {sum(counts):,} frames, {topo.n_nodes:,} nodes"
+    )
+    print(f"{'frames chosen':>32} {'seconds':>8}")
+    print(f"{'all nodes in lockstep (default)':>32} {lockstep_s:>8.2f}")
+    print(f"{'one node at a time':>32} {alone_s:>8.2f}")
+    print(
+        f"one at a time / lockstep: {alone_s / lockstep_s:.1f}x; {topo.chosen.size:,} reference frames, "
+        f"{'the same' if same else 'NOT the same'} in both maps (median of {runs} and {max(1, runs // 2)} runs)"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=RUNS)
     parser.add_argument("--real", action="store_true", help="also the M3500 ground-truth grid world")
+    parser.add_argument(
+        "--site", help="also the localisation database on this simulated site size (e.g. medium)"
+    )
+    parser.add_argument("--seed", type=int, default=7, help="the site's seed")
     args = parser.parse_args()
+    if args.site:
+        site_database(args.site, args.seed, args.runs)
     sites = [(f"{km:g} km grid", synthetic_site(km, seed=1), km) for km in SIZES_KM]
     if args.real and M3500.exists():
         sites.append(("M3500 ground truth", [np.loadtxt(M3500)], 0.0))

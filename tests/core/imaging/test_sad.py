@@ -9,7 +9,7 @@ import pytest
 from driftmap.core.imaging.images import mask_pyramid, patch_normalise, pyramid
 from driftmap.core.imaging.params import SadParams
 from driftmap.core.imaging.registration import register_shift
-from driftmap.core.imaging.sad import sad_matrix, sad_one_to_many
+from driftmap.core.imaging.sad import sad_matrix, sad_one_to_many, sad_pairs
 from driftmap.core.imaging.shift_cost import TwoSidedCost
 
 SEED = 3
@@ -99,6 +99,47 @@ class TestAgainstNaive:
         query, refs = shifted_views([(0, 0)])
         res = sad_one_to_many(query, refs, SadParams(), np.zeros((H, W), np.float32))
         assert np.isinf(res.d[0])
+
+
+class TestPairs:
+    def test_pairs_agree_with_one_to_many(self) -> None:
+        rng = np.random.default_rng(2)
+        frames = patch_normalise(rng.integers(0, 255, (40, H, W)).astype(np.uint8))
+        qi, rj = rng.integers(0, 40, 300), rng.integers(0, 40, 300)
+        params = SadParams(max_shift_x_px=3, max_shift_y_px=2, chunk_bytes=64 * 1024)
+        got = sad_pairs(frames, qi, rj, params)
+        for p in range(0, 300, 7):
+            ref = sad_one_to_many(frames[qi[p]], frames[rj[p]][None], params)
+            assert got.d[p] == pytest.approx(ref.d[0], abs=FLOAT_TOL)
+            assert tuple(got.shift_px[p]) == tuple(ref.shift_px[0])
+
+    def test_masked_pairs_match_manual(self) -> None:
+        """Eq. 6 with each query's own mask; a query whose mask misses every overlap scores inf."""
+        rng = np.random.default_rng(SEED + 2)
+        frames = rng.standard_normal((6, H, W)).astype(np.float32)
+        masks = rng.random((6, H, W)) > 0.6
+        masks[4] = False
+        masks[5] = False
+        masks[5, 0, :] = True  # only the top row: gone at every downward shift, kept at dy <= 0
+        qi, rj = np.array([0, 1, 2, 4, 5, 3, 0]), np.array([1, 2, 3, 0, 1, 0, 0])
+        params = SadParams(max_shift_x_px=2, max_shift_y_px=1, chunk_bytes=3 * H * W * 4)  # 3 pairs per chunk
+        got = sad_pairs(frames, qi, rj, params, masks)
+        expected = [
+            naive_masked(frames[q], frames[r], 2, 1, masks[q].astype(np.float32))
+            for q, r in zip(qi, rj, strict=True)
+        ]
+        assert np.isinf(got.d[3]) and np.isinf(expected[3])
+        finite = np.isfinite(expected)
+        assert np.allclose(got.d[finite], np.asarray(expected)[finite], atol=FLOAT_TOL)
+        alone = [sad_pairs(frames, qi[p : p + 1], rj[p : p + 1], params, masks).d[0] for p in range(qi.size)]
+        assert np.array_equal(got.d, np.asarray(alone, dtype=np.float32))  # the same whatever the batch
+
+    def test_bad_pairs(self) -> None:
+        frames = np.zeros((3, H, W), np.float32)
+        with pytest.raises(ValueError, match="indices"):
+            sad_pairs(frames, np.array([0]), np.array([3]))
+        with pytest.raises(ValueError, match="masks"):
+            sad_pairs(frames, np.array([0]), np.array([1]), masks=np.ones((3, H, W + 1), bool))
 
 
 class TestShapes:

@@ -12,7 +12,8 @@ from driftmap.core.imaging.images import preprocess
 from driftmap.core.imaging.params import IMAGES_DEFAULT, SadParams
 from driftmap.core.localisation.localiser import Localiser
 from driftmap.core.localisation.map import LocaliserMap
-from driftmap.core.sesame.masks import SESAME_DEFAULT, masked_sad
+from driftmap.core.sesame.masks import SESAME_DEFAULT
+from driftmap.core.sesame.salient_database import masked_sad
 from driftmap.core.topomap.database import (
     DATABASE_OFF,
     DatabaseParams,
@@ -131,7 +132,7 @@ class TestDatabaseSelector:
         sal = np.linspace(0.6, 0.9, 10)
         stats, thumbs = self._stats(sal, np.ones(10, dtype=bool))
         params = DatabaseParams(use_quality=False, view_spacing_m=1.0)
-        pick = database_selector(stats, thumbs, np.array([0, 10]), params)(_node(xy, yaw), 12)
+        pick = database_selector(stats, thumbs, np.array([0, 10]), params)([_node(xy, yaw)], 12)[0]
         yaws, picked_xy = yaw[pick], xy[pick]
         assert 0.0 in yaws and math.pi in yaws  # both travel directions kept
         for heading in (0.0, math.pi):
@@ -144,20 +145,20 @@ class TestDatabaseSelector:
         sal = np.array([0.9, 0.2, 0.8, 0.7, 0.9, 0.6])  # frame 1 below S_th = 0.5
         good = np.array([True, True, True, False, True, True])  # frame 3 glare
         stats, thumbs = self._stats(sal, good)
-        pick = database_selector(stats, thumbs, np.array([0, 6]))(_node(xy, np.zeros(6)), 12)
+        pick = database_selector(stats, thumbs, np.array([0, 6]))([_node(xy, np.zeros(6))], 12)[0]
         assert sorted(pick.tolist()) == [0, 2, 4, 5]
 
     def test_a_node_with_no_good_frame_keeps_some(self) -> None:
         xy = np.column_stack([np.arange(3) * 2.0, np.zeros(3)])
         stats, thumbs = self._stats(np.full(3, 0.9), np.zeros(3, dtype=bool))
-        pick = database_selector(stats, thumbs, np.array([0, 3]))(_node(xy, np.zeros(3)), 12)
+        pick = database_selector(stats, thumbs, np.array([0, 3]))([_node(xy, np.zeros(3))], 12)[0]
         assert pick.size == 3
 
     def test_off_uses_the_heading_selector_and_k(self) -> None:
         xy = np.column_stack([np.arange(6) * 0.5, np.zeros(6)])
         stats, thumbs = self._stats(np.full(6, 0.9), np.ones(6, dtype=bool))
         select = database_selector(stats, thumbs, np.array([0, 6]), DATABASE_OFF)
-        assert select(_node(xy, np.zeros(6)), 2).size == 1  # one visit: one frame
+        assert select([_node(xy, np.zeros(6))], 2)[0].size == 1  # one visit: one frame
 
 
 class TestFrameStats:

@@ -14,6 +14,7 @@ import pytest
 from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import patch_normalise
+from driftmap.core.imaging.sad import sad_pairs
 from driftmap.core.loop_closure.blocks import (
     LoopSearch,
     QueryScores,
@@ -22,7 +23,6 @@ from driftmap.core.loop_closure.blocks import (
     split_queries,
 )
 from driftmap.core.loop_closure.descriptors import coarse_candidates, query_blocks
-from driftmap.core.loop_closure.pair_scores import sad_pairs
 from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams
 from driftmap.core.loop_closure.resume import SearchBasis, resumable_blocks
 from driftmap.core.loop_closure.search import decide_loops, detect_loops

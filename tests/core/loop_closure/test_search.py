@@ -16,10 +16,7 @@ import pytest
 from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import patch_normalise
-from driftmap.core.imaging.params import SadParams
-from driftmap.core.imaging.sad import sad_one_to_many
 from driftmap.core.loop_closure.descriptors import _sequence_filter, _top_k_rows
-from driftmap.core.loop_closure.pair_scores import sad_pairs
 from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams
 from driftmap.core.loop_closure.search import LoopResult, detect_loops
 
@@ -275,19 +272,6 @@ class TestValidation:
 
 
 class TestScores:
-    def test_sad_pairs_agree_with_one_to_many(self) -> None:
-        rng = np.random.default_rng(2)
-        frames = patch_normalise(rng.integers(0, 255, (40, H, W)).astype(np.uint8))
-        qi, rj = rng.integers(0, 40, 300), rng.integers(0, 40, 300)
-        params = SadParams(max_shift_x_px=3, max_shift_y_px=2, chunk_bytes=64 * 1024)
-        got = sad_pairs(frames, qi, rj, params)
-        for p in range(0, 300, 7):
-            ref = sad_one_to_many(frames[qi[p]], frames[rj[p]][None], params)
-            assert abs(got.d[p] - ref.d[0]) < SAD_TOL
-            assert tuple(got.shift_px[p]) == tuple(ref.shift_px[0])
-        with pytest.raises(ValueError):
-            sad_pairs(frames, np.array([0]), np.array([40]))
-
     def test_top_k_rows_is_a_sorted_top_k(self) -> None:
         rng = np.random.default_rng(0)
         for cols in (5, 300, 3001):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,16 +14,15 @@ from driftmap.core.sesame.masks import (
     SESAME_DEFAULT,
     SESAME_PAPER,
     SesameParams,
-    build_salient_database,
     combine_masks,
     entropy_mask,
     frame_saliency,
-    masked_sad,
     patch_entropy,
     saliency_score,
     saliency_score_max,
     sesame_masks,
 )
+from driftmap.core.sesame.salient_database import build_salient_database, build_salient_databases, masked_sad
 from driftmap.core.topomap.build import build_topomap
 from driftmap.core.topomap.database import salient_frame_selector
 from driftmap.core.topomap.model import NodeFrames
@@ -223,16 +223,45 @@ class TestBuildSalientDatabase:
             quality=np.zeros(5),
             visit=np.zeros(5, dtype=np.int64),
         )
-        pick = select(cands, 3)
+        (pick,) = select([cands], 3)
         assert pick.dtype == np.int64
         assert (chain_ptr[chain] + row)[pick].tolist() == [1, 2]  # most salient first
-        assert (chain_ptr[chain] + row)[select(cands, 1)].tolist() == [1]
+        assert (chain_ptr[chain] + row)[select([cands], 1)[0]].tolist() == [1]
 
     def test_masks_used_when_enabled(self) -> None:
         thumbs = patch_normalise(_node_thumbs(), 5)
         masks = np.ones(thumbs.shape, dtype=bool)
         kept = build_salient_database(self.xy, self.sal, thumbs, masks, SESAME_DEFAULT)
         assert kept.tolist() == [1, 2]
+
+    def test_groups_in_lockstep_equal_algorithm_1_on_each(self) -> None:
+        """Many nodes at once give what the paper's loop gives on each node alone (a sequential oracle)."""
+        rng = np.random.default_rng(SEED + 1)
+        views = rng.normal(size=(6, 32, 64)).astype(np.float32)
+        n = 300
+        thumbs = views[rng.integers(0, 6, n)] + rng.normal(scale=0.05, size=(n, 32, 64)).astype(np.float32)
+        masks = rng.random((n, 32, 64)) > 0.3
+        masks[::17] = False  # frames without a salient pixel: their comparisons score inf
+        sal = rng.uniform(0.3, 1.0, n)
+        xy = rng.uniform(0.0, 1.5, (n, 2))  # crowded: most frames have kept frames within A_th
+        groups = [rng.choice(n, size, replace=False) for size in (0, 1, 40, 7, 90, 25)]
+        params = replace(SESAME_DEFAULT, similarity=0.5)
+        got = build_salient_databases(groups, [xy[g] for g in groups], sal, thumbs, masks, params)
+
+        def oracle(g: np.ndarray) -> list[int]:
+            unique: list[int] = []
+            for i in range(g.size):
+                near = [u for u in unique if np.hypot(*(xy[g[i]] - xy[g[u]])) < params.adjacency_m]
+                d = masked_sad(thumbs[g[i]], thumbs[g[near]], masks[g[i]]) if near else []
+                same = next((u for u, dist in zip(near, d, strict=True) if dist < params.similarity), None)
+                if same is None and sal[g[i]] > params.saliency_min:
+                    unique.append(i)
+                elif same is not None and sal[g[i]] > sal[g[same]]:
+                    unique[unique.index(same)] = i
+            return unique
+
+        assert [k.tolist() for k in got] == [oracle(g) for g in groups]
+        assert sum(k.size for k in got) < sum(g.size for g in groups) // 2  # the views were merged
 
 
 class TestParams:

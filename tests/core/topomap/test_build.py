@@ -14,7 +14,14 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from driftmap.core.topomap.build import build_topomap
-from driftmap.core.topomap.model import TOPOMAP_FAST, TOPOMAP_PAPER, NodeFrames, TopoMap, TopoMapParams
+from driftmap.core.topomap.model import (
+    TOPOMAP_FAST,
+    TOPOMAP_PAPER,
+    NodeFrames,
+    TopoMap,
+    TopoMapParams,
+    per_node,
+)
 from driftmap.errors import BadInputError
 
 SPACING_TOL_M = 0.6  # node spacing along a straight tunnel, vs N = 5 m (frames every 0.25 m, 1-2 m passes)
@@ -223,15 +230,17 @@ class TestFramesAndLookups:
             assert cands.xy_m.shape == (cands.chain.size, 2) and cands.dist_m.min() < 2.5
             return np.argsort(cands.dist_m)[: min(k, 2)].astype(np.int64)
 
-        m = build_topomap([drive([(0, 0), (30, 0)])], select_frames=nearest_two)
+        m = build_topomap([drive([(0, 0), (30, 0)])], select_frames=per_node(nearest_two))
         assert seen == list(range(m.n_nodes))
         assert all(len(m.chosen_frames(n)) == 2 for n in range(m.n_nodes))
 
     def test_a_bad_selector_is_reported(self) -> None:
         with pytest.raises(BadInputError, match="select_frames"):
-            build_topomap([drive([(0, 0), (10, 0)])], select_frames=lambda c, k: np.arange(k + 1))
+            build_topomap([drive([(0, 0), (10, 0)])], select_frames=per_node(lambda c, k: np.arange(k + 1)))
         with pytest.raises(BadInputError, match="select_frames"):
-            build_topomap([drive([(0, 0), (10, 0)])], select_frames=lambda c, k: np.array([-1]))
+            build_topomap([drive([(0, 0), (10, 0)])], select_frames=per_node(lambda c, k: np.array([-1])))
+        with pytest.raises(BadInputError, match="answered 0 of"):
+            build_topomap([drive([(0, 0), (10, 0)])], select_frames=lambda nodes, k: [])
 
     def test_nearest_node_and_frame_nodes(self) -> None:
         m = straight_both_ways()

@@ -22,7 +22,9 @@ by 1 pixel the minimum is at ``(3, 1)``.
 Speed: the loop runs over the ``(2 x_max + 1)(2 y_max + 1)`` shifts and is vectorised over
 references. A chunk of references is laid out as one tall ``(n H, W)`` image and compared with the
 query tiled to the same height, so each shift costs one ``cv2.absdiff`` and one row-sum GEMV over
-cache-sized memory; rows that straddle two references are simply dropped.
+cache-sized memory; rows that straddle two references are simply dropped. :func:`sad_pairs` scores
+arbitrary pairs the same way (both sides gathered into tall images), so many small comparisons cost
+one pass over the shifts instead of one each.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ __all__ = [
     "SadResult",
     "sad_matrix",
     "sad_one_to_many",
+    "sad_pairs",
 ]
 
 
@@ -190,3 +193,103 @@ def sad_matrix(
 
 
 # --- Registration of two images of one scene: coarse-to-fine, two-sided, masked SAD -------------
+
+
+def sad_pairs(
+    frames: NDArray,
+    qi: NDArray,
+    rj: NDArray,
+    params: SadParams = SAD_DEFAULT,
+    masks: NDArray | None = None,
+) -> SadResult:
+    """Shift-minimised SAD of ``frames[qi[p]]`` against ``frames[rj[p]]`` for arbitrary pairs ``p``.
+
+    The conventions are those of :func:`sad_one_to_many` ([SSLAM] eq. 3; with ``masks``, [SESAME] eq. 6
+    with the query's mask). Pairs are gathered in chunks of about ``params.chunk_bytes`` and laid out as
+    two tall images, so each shift costs one ``cv2.absdiff`` and one sum per pair whatever the pairs are.
+    A pair's result does not depend on the other pairs of its call (so a search split over processes
+    scores alike).
+
+    Args:
+        frames: ``(N, H, W)`` float32 patch-normalised frames.
+        qi: ``(P,)`` int query frame indices.
+        rj: ``(P,)`` int reference frame indices.
+        params: shift ranges ``+-max_shift_x_px``, ``+-max_shift_y_px`` and the chunk memory bound.
+        masks: optional ``(N, H, W)`` weights in {0, 1} (bool or float) of each frame's pixels; the
+            query's weights ``masks[qi[p]]`` count, normalised by their sum over the overlap.
+
+    Returns:
+        :class:`SadResult` with ``d`` ``(P,)`` (``inf`` where no weighted pixel overlaps at any shift) and
+        ``shift_px`` ``(P, 2)``: query pixel ``(x, y)`` matches reference pixel ``(x + dx, y + dy)``.
+
+    Raises:
+        ValueError: bad shapes or indices, or a shift range leaving no overlap.
+    """
+    f = np.ascontiguousarray(frames, dtype=np.float32)
+    qi = np.asarray(qi, dtype=np.int64)
+    rj = np.asarray(rj, dtype=np.int64)
+    if f.ndim != 3 or qi.ndim != 1 or qi.shape != rj.shape:
+        raise ValueError(
+            f"frames (N, H, W), qi (P,), rj (P,) expected, got {f.shape}, {qi.shape}, {rj.shape}"
+        )
+    if masks is not None and np.shape(masks) != f.shape:
+        raise ValueError(f"masks must have the frames' shape {f.shape}, got {np.shape(masks)}")
+    n, height, width = f.shape
+    if qi.size and (min(qi.min(), rj.min()) < 0 or max(qi.max(), rj.max()) >= n):
+        raise ValueError(f"pair indices must lie in 0 .. {n - 1}")
+    shifts = _shifts(params.max_shift_x_px, params.max_shift_y_px, height, width)
+    overlaps = [_overlap(dx, dy, height, width) for dx, dy in shifts]
+    best = np.full(qi.size, np.inf, dtype=np.float32)
+    best_k = np.zeros(qi.size, dtype=np.int64)
+    chunk = max(1, params.chunk_bytes // (height * width * 4))
+    diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
+    for c0 in range(0, qi.size, chunk):
+        c1 = min(qi.size, c0 + chunk)
+        m = c1 - c0
+        a = f[qi[c0:c1]].reshape(m * height, width)
+        b = f[rj[c0:c1]].reshape(m * height, width)
+        w = None if masks is None else np.asarray(masks[qi[c0:c1]], dtype=np.float32)
+        weight = None if w is None else _overlap_weights(w, overlaps)
+        for k, ((_, dy), (qy, qx, _, rx)) in enumerate(zip(shifts, overlaps, strict=True)):
+            k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
+            cols = qx.stop - qx.start
+            diff = diff_buf[: m * height * cols].reshape(m * height, cols)
+            cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff[k0:k1])
+            if w is not None:
+                np.multiply(diff[k0:k1], w.reshape(m * height, width)[k0:k1, qx], out=diff[k0:k1])
+            # Each pair's overlap is one contiguous run of the buffer, summed on its own (numpy's pairwise
+            # sum): a pair's d is the same whatever else its batch holds (a BLAS row sum is not).
+            overlap = diff.reshape(m, height, cols)[:, qy, :].reshape(m, -1)
+            score = np.add.reduce(overlap, axis=1)
+            if weight is None:
+                score *= np.float32(1.0 / ((qy.stop - qy.start) * cols))
+            else:
+                score = np.where(weight[:, k] > 0, score / np.maximum(weight[:, k], 1.0), np.float32(np.inf))
+            better = score < best[c0:c1]
+            best[c0:c1][better] = score[better]
+            best_k[c0:c1][better] = k
+    shift_arr = np.asarray(shifts, dtype=np.int16).reshape(-1, 2)
+    return SadResult(d=best, shift_px=shift_arr[best_k])
+
+
+def _overlap_weights(
+    weights: NDArray[np.float32], overlaps: list[tuple[slice, slice, slice, slice]]
+) -> NDArray[np.float32]:
+    """``(m, S)`` sum of each of ``m`` ``(H, W)`` weight images over the query overlap of each of S shifts.
+
+    Two small matrix products with 0/1 indicators of the overlaps' row and column ranges; float32 sums of
+    0/1 weights are exact (fewer than 2**24 pixels).
+    """
+    m, height, width = weights.shape
+    col_ranges = sorted({(qx.start, qx.stop) for _, qx, _, _ in overlaps})
+    row_ranges = sorted({(qy.start, qy.stop) for qy, _, _, _ in overlaps})
+    cols = np.zeros((width, len(col_ranges)), dtype=np.float32)
+    for j, (x0, x1) in enumerate(col_ranges):
+        cols[x0:x1, j] = 1.0
+    rows = np.zeros((len(row_ranges), height), dtype=np.float32)
+    for i, (y0, y1) in enumerate(row_ranges):
+        rows[i, y0:y1] = 1.0
+    sums = rows @ (weights.reshape(m * height, width) @ cols).reshape(m, height, -1)  # (m, rows, cols)
+    iy = [row_ranges.index((qy.start, qy.stop)) for qy, _, _, _ in overlaps]
+    ix = [col_ranges.index((qx.start, qx.stop)) for _, qx, _, _ in overlaps]
+    return np.asarray(sums[:, iy, ix], dtype=np.float32)

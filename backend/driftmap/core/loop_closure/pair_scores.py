@@ -1,91 +1,21 @@
-"""Eq. 3 on arbitrary pairs of frames, a cache of those scores, and sequence scores of diagonals.
+"""A cache of eq. 3 scores of frame pairs, and sequence scores of diagonals.
 
 The loop-closure search (:mod:`driftmap.core.loop_closure.blocks`) computes the shifted SAD of eq. 3 only on the
 pairs its coarse candidates (:mod:`driftmap.core.loop_closure.descriptors`) and their sequence checks ask for:
-:func:`sad_pairs` scores any list of pairs in batches, :class:`PairCache` keeps each pair's score so no pair
-is computed twice, and :class:`DiagonalScorer` scores short diagonals of the confusion matrix from it
-(SeqSLAM on full-resolution frames).
+:func:`~driftmap.core.imaging.sad.sad_pairs` scores any list of pairs in batches, :class:`PairCache` keeps
+each pair's score so no pair is computed twice, and :class:`DiagonalScorer` scores short diagonals of the
+confusion matrix from it (SeqSLAM on full-resolution frames).
 """
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.imaging.params import SAD_DEFAULT, SadParams
-from driftmap.core.imaging.sad import SadResult
+from driftmap.core.imaging.sad import sad_pairs
 
-__all__ = ["DiagonalScorer", "PairCache", "sad_pairs"]
-
-
-def sad_pairs(
-    frames: NDArray,
-    qi: NDArray,
-    rj: NDArray,
-    params: SadParams = SAD_DEFAULT,
-) -> SadResult:
-    """Eq. 3 for arbitrary pairs: shift-minimised, overlap-normalised SAD of ``frames[qi[p]]``
-    against ``frames[rj[p]]``, with the conventions of :func:`driftmap.core.imaging.sad.sad_one_to_many`.
-
-    Pairs are gathered in chunks of about ``params.chunk_bytes`` and laid out as two tall images, so
-    each shift costs one ``cv2.absdiff`` and one sum per pair whatever the pairs are. A pair's result
-    does not depend on the other pairs of its call (so a search split over processes scores alike).
-
-    Args:
-        frames: ``(N, H, W)`` float32 patch-normalised frames.
-        qi: ``(P,)`` int query frame indices.
-        rj: ``(P,)`` int reference frame indices.
-        params: shift ranges ``+-max_shift_x_px``, ``+-max_shift_y_px`` and the chunk memory bound.
-
-    Returns:
-        :class:`~driftmap.core.imaging.sad.SadResult` with ``d`` ``(P,)`` and ``shift_px`` ``(P, 2)``:
-        query pixel ``(x, y)`` matches reference pixel ``(x + dx, y + dy)``.
-
-    Raises:
-        ValueError: bad shapes or indices, or a shift range leaving no overlap.
-    """
-    f = np.ascontiguousarray(frames, dtype=np.float32)
-    qi = np.asarray(qi, dtype=np.int64)
-    rj = np.asarray(rj, dtype=np.int64)
-    if f.ndim != 3 or qi.ndim != 1 or qi.shape != rj.shape:
-        raise ValueError(
-            f"frames (N, H, W), qi (P,), rj (P,) expected, got {f.shape}, {qi.shape}, {rj.shape}"
-        )
-    n, height, width = f.shape
-    if qi.size and (min(qi.min(), rj.min()) < 0 or max(qi.max(), rj.max()) >= n):
-        raise ValueError(f"pair indices must lie in 0 .. {n - 1}")
-    mx, my = params.max_shift_x_px, params.max_shift_y_px
-    if mx >= width or my >= height:
-        raise ValueError(f"shifts +-{mx}, +-{my} leave no overlap in a {width}x{height} image")
-    shifts = [(dx, dy) for dy in range(-my, my + 1) for dx in range(-mx, mx + 1)]
-    best = np.full(qi.size, np.inf, dtype=np.float32)
-    best_k = np.zeros(qi.size, dtype=np.int64)
-    chunk = max(1, params.chunk_bytes // (height * width * 4))
-    diff_buf = np.empty(chunk * height * width, dtype=np.float32)  # reused: no allocation per shift
-    for c0 in range(0, qi.size, chunk):
-        c1 = min(qi.size, c0 + chunk)
-        m = c1 - c0
-        a = f[qi[c0:c1]].reshape(m * height, width)
-        b = f[rj[c0:c1]].reshape(m * height, width)
-        for k, (dx, dy) in enumerate(shifts):
-            qy = slice(max(0, -dy), height - max(0, dy))
-            qx = slice(max(0, -dx), width - max(0, dx))
-            rx = slice(qx.start + dx, qx.stop + dx)
-            k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
-            cols = qx.stop - qx.start
-            diff = diff_buf[: m * height * cols].reshape(m * height, cols)
-            cv2.absdiff(a[k0:k1, qx], b[k0 + dy : k1 + dy, rx], dst=diff[k0:k1])
-            # Each pair's overlap is one contiguous run of the buffer, summed on its own (numpy's pairwise
-            # sum): a pair's d is the same whatever else its batch holds (a BLAS row sum is not).
-            overlap = diff.reshape(m, height, cols)[:, qy, :].reshape(m, -1)
-            score = np.add.reduce(overlap, axis=1)
-            score *= np.float32(1.0 / ((qy.stop - qy.start) * cols))
-            better = score < best[c0:c1]
-            best[c0:c1][better] = score[better]
-            best_k[c0:c1][better] = k
-    shift_arr = np.asarray(shifts, dtype=np.int16).reshape(-1, 2)
-    return SadResult(d=best, shift_px=shift_arr[best_k])
+__all__ = ["DiagonalScorer", "PairCache"]
 
 
 class PairCache:

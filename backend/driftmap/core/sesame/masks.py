@@ -20,9 +20,7 @@ the patch sizes therefore stay in pixels of the 160 x 76 image.
 The masked SAD is eq. 6 of :func:`driftmap.core.imaging.sad.sad_one_to_many` with ``mask=``. The Saliency Score
 (eq. 8-9) is ``SS = sum_ij M(i, j)`` with the mask stored as an 8-bit image (salient = 255), so that its
 maximum is ``SS_m = 255 R_x R_y``; ``SS / SS_m`` is the salient fraction of the image, compared with
-``S_th`` = 50 %. :func:`build_salient_database` is Algorithm 1;
-:func:`driftmap.core.topomap.database.salient_frame_selector` plugs it into
-:func:`driftmap.core.topomap.build.build_topomap` as its ``FrameSelector``.
+``S_th`` = 50 %. Algorithm 1, which uses the masks and scores, is :mod:`driftmap.core.sesame.salient_database`.
 """
 
 from __future__ import annotations
@@ -35,20 +33,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import crop, downsample, to_gray
-from driftmap.core.imaging.params import IMAGES_DEFAULT, SAD_DEFAULT, ImageParams, SadParams
-from driftmap.core.imaging.sad import sad_one_to_many
-from driftmap.core.types import F64, I64, BoolArr
+from driftmap.core.imaging.params import IMAGES_DEFAULT, ImageParams
+from driftmap.core.types import F64, BoolArr
 from driftmap.errors import BadInputError
 
 __all__ = [
     "SESAME_DEFAULT",
     "SESAME_PAPER",
     "SesameParams",
-    "build_salient_database",
     "combine_masks",
     "entropy_mask",
     "frame_saliency",
-    "masked_sad",
     "patch_entropy",
     "saliency_score",
     "saliency_score_max",
@@ -263,78 +258,3 @@ def frame_saliency(
         raise BadInputError(f"need a stack (N, H, W), got shape {np.shape(images)}", field="images")
     saliency = saliency_score(full) / saliency_score_max(params.mask_size_px)
     return saliency, _resize_nearest(full, image_params.size_px or params.mask_size_px)
-
-
-def masked_sad(
-    query: NDArray[np.float32],
-    refs: NDArray[np.float32],
-    query_mask: BoolArr | None,
-    sad_params: SadParams = SAD_DEFAULT,
-) -> NDArray[np.float32]:
-    """Masked, shift-minimised SAD (eq. 6) of one thumbnail against many; thin wrapper of ``sad_one_to_many``.
-
-    Args:
-        query: ``(h, w)`` patch-normalised float32 thumbnail.
-        refs: ``(M, h, w)`` thumbnails.
-        query_mask: bool ``(h, w)`` salient mask of the query, or None for the plain SAD.
-        sad_params: shift ranges.
-
-    Returns:
-        float32 ``(M,)``: mean absolute difference over the salient overlap at the best shift (``inf``
-        where no salient pixel overlaps).
-    """
-    mask = None if query_mask is None else np.asarray(query_mask, dtype=np.float32)
-    return sad_one_to_many(query, refs, sad_params, mask=mask).d
-
-
-def build_salient_database(
-    xy_m: F64,
-    saliency: F64,
-    thumbs: NDArray[np.float32],
-    masks: BoolArr | None,
-    params: SesameParams = SESAME_DEFAULT,
-    sad_params: SadParams = SAD_DEFAULT,
-) -> I64:
-    """Algorithm 1 (BuildSalientDatabase): keep the most salient frame of each unique view.
-
-    Frames are visited in input order. A frame nearer than ``A_th`` to a kept frame whose masked SAD
-    (the incoming frame is the query, with its mask) is below ``V_th`` shows the same view: it replaces
-    that kept frame when it is more salient, and is dropped otherwise. A frame of a new view is kept when
-    its saliency exceeds ``S_th``.
-
-    Args:
-        xy_m: ``(C, 2)`` float64 frame positions, metres.
-        saliency: ``(C,)`` float64 ``SS / SS_m`` of each frame, fraction in [0, 1].
-        thumbs: ``(C, h, w)`` float32 patch-normalised thumbnails.
-        masks: bool ``(C, h, w)`` salient masks of the thumbnails, or None (plain SAD).
-        params: ``adjacency_m``, ``similarity``, ``saliency_min``, ``use_mask``.
-        sad_params: shift ranges of the SAD.
-
-    Returns:
-        int64 ``(U,)`` positions of the kept frames in input order of first admission.
-    """
-    xy = np.asarray(xy_m, dtype=np.float64)
-    sal = np.asarray(saliency, dtype=np.float64)
-    th = np.asarray(thumbs, dtype=np.float32)
-    c = sal.shape[0]
-    bad_masks = masks is not None and np.shape(masks) != th.shape
-    if xy.shape != (c, 2) or th.ndim != 3 or th.shape[0] != c or sal.ndim != 1 or bad_masks:
-        raise BadInputError(
-            f"need xy (C, 2), saliency (C,), thumbs and masks (C, h, w); got {xy.shape}, {th.shape}"
-        )
-    unique: list[int] = []
-    for i in range(c):
-        novel = True
-        near = [u for u in unique if np.hypot(*(xy[i] - xy[u])) < params.adjacency_m]
-        if near:
-            mask = masks[i] if masks is not None and params.use_mask else None
-            d = masked_sad(th[i], th[near], mask, sad_params)
-            for slot, dist in zip(near, d, strict=True):
-                if dist < params.similarity:
-                    novel = False
-                    if sal[i] > sal[slot]:
-                        unique[unique.index(slot)] = i
-                    break
-        if novel and sal[i] > params.saliency_min:
-            unique.append(i)
-    return np.asarray(unique, dtype=np.int64)

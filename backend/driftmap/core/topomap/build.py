@@ -36,6 +36,7 @@ from driftmap.core.topomap.model import (
     NodeFrames,
     TopoMap,
     TopoMapParams,
+    per_node,
     select_frames_by_heading,
 )
 from driftmap.core.types import F64, I64
@@ -173,28 +174,37 @@ def build_topomap(
     m = centres.shape[0]
 
     tol, gain = p.heading_tolerance_rad, p.quality_gain_m
-    select = select_frames or partial(
-        select_frames_by_heading, heading_tolerance_rad=tol, quality_gain_m=gain
+    select = select_frames or per_node(
+        partial(select_frames_by_heading, heading_tolerance_rad=tol, quality_gain_m=gain)
     )
     qual_all = np.concatenate([np.empty(0), *qual])
     ids_all = np.concatenate([chain[:0], *ids])
     order = np.argsort(node, kind="stable")
     ptr = np.r_[0, np.cumsum(np.bincount(node, minlength=m))].astype(np.int64)
-    chosen_ptr, chosen = [0], list[int]()
     row = np.arange(chain.size) - chain_ptr[chain]
     per_frame: tuple[NDArray[Any], ...] = (chain, row, ids_all, xy, yaw, dist, qual_all, visit)
-    for i in range(m):
-        rows = order[ptr[i] : ptr[i + 1]]
-        if rows.size == 0:  # a drive stepped over the node (frame step > spacing): no frame saw it
-            chosen_ptr.append(len(chosen))
-            continue
-        pick = np.asarray(select(NodeFrames(i, centres[i], *(a[rows] for a in per_frame)), p.frames_per_node))
+    seen = [i for i in range(m) if ptr[i + 1] > ptr[i]]  # a drive may step over a node: no frame saw it
+    members = [order[ptr[i] : ptr[i + 1]] for i in seen]
+    picks = select(
+        [
+            NodeFrames(i, centres[i], *(a[rows] for a in per_frame))
+            for i, rows in zip(seen, members, strict=True)
+        ],
+        p.frames_per_node,
+    )
+    if len(picks) != len(seen):
+        raise BadInputError(
+            f"frame selector answered {len(picks)} of {len(seen)} nodes", field="select_frames"
+        )
+    chosen_per_node = [np.zeros(0, dtype=np.int64) for _ in range(m)]
+    for i, rows, pick in zip(seen, members, map(np.asarray, picks), strict=True):
         bad = pick.ndim != 1 or pick.size > p.frames_per_node or np.unique(pick).size != pick.size
         bad = bad or (pick.size > 0 and pick.dtype.kind not in "iu")
         if bad or (pick.size and (pick.min() < 0 or pick.max() >= rows.size)):
             raise BadInputError(f"frame selector returned {pick} for node {i}", field="select_frames")
-        chosen.extend(rows[pick].tolist())
-        chosen_ptr.append(len(chosen))
+        chosen_per_node[i] = rows[pick]
+    chosen_ptr = np.r_[0, np.cumsum([c.size for c in chosen_per_node])].astype(np.int64)
+    chosen = np.concatenate([np.zeros(0, dtype=np.int64), *chosen_per_node])
 
     closest = _first_per_run(visit, dist)
     heading_ptr, headings = _heading_sets(node[closest], yaw[closest], m, p.heading_tolerance_rad)
@@ -207,8 +217,8 @@ def build_topomap(
         frame_ids=ids_all,
         frame_node=node,
         frame_dist_m=dist,
-        chosen_ptr=np.asarray(chosen_ptr, dtype=np.int64),
-        chosen=np.asarray(chosen, dtype=np.int64),
+        chosen_ptr=chosen_ptr,
+        chosen=chosen.astype(np.int64),
         heading_ptr=heading_ptr,
         headings_rad=headings,
         edges=edges,

@@ -7,7 +7,7 @@ the node score is the minimum over them). Paper 001 builds that database with SE
    and stitched good images made from the site's own frames drops glare-struck frames. The training
    sources are ``quality_sources`` frames spread evenly over the mapping drives, taken among the more
    salient half of a regular sample (typical, clean scenes, as the paper hand-picks them).
-2. **BuildSalientDatabase** (Algorithm 1, :func:`driftmap.core.sesame.masks.build_salient_database`): of frames
+2. **BuildSalientDatabase** (Algorithm 1, :mod:`driftmap.core.sesame.salient_database`): of frames
    nearer than A_th that look alike (masked SAD below V_th), only the most salient is kept, and a frame
    whose salient fraction SS/SS_m is below S_th is never admitted.
 3. **Per node**, the kept frames are taken most salient first, skipping a frame within ``view_spacing_m``
@@ -17,7 +17,7 @@ the node score is the minimum over them). Paper 001 builds that database with SE
 
 A node whose frames all fail a filter keeps its best frames anyway (the filter is skipped for it), so no
 place of the map becomes unreachable. :func:`database_selector` returns the ``FrameSelector`` that
-:func:`driftmap.core.topomap.build.build_topomap` calls per node; :func:`salient_frame_selector` is the
+:func:`driftmap.core.topomap.build.build_topomap` calls with every node; :func:`salient_frame_selector` is the
 paper's selector alone (Algorithm 1 on each node's frames, then the k most salient).
 """
 
@@ -39,13 +39,8 @@ from driftmap.core.sesame.glare_svm import (
     quality_features,
     train_quality_classifier,
 )
-from driftmap.core.sesame.masks import (
-    SESAME_DEFAULT,
-    SESAME_PAPER,
-    SesameParams,
-    build_salient_database,
-    frame_saliency,
-)
+from driftmap.core.sesame.masks import SESAME_DEFAULT, SESAME_PAPER, SesameParams, frame_saliency
+from driftmap.core.sesame.salient_database import build_salient_databases
 from driftmap.core.topomap.model import FrameSelector, NodeFrames, select_frames_by_heading, wrap_rad
 from driftmap.core.types import F64, I64
 from driftmap.errors import BadInputError
@@ -285,7 +280,8 @@ def database_selector(
         sad_params: SAD shift ranges of Algorithm 1's similarity test.
 
     Returns:
-        ``(NodeFrames, k) -> (<= k,) int64`` rows of the node's frames (never empty for a node with frames).
+        ``(nodes, k) -> per node (<= k,) int64`` rows of its frames (never empty for a node with frames);
+        Algorithm 1 runs on all the nodes together (:func:`~driftmap.core.sesame.salient_database.build_salient_databases`).
     """
     thumbs = np.asarray(thumbs_by_flat_frame, dtype=np.float32)
     ptr = np.asarray(chain_ptr, dtype=np.int64)
@@ -295,23 +291,37 @@ def database_selector(
             f"stats of {n} frames, thumbs {thumbs.shape}, masks {stats.masks.shape} disagree", field="stats"
         )
 
-    def select(cands: NodeFrames, k: int) -> I64:
-        flat = ptr[cands.chain] + cands.row
-        rows = np.lexsort((cands.row, cands.chain)).astype(np.int64)  # time order within each drive
-        if params.use_quality and stats.good[flat[rows]].any():
-            rows = rows[stats.good[flat[rows]]]
+    def select(nodes: Sequence[NodeFrames], k: int) -> list[I64]:
+        member_rows = []
+        for cands in nodes:
+            flat = ptr[cands.chain] + cands.row
+            rows = np.lexsort((cands.row, cands.chain)).astype(np.int64)  # time order within each drive
+            if params.use_quality and stats.good[flat[rows]].any():
+                rows = rows[stats.good[flat[rows]]]
+            member_rows.append(rows)
         if not params.use_sesame:
-            sub = NodeFrames(cands.node, cands.centre_m, *(getattr(cands, a)[rows] for a in _PER_FRAME))
-            return np.asarray(rows[select_frames_by_heading(sub, k)], dtype=np.int64)
-        if params.use_sesame:
-            f = flat[rows]
-            kept = build_salient_database(
-                cands.xy_m[rows], stats.saliency[f], thumbs[f], stats.masks[f], params.sesame, sad_params
-            )
-            if kept.size:
-                rows = rows[kept]
+            picks = []
+            for cands, rows in zip(nodes, member_rows, strict=True):
+                sub = NodeFrames(cands.node, cands.centre_m, *(getattr(cands, a)[rows] for a in _PER_FRAME))
+                picks.append(np.asarray(rows[select_frames_by_heading(sub, k)], dtype=np.int64))
+            return picks
+        flats = [(ptr[c.chain] + c.row)[rows] for c, rows in zip(nodes, member_rows, strict=True)]
+        kept = build_salient_databases(
+            flats,
+            [c.xy_m[rows] for c, rows in zip(nodes, member_rows, strict=True)],
+            stats.saliency,
+            thumbs,
+            stats.masks,
+            params.sesame,
+            sad_params,
+        )
         limit = min(k, params.frames_per_node)
-        return _spaced_by_saliency(cands, rows, stats.saliency[flat[rows]], limit, params.view_spacing_m)
+        picks = []
+        for cands, rows, flat, keep in zip(nodes, member_rows, flats, kept, strict=True):
+            if keep.size:
+                rows, flat = rows[keep], flat[keep]
+            picks.append(_spaced_by_saliency(cands, rows, stats.saliency[flat], limit, params.view_spacing_m))
+        return picks
 
     return select
 
@@ -338,7 +348,7 @@ def salient_frame_selector(
         sad_params: SAD shift ranges.
 
     Returns:
-        Selector ``(NodeFrames, k) -> (<= k,) int64`` rows of the node's frames; it may return none when
+        Selector ``(nodes, k) -> per node (<= k,) int64`` rows of its frames; it may return none when
         no frame of the node is salient enough.
     """
     sal = np.asarray(saliency_scores_by_flat_frame, dtype=np.float64)
@@ -355,17 +365,26 @@ def salient_frame_selector(
             "good (F,) and masks (F, h, w) must match the frames", field="masks_by_flat_frame"
         )
 
-    def select(cands: NodeFrames, k: int) -> I64:
-        flat = ptr[cands.chain] + cands.row
-        order = np.lexsort((cands.row, cands.chain))
-        order = order[good[flat[order]]]
-        if order.size == 0:
-            return np.zeros(0, dtype=np.int64)
-        f = flat[order]
-        kept = build_salient_database(
-            cands.xy_m[order], sal[f], thumbs[f], None if masks is None else masks[f], params, sad_params
+    def select(nodes: Sequence[NodeFrames], k: int) -> list[I64]:
+        orders = []
+        for cands in nodes:
+            flat = ptr[cands.chain] + cands.row
+            order = np.lexsort((cands.row, cands.chain))
+            orders.append(order[good[flat[order]]])
+        flats = [(ptr[c.chain] + c.row)[o] for c, o in zip(nodes, orders, strict=True)]
+        kept = build_salient_databases(
+            flats,
+            [c.xy_m[o] for c, o in zip(nodes, orders, strict=True)],
+            sal,
+            thumbs,
+            masks,
+            params,
+            sad_params,
         )
-        best = kept[np.argsort(-sal[f][kept], kind="stable")][:k]
-        return np.asarray(order[best], dtype=np.int64)
+        picks = []
+        for order, f, keep in zip(orders, flats, kept, strict=True):
+            best = keep[np.argsort(-sal[f][keep], kind="stable")][:k]
+            picks.append(np.asarray(order[best], dtype=np.int64))
+        return picks
 
     return select

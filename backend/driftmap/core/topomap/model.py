@@ -9,7 +9,7 @@ pluggable :data:`FrameSelector` (default :func:`select_frames_by_heading`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from functools import cached_property
 
@@ -30,6 +30,7 @@ __all__ = [
     "NodeFrames",
     "TopoMap",
     "TopoMapParams",
+    "per_node",
     "select_frames_by_heading",
     "wrap_rad",
 ]
@@ -91,8 +92,18 @@ class NodeFrames:
     visit: I64
 
 
-#: Chooses at most ``k`` of a node's frames; returns their (<= k,) int64 positions in the ``NodeFrames`` rows.
-FrameSelector = Callable[[NodeFrames, int], I64]
+#: Chooses at most ``k`` frames of each node it is given: per node, the (<= k,) int64 positions of its chosen
+#: frames in the ``NodeFrames`` rows. It sees every node of the map at once, so it may batch work across them.
+FrameSelector = Callable[[Sequence[NodeFrames], int], list[I64]]
+
+
+def per_node(select_one: Callable[[NodeFrames, int], I64]) -> FrameSelector:
+    """The :data:`FrameSelector` that calls ``select_one(node_frames, k)`` on each node in turn."""
+
+    def select(nodes: Sequence[NodeFrames], k: int) -> list[I64]:
+        return [select_one(cands, k) for cands in nodes]
+
+    return select
 
 
 def wrap_rad(angle_rad: F64) -> F64:
