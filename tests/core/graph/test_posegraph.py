@@ -326,10 +326,28 @@ def test_an_indeterminate_system_for_the_dog_leg_is_solved_by_levenberg_marquard
 
     monkeypatch.setattr(posegraph.gtsam, "DoglegOptimizer", Watched)
     chains, closures = to_pose_graph(read_g2o(DATA / "posegraphs" / "MITb.g2o"))
-    plain = PoseGraphParams(loop_kernel="none")
-    assert plain.solver == "dogleg"
+    plain = PoseGraphParams(loop_kernel="none", solver="dogleg")
     fallback = optimise_pose_graph(chains, closures, (), plain)
     assert len(raised) == 1 and "Indeterminate" in raised[0]
     lm = optimise_pose_graph(chains, closures, (), dataclasses.replace(plain, solver="lm"))
     assert fallback.final_error == pytest.approx(lm.final_error, rel=1e-9)
     np.testing.assert_allclose(fallback.all_poses(), lm.all_poses(), atol=1e-9)
+
+
+@pytest.mark.skipif(not (DATA / "posegraphs" / "city10000.g2o").exists(), reason="shared/data is absent")
+def test_levenberg_marquardt_stopped_short_is_continued_by_the_dog_leg() -> None:
+    """The default solver is LM's solution when LM converges, and LM then the dog leg when LM runs out."""
+    from driftmap.formats.g2o import read_g2o, to_pose_graph
+
+    chains, closures = to_pose_graph(read_g2o(DATA / "posegraphs" / "city10000.g2o"))
+    plain = PoseGraphParams(loop_kernel="none")
+    assert plain.solver == "lm_dogleg"
+    converged = optimise_pose_graph(chains, closures, (), plain)
+    lm = optimise_pose_graph(chains, closures, (), dataclasses.replace(plain, solver="lm"))
+    assert converged.iterations == lm.iterations < plain.max_iterations
+    np.testing.assert_array_equal(converged.all_poses(), lm.all_poses())
+    capped = dataclasses.replace(plain, max_iterations=3)  # LM needs 6 on this graph
+    lm_short = optimise_pose_graph(chains, closures, (), dataclasses.replace(capped, solver="lm"))
+    continued = optimise_pose_graph(chains, closures, (), capped)
+    assert lm_short.iterations == 3 and continued.iterations == 6  # three of LM, three of the dog leg
+    assert continued.final_error < 0.5 * lm_short.final_error

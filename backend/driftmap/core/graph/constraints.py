@@ -32,9 +32,10 @@ __all__ = [
 
 FrameRef = tuple[int, int]
 LoopKernel = Literal["none", "huber", "cauchy", "dcs", "geman_mcclure", "gnc_tls"]
-# Batch Powell's dog leg (a trust region) or Levenberg-Marquardt, or iSAM2 (QR) fed frame by frame and
-# polished by Levenberg-Marquardt.
-PoseGraphSolver = Literal["dogleg", "lm", "isam2"]
+# Batch solvers: "lm_dogleg" is Levenberg-Marquardt, continued by Powell's dog leg (a trust region) from
+# where LM stopped when LM used up max_iterations without converging; "lm" and "dogleg" are each alone;
+# "isam2" feeds iSAM2 (QR) frame by frame and polishes with Levenberg-Marquardt.
+PoseGraphSolver = Literal["lm_dogleg", "lm", "dogleg", "isam2"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,7 +112,7 @@ class PoseGraphParams:
     align_min_baseline_m: float = 5.0  # groundings spanning less do not rotate a drive before optimising, m
     node_spacing_m: float = 5.0  # travel between graph nodes where no constraint needs one, m (0: all)
     node_max_steps: int = 50  # most odometry steps between two graph nodes
-    solver: PoseGraphSolver = "dogleg"  # see PoseGraphSolver
+    solver: PoseGraphSolver = "lm_dogleg"  # see PoseGraphSolver
     max_iterations: int = 100  # iterations of the batch solver (also of the polish after iSAM2)
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
     absolute_error_tol: float = 1e-5  # or by less than this
@@ -147,8 +148,8 @@ class PoseGraphResult:
         grounding_residual_m: (G, 3) [dx, dy, distance], optimised position minus surveyed, metres.
         initial_error: graph error (sum of factor costs) at the initial guess.
         final_error: graph error at the solution.
-        iterations: the batch solver's iterations (after the feed for solver isam2); 0 for GNC (GTSAM does
-            not say).
+        iterations: the batch solver's iterations (after the feed for solver isam2; LM's and the dog leg's
+            together for lm_dogleg); 0 for GNC (GTSAM does not say).
         solve_time_s: wall time of the optimisation, seconds.
         num_nodes: poses the optimiser solved (frames kept as nodes, see ``node_spacing_m``).
     """
