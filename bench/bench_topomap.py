@@ -262,14 +262,16 @@ def site_database(size: str, seed: int, runs: int) -> None:
     )
     same = np.array_equal(topo.chosen_ptr, alone.chosen_ptr) and np.array_equal(topo.chosen, alone.chosen)
     print(
-        f"\nLocalisation database of the {size} site, seed {seed}: {sum(counts):,} frames, {topo.n_nodes:,} nodes"
+        f"\nLocalisation database of the {size} site, seed {seed}: {sum(counts):,} frames, "
+        f"{topo.n_nodes:,} nodes"
     )
     print(f"{'frames chosen':>32} {'seconds':>8}")
     print(f"{'all nodes in lockstep (default)':>32} {lockstep_s:>8.2f}")
     print(f"{'one node at a time':>32} {alone_s:>8.2f}")
     print(
         f"one at a time / lockstep: {alone_s / lockstep_s:.1f}x; {topo.chosen.size:,} reference frames, "
-        f"{'the same' if same else 'NOT the same'} in both maps (median of {runs} and {max(1, runs // 2)} runs)"
+        f"{'the same' if same else 'NOT the same'} in both maps "
+        f"(median of {runs} and {max(1, runs // 2)} runs)"
     )
 
 

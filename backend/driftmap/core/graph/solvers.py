@@ -42,8 +42,8 @@ def solve_batch(
         closures: the factor indices of the loop closures (GNC's unknown inliers).
 
     Returns:
-        The solution, the iterations taken (0 for GNC: GTSAM does not say), and for GNC the ``(len(closures),)``
-        closure weights in [0, 1] (else None).
+        The solution, the iterations taken (0 for GNC: GTSAM does not say), and for GNC the
+        ``(len(closures),)`` closure weights in [0, 1] (else None).
     """
     if params.solver == "dogleg" and params.loop_kernel != "gnc_tls":
         solved = _dogleg(graph, start, params)

@@ -1,10 +1,10 @@
 """A cache of eq. 3 scores of frame pairs, and sequence scores of diagonals.
 
-The loop-closure search (:mod:`driftmap.core.loop_closure.blocks`) computes the shifted SAD of eq. 3 only on the
-pairs its coarse candidates (:mod:`driftmap.core.loop_closure.descriptors`) and their sequence checks ask for:
-:func:`~driftmap.core.imaging.sad.sad_pairs` scores any list of pairs in batches, :class:`PairCache` keeps
-each pair's score so no pair is computed twice, and :class:`DiagonalScorer` scores short diagonals of the
-confusion matrix from it (SeqSLAM on full-resolution frames).
+The loop-closure search (:mod:`driftmap.core.loop_closure.blocks`) computes the shifted SAD of eq. 3 only
+on the pairs its coarse candidates (:mod:`driftmap.core.loop_closure.descriptors`) and their sequence checks
+ask for: :func:`~driftmap.core.imaging.sad.sad_pairs` scores any list of pairs in batches, :class:`PairCache`
+keeps each pair's score so no pair is computed twice, and :class:`DiagonalScorer` scores short diagonals of
+the confusion matrix from it (SeqSLAM on full-resolution frames).
 """
 
 from __future__ import annotations

@@ -17,10 +17,11 @@ per-scale salient masks. Masks are computed at ``R_x x R_y`` as in the paper, th
 nearest-neighbour to the comparison thumbnail (e.g. 64 x 32 of :class:`~driftmap.core.imaging.params.ImageParams`);
 the patch sizes therefore stay in pixels of the 160 x 76 image.
 
-The masked SAD is eq. 6 of :func:`driftmap.core.imaging.sad.sad_one_to_many` with ``mask=``. The Saliency Score
-(eq. 8-9) is ``SS = sum_ij M(i, j)`` with the mask stored as an 8-bit image (salient = 255), so that its
-maximum is ``SS_m = 255 R_x R_y``; ``SS / SS_m`` is the salient fraction of the image, compared with
-``S_th`` = 50 %. Algorithm 1, which uses the masks and scores, is :mod:`driftmap.core.sesame.salient_database`.
+The masked SAD is eq. 6 of :func:`driftmap.core.imaging.sad.sad_one_to_many` with ``mask=``. The Saliency
+Score (eq. 8-9) is ``SS = sum_ij M(i, j)`` with the mask stored as an 8-bit image (salient = 255), so that
+its maximum is ``SS_m = 255 R_x R_y``; ``SS / SS_m`` is the salient fraction of the image, compared with
+``S_th`` = 50 %. Algorithm 1, which uses the masks and scores, is
+:mod:`driftmap.core.sesame.salient_database`.
 """
 
 from __future__ import annotations

@@ -91,7 +91,8 @@ def build_salient_databases(
     """Algorithm 1 on many independent groups of frames at once, each as :func:`build_salient_database`.
 
     Args:
-        frames: per group, ``(C_g,)`` int64 indices of its frames into the per-frame arrays, in visiting order.
+        frames: per group, ``(C_g,)`` int64 indices of its frames into the per-frame arrays, in the order
+            they are visited.
         xy_m: per group, ``(C_g, 2)`` float64 positions of those frames, metres.
         saliency: ``(F,)`` float64 ``SS / SS_m`` of every frame, fraction in [0, 1].
         thumbs: ``(F, h, w)`` float32 patch-normalised thumbnails.
@@ -100,7 +101,8 @@ def build_salient_databases(
         sad_params: shift ranges of the SAD.
 
     Returns:
-        Per group, int64 ``(U_g,)`` positions (into the group) of its kept frames, in order of first admission.
+        Per group, int64 ``(U_g,)`` positions (into the group) of its kept frames, in order of first
+        admission.
 
     Raises:
         BadInputError: the groups or per-frame arrays disagree in shape, or an index is out of range.

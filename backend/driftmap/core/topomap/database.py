@@ -281,7 +281,8 @@ def database_selector(
 
     Returns:
         ``(nodes, k) -> per node (<= k,) int64`` rows of its frames (never empty for a node with frames);
-        Algorithm 1 runs on all the nodes together (:func:`~driftmap.core.sesame.salient_database.build_salient_databases`).
+        Algorithm 1 runs on all the nodes together
+        (:func:`~driftmap.core.sesame.salient_database.build_salient_databases`).
     """
     thumbs = np.asarray(thumbs_by_flat_frame, dtype=np.float32)
     ptr = np.asarray(chain_ptr, dtype=np.int64)
