@@ -134,6 +134,32 @@ class TestSolveWithCalibration:
         error = np.hypot(*(solved.wTi[0][:, :2] - wTi_true[:, :2]).T)
         assert error.mean() < 0.02
 
+    def test_the_rounds_use_the_solver_and_the_last_solve_the_last_solver(
+        self, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        truth = true_steps(600)
+        wTi_true = dead_reckon(truth, np.zeros(3))
+        chain = OdometryChain(measured(truth, OdometryBias(1.02, 0.0)), np.array([0.02, 0.02, 0.002]))
+        groundings = [
+            GroundingConstraint(
+                frame=(0, i), xy_m=(float(wTi_true[i, 0]), float(wTi_true[i, 1])), sigma_m=0.3
+            )
+            for i in range(0, 600, 150)
+        ]
+        first = posegraph.optimise_pose_graph([chain], [], groundings, POSEGRAPH_DEFAULT)
+        solvers: list[str] = []
+        real = posegraph.optimise_pose_graph
+
+        def watched(*args: object, **kwargs: object) -> object:
+            solvers.append(args[3].solver)  # type: ignore[attr-defined]
+            return real(*args, **kwargs)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(posegraph, "optimise_pose_graph", watched)
+        solve_with_calibration(first, [chain], [], groundings, POSEGRAPH_DEFAULT, 3, 15.0)
+        assert (POSEGRAPH_DEFAULT.solver, POSEGRAPH_DEFAULT.last_solver) == ("lm_dogleg", "dogleg")
+        assert len(solvers) >= 2
+        assert set(solvers[:-1]) == {"lm_dogleg"} and solvers[-1] == "dogleg"
+
     def test_an_uninformed_drive_is_left_alone(self) -> None:
         chain = OdometryChain(true_steps(200), np.array([0.02, 0.02, 0.002]))
         first = posegraph.optimise_pose_graph([chain], [], [], POSEGRAPH_DEFAULT)

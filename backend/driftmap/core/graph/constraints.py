@@ -113,6 +113,7 @@ class PoseGraphParams:
     node_spacing_m: float = 5.0  # travel between graph nodes where no constraint needs one, m (0: all)
     node_max_steps: int = 50  # most odometry steps between two graph nodes
     solver: PoseGraphSolver = "lm_dogleg"  # see PoseGraphSolver
+    last_solver: PoseGraphSolver = "dogleg"  # a calibrated build's last solve, cold from the placement
     max_iterations: int = 100  # iterations of the batch solver (also of the polish after iSAM2)
     relative_error_tol: float = 1e-5  # stop when the error falls by less than this fraction
     absolute_error_tol: float = 1e-5  # or by less than this
@@ -120,8 +121,9 @@ class PoseGraphParams:
     def __post_init__(self) -> None:
         if self.loop_kernel not in get_args(LoopKernel):
             raise ValueError(f"PoseGraphParams: unknown loop_kernel {self.loop_kernel!r}")
-        if self.solver not in get_args(PoseGraphSolver):
-            raise ValueError(f"PoseGraphParams: unknown solver {self.solver!r}")
+        for solver in (self.solver, self.last_solver):
+            if solver not in get_args(PoseGraphSolver):
+                raise ValueError(f"PoseGraphParams: unknown solver {solver!r}")
         if min(self.min_sigma_m, self.min_sigma_rad, self.anchor_sigma_m, self.anchor_sigma_rad) <= 0:
             raise ValueError("PoseGraphParams: sigmas must be positive")
         if self.node_spacing_m < 0 or self.node_max_steps < 1:

@@ -157,7 +157,8 @@ def solve_with_calibration(
     warm start: the placement and gauge anchors stay the cold start's); the last one starts cold from the
     placement of the corrected steps (on the 20 km site a last solve started from the last loose round's
     poses settled in a worse minimum: twelve times the final error, 1,000 more closures turned down, 0.5 m
-    worse on average).
+    worse on average), solved by ``graph_params.last_solver``: from the placement Levenberg-Marquardt can
+    crawl for hundreds of iterations, or stop on a slow stretch, short of the minimum the dog leg reaches.
 
     Args:
         graph: the first solution of the graph of ``chains``, ``closures`` and ``groundings``.
@@ -195,7 +196,8 @@ def solve_with_calibration(
         fixed = [_corrected(chain, bias) for chain, bias in zip(chains, biases, strict=True)]
         if all(_settled(a, b) for a, b in zip(previous, biases, strict=True)):
             break
-    return posegraph.optimise_pose_graph(fixed, closures, groundings, graph_params), biases
+    last = replace(graph_params, solver=graph_params.last_solver)
+    return posegraph.optimise_pose_graph(fixed, closures, groundings, last), biases
 
 
 def _as_vector(bias: OdometryBias) -> F64:
