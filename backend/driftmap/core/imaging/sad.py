@@ -239,6 +239,7 @@ def sad_pairs(
         raise ValueError(f"pair indices must lie in 0 .. {n - 1}")
     shifts = _shifts(params.max_shift_x_px, params.max_shift_y_px, height, width)
     overlaps = [_overlap(dx, dy, height, width) for dx, dy in shifts]
+    indicators = _overlap_indicators(overlaps, height, width)
     best = np.full(qi.size, np.inf, dtype=np.float32)
     best_k = np.zeros(qi.size, dtype=np.int64)
     chunk = max(1, params.chunk_bytes // (height * width * 4))
@@ -249,7 +250,10 @@ def sad_pairs(
         a = f[qi[c0:c1]].reshape(m * height, width)
         b = f[rj[c0:c1]].reshape(m * height, width)
         w = None if masks is None else np.asarray(masks[qi[c0:c1]], dtype=np.float32)
-        weight = None if w is None else _overlap_weights(w, overlaps)
+        weight = None
+        if w is not None:  # (m, S) weight in each shift's overlap: exact float32 sums of 0/1 weights
+            rows, cols, iy, ix = indicators
+            weight = (rows @ (w.reshape(m * height, width) @ cols).reshape(m, height, -1))[:, iy, ix]
         for k, ((_, dy), (qy, qx, _, rx)) in enumerate(zip(shifts, overlaps, strict=True)):
             k0, k1 = max(0, -dy), m * height - max(0, dy)  # rows straddling two pairs are dropped below
             cols = qx.stop - qx.start
@@ -272,24 +276,23 @@ def sad_pairs(
     return SadResult(d=best, shift_px=shift_arr[best_k])
 
 
-def _overlap_weights(
-    weights: NDArray[np.float32], overlaps: list[tuple[slice, slice, slice, slice]]
-) -> NDArray[np.float32]:
-    """``(m, S)`` sum of each of ``m`` ``(H, W)`` weight images over the query overlap of each of S shifts.
+def _overlap_indicators(
+    overlaps: list[tuple[slice, slice, slice, slice]], height: int, width: int
+) -> tuple[NDArray[np.float32], NDArray[np.float32], list[int], list[int]]:
+    """0/1 indicators of the overlaps' distinct row and column ranges, and each shift's pair of them.
 
-    Two small matrix products with 0/1 indicators of the overlaps' row and column ranges; float32 sums of
-    0/1 weights are exact (fewer than 2**24 pixels).
+    Returns ``rows`` ``(R, H)``, ``cols`` ``(W, C)`` float32 and, per shift, its row range ``iy`` and
+    column range ``ix``: the weight of shift k in an ``(H, W)`` image ``w`` is
+    ``(rows @ w @ cols)[iy[k], ix[k]]``.
     """
-    m, height, width = weights.shape
-    col_ranges = sorted({(qx.start, qx.stop) for _, qx, _, _ in overlaps})
     row_ranges = sorted({(qy.start, qy.stop) for qy, _, _, _ in overlaps})
-    cols = np.zeros((width, len(col_ranges)), dtype=np.float32)
-    for j, (x0, x1) in enumerate(col_ranges):
-        cols[x0:x1, j] = 1.0
+    col_ranges = sorted({(qx.start, qx.stop) for _, qx, _, _ in overlaps})
     rows = np.zeros((len(row_ranges), height), dtype=np.float32)
     for i, (y0, y1) in enumerate(row_ranges):
         rows[i, y0:y1] = 1.0
-    sums = rows @ (weights.reshape(m * height, width) @ cols).reshape(m, height, -1)  # (m, rows, cols)
+    cols = np.zeros((width, len(col_ranges)), dtype=np.float32)
+    for j, (x0, x1) in enumerate(col_ranges):
+        cols[x0:x1, j] = 1.0
     iy = [row_ranges.index((qy.start, qy.stop)) for qy, _, _, _ in overlaps]
     ix = [col_ranges.index((qx.start, qx.stop)) for _, qx, _, _ in overlaps]
-    return np.asarray(sums[:, iy, ix], dtype=np.float32)
+    return rows, cols, iy, ix
