@@ -3,8 +3,9 @@
 On the mini site (two mapping drives of 100 frames, one segment each) on a real database: a build after no
 change prepares nothing and gives the same map (its pose graph started from the last version's poses); a
 build after a new mapping drive prepares only it and equals a full build, its loop-closure search scoring only
-the new drive's keyframes; a moved grounding re-solves the graph from the kept odometry; a full build prepares
-everything and replaces the kept pieces; deleting the site leaves no piece, no kept search and no blob.
+the new drive's keyframes and its SESAME database scoring only pairs it has not seen; a moved grounding
+re-solves the graph from the kept odometry; a full build prepares everything and replaces the kept pieces;
+deleting the site leaves no piece, no kept search or scores and no blob.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from driftmap.services import groundings as grounding_service
 from driftmap.services import jobs as job_service
 from driftmap.services import sites as site_service
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, Grounding, MapLoopSearch, MapPiece, MapVersion
+from driftmap.store.models import Drive, Grounding, MapDatabaseScores, MapLoopSearch, MapPiece, MapVersion
 from driftmap.store.storage import Storage
 from tests.jobs.mini_site import drive_folders
 from tests.sim_site import create_site, import_folders, version_poses
@@ -79,6 +80,12 @@ def _search(storage: Storage) -> MapLoopSearch:
         return session.scalars(select(MapLoopSearch)).one()
 
 
+def _scores(storage: Storage) -> MapDatabaseScores:
+    """The site's kept SESAME database pair scores."""
+    with storage.db.session() as session:
+        return session.scalars(select(MapDatabaseScores)).one()
+
+
 def _reuse(version: MapVersion) -> tuple[int, int]:
     return int(version.stats["segments_reused"]), int(version.stats["segments_prepared"])
 
@@ -98,6 +105,10 @@ class TestIncrementalBuild:
         assert (first.stats["graph_warm_drives"], second.stats["graph_warm_drives"]) == (0, 2)
         np.testing.assert_allclose(_poses(storage, second), _poses(storage, first), rtol=0, atol=SAME_M)
         assert _kept(storage) == kept
+        assert first.stats["database_pairs_reused"] == 0 < first.stats["database_pairs_scored"]
+        # Same poses, same nodes: every comparison of the SESAME database is looked up.
+        assert second.stats["database_pairs_scored"] == 0 < second.stats["database_pairs_reused"]
+        assert second.stats["reference_frames"] == first.stats["reference_frames"]
 
     def test_a_new_drive_is_the_only_one_prepared_and_the_map_equals_a_full_build(
         self, storage: Storage, queue: JobQueue, mini_site: Path
@@ -106,15 +117,21 @@ class TestIncrementalBuild:
         assert len(folders) == 2
         _import(storage, mini_site, folders[:1], create=True)
         alone, _subtasks = _build(storage, queue)
+        alone_scores = _scores(storage)
         _import(storage, mini_site, folders[1:], create=False)
         grown, subtasks = _build(storage, queue)
         assert _reuse(alone) == (0, 1) and _reuse(grown) == (1, 1)
+        grown_scores = _scores(storage)  # the first drive's pairs looked up, the new drive's scored
+        assert grown.stats["database_pairs_reused"] > 0 and grown.stats["database_pairs_scored"] > 0
+        assert grown_scores.drives[:1] == alone_scores.drives and len(grown_scores.drives) == 2
+        assert storage.blobs.exists(grown_scores.scores_sha256)
+        assert not storage.blobs.exists(alone_scores.scores_sha256)  # replaced, dropped
         assert grown.stats["graph_warm_drives"] == 1  # the kept drive starts where version 1 left it
         assert [j.args["drive_id"] for j in subtasks if j.kind == "map.drive"] == [max(_drive_ids(storage))]
         kept = _kept(storage)
         full, subtasks = _build(storage, queue, full=True)
         assert _reuse(full) == (0, 2) and sum(j.kind == "map.drive" for j in subtasks) == 2
-        assert full.stats["graph_warm_drives"] == 0
+        assert full.stats["graph_warm_drives"] == 0 and full.stats["database_pairs_reused"] == 0
         incremental, rebuilt = _poses(storage, grown), _poses(storage, full)
         assert incremental.shape == rebuilt.shape == (200, 3)
         assert np.linalg.norm(incremental[:, :2] - rebuilt[:, :2], axis=1).max() <= POSE_TOLERANCE_M
@@ -204,7 +221,7 @@ class TestIncrementalBuild:
         _build(storage, queue)
         kept = _kept(storage)
         search = _search(storage)
-        searched = [search.basis_sha256, *(b[2] for b in search.blocks)]
+        searched = [search.basis_sha256, *(b[2] for b in search.blocks), _scores(storage).scores_sha256]
         assert kept and all(storage.blobs.exists(sha) for sha in searched)
         with storage.db.session() as session:
             candidates = deletion.delete_site(session, site_service.get_site(session, "tiny"))
@@ -213,6 +230,7 @@ class TestIncrementalBuild:
         assert not any(storage.blobs.exists(sha) for sha in [*kept.values(), *searched])
         with storage.db.session() as session:
             assert session.scalars(select(MapLoopSearch)).first() is None
+            assert session.scalars(select(MapDatabaseScores)).first() is None
 
 
 def _drive_ids(storage: Storage) -> list[int]:

@@ -93,8 +93,8 @@ def map_build(
         ),
     ] = False,
 ) -> None:
-    """Build a new immutable map version from the site's mapping drives and groundings (the odometry and the
-    loop-closure scores of drives unchanged since the last build reused)."""
+    """Build a new immutable map version from the site's mapping drives and groundings (the odometry, the
+    loop-closure scores and the database's pair scores of drives unchanged since the last build reused)."""
     storage = open_storage()
     with user_errors():
         params = _preset(preset)
@@ -132,6 +132,9 @@ def _stats_line(stats: dict[str, float | int]) -> str:
     if "loop_queries_reused" in stats:
         kept, scored = stats["loop_queries_reused"], stats.get("loop_queries_scored", 0)
         line += f", loop-closure scores of {kept} of {kept + scored} keyframes"
+    if "database_pairs_reused" in stats:
+        kept, scored = stats["database_pairs_reused"], stats.get("database_pairs_scored", 0)
+        line += f", database pair scores {kept} of {kept + scored}"
     return line
 
 

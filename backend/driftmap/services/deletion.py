@@ -16,7 +16,7 @@ from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
 from driftmap.errors import ConflictError
-from driftmap.services import loop_searches
+from driftmap.services import database_scores, loop_searches
 from driftmap.services.localisation import LOCALISER_DB_KEY
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
@@ -93,7 +93,7 @@ def delete_site(session: Session, site: Site) -> set[str]:
             .where(Drive.site_id == site.id)
         )
     )
-    candidates |= loop_searches.site_blobs(session, site.id)
+    candidates |= loop_searches.site_blobs(session, site.id) | database_scores.site_blobs(session, site.id)
     for version in session.scalars(select(MapVersion).where(MapVersion.site_id == site.id)):
         candidates |= _version_blobs(version)
     candidates |= _named_blobs(
@@ -104,8 +104,8 @@ def delete_site(session: Session, site: Site) -> set[str]:
 
 
 def referenced(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` that a frame, a survey map, a map version, a kept map piece or loop-closure search or a
-    job still refers to."""
+    """Those of ``shas`` that a frame, a survey map, a map version, a kept map piece, loop-closure search or
+    database pair scores, or a job still refers to."""
     wanted = set(shas)
     found: set[str] = set()
     items = sorted(wanted)
@@ -117,7 +117,7 @@ def referenced(session: Session, shas: Iterable[str]) -> set[str]:
             session.scalars(select(MapVersion.topomap_sha256).where(MapVersion.topomap_sha256.in_(chunk)))
         )
         found |= set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.blob_sha256.in_(chunk))))
-    found |= loop_searches.held_blobs(session, wanted)
+    found |= loop_searches.held_blobs(session, wanted) | database_scores.held_blobs(session, wanted)
     for stats in session.scalars(select(MapVersion.stats)):
         extra = (stats or {}).get(LOCALISER_DB_KEY)
         if extra in wanted:

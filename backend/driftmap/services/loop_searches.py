@@ -59,14 +59,15 @@ ScoredBlock = tuple[QueryScores, str]
 """A block's scores and the blob holding them."""
 
 
-def _digest(document: Any) -> str:
+def json_digest(document: Any) -> str:
+    """SHA-256 (hex) of a JSON document, keys sorted: the keys of what map builds keep."""
     text = json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def search_key(params: MappingParams) -> str:
     """SHA-256 (hex) of what a search depends on besides its chains: its parameters and the code's version."""
-    return _digest(
+    return json_digest(
         {
             "version": SEARCH_VERSION,
             "loops": dataclasses.asdict(params.loops),
@@ -82,7 +83,7 @@ def chain_keys(piece_keys: Sequence[str], drives: Sequence[MappingDrive], params
     per_drive: list[list[str]] = [[] for _d in drives]
     for key, (k, _span) in zip(piece_keys, build_segments(drives, params), strict=True):
         per_drive[k].append(key)
-    return [_digest(keys) for keys in per_drive]
+    return [json_digest(keys) for keys in per_drive]
 
 
 @dataclass(frozen=True, eq=False)

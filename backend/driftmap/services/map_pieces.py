@@ -16,8 +16,6 @@ The pose graph starts from the latest version's poses of the drives it has (:fun
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -27,7 +25,7 @@ from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
 from driftmap.core.mapping.pipeline import MappingDrive, MappingParams, build_segments
-from driftmap.services import loop_searches
+from driftmap.services import database_scores, loop_searches
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
 from driftmap.store.models import Drive, Frame, MapPiece, MapPose
@@ -39,14 +37,9 @@ PIECE_VERSION = 1
 frame statistics change, and every kept piece is recomputed by the next build."""
 
 
-def _digest(document: Any) -> str:
-    text = json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
 def drive_content(drive: Drive, frames: Sequence[Frame]) -> str:
     """SHA-256 (hex) of what a drive's stage 1 reads: its camera block, its frames' blobs and times."""
-    return _digest(
+    return loop_searches.json_digest(
         {"camera": drive.camera, "frames": [f.blob_sha256 for f in frames], "t_s": [f.t_s for f in frames]}
     )
 
@@ -73,7 +66,7 @@ def segment_keys(
     """
     stage1 = stage1_params(params)
     return [
-        _digest(
+        loop_searches.json_digest(
             {
                 "version": PIECE_VERSION,
                 "drive_id": drive_ids[k],
@@ -143,13 +136,13 @@ def drive_piece_blobs(session: Session, drive_ids: Iterable[int]) -> set[str]:
 
 
 def stale_blobs(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` no kept piece or kept loop-closure search holds and no unfinished job names (keys
+    """Those of ``shas`` no kept piece, loop-closure search or database pair scores hold and no unfinished job names (keys
     ending in ``_sha256``)."""
     wanted = set(shas)
     if not wanted:
         return set()
     held = set(session.scalars(select(MapPiece.blob_sha256).where(MapPiece.blob_sha256.in_(sorted(wanted)))))
-    held |= loop_searches.held_blobs(session, wanted)
+    held |= loop_searches.held_blobs(session, wanted) | database_scores.held_blobs(session, wanted)
     unfinished = session.execute(select(Job.args, Job.result).where(Job.status.in_(("queued", "running"))))
     named = {
         str(v)

@@ -27,8 +27,8 @@ from driftmap.core.topomap.model import TopoMap
 from driftmap.core.types import ProgressFn
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
+from driftmap.services import database_scores, loop_searches, map_pieces
 from driftmap.services import jobs as job_service
-from driftmap.services import loop_searches, map_pieces
 from driftmap.services.jobs import Enqueue
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_site_drives
 from driftmap.store.blobs import BlobBatch, BlobStore
@@ -219,7 +219,8 @@ def build_site_map(
     that many worker processes that open the same database and blob store) and kept (bit-identical either
     way). The loop-closure search resumes the site's kept search over the drives it shares
     (:mod:`driftmap.services.loop_searches`: in its basis and thresholds) and is kept. ``full`` prepares every
-    segment again and searches afresh. Unless ``full`` or not ``warm_start``, the pose graph starts from the
+    segment again and searches afresh. The SESAME database looks up the pair scores the site's last build
+    kept (:mod:`driftmap.services.database_scores`; not with ``full``) and keeps its own. Unless ``full`` or not ``warm_start``, the pose graph starts from the
     latest version's poses of the drives it has (the same map to the solver's tolerance). ``stale``, when
     given, receives the blobs of the pieces and search this build dropped:
     :func:`driftmap.services.map_pieces.drop_stale` them once committed.
@@ -252,12 +253,17 @@ def build_site_map(
     warm = None
     if warm_start and not full:
         warm = map_pieces.previous_solution(session, site.id, ids, loaded.frame_ids)
-    build = solve_map(prepared, loaded.inputs, params, progress, warm)
+    counts = [d.n_frames for d in loaded.inputs]
+    known = database_scores.load_scores(session, blobs, site.id, chains, counts, params, full)
+    build = solve_map(prepared, loaded.inputs, params, progress, warm, known)
     queries = (plan.queries_kept, plan.search.n) if plan else (0, 0)
     build.stats.update(reuse_stats(stage.reused, len(stage.segments), queries))
     dropped = map_pieces.keep_pieces(session, ids, stage.segments)
     if plan is not None:
         dropped |= loop_searches.keep_search(session, site.id, params, chains, plan, scored)
+    if build.database_scores is not None:
+        scores = build.database_scores
+        dropped |= database_scores.keep_scores(session, batch, site.id, chains, counts, scores, params)
     if stale is not None:
         stale |= dropped
     return store_map_version(session, batch, site, loaded, build, params, created_by), build

@@ -276,6 +276,26 @@ class MapLoopSearch(Base):
     created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
 
 
+class MapDatabaseScores(Base):
+    """A site's latest SESAME database pair scores, kept for the site's next map build.
+
+    ``drives`` lists the key of each drive the scores cover (its chain key,
+    :func:`driftmap.services.loop_searches.chain_keys`); ``scores_key`` hashes the parameters they depend
+    on and the code's version; ``scores_sha256`` names an ``.npz`` of the scored pairs (positions in
+    ``drives`` and frame rows of query and reference, and the score) (:mod:`driftmap.services.database_scores`).
+    """
+
+    __tablename__ = "map_database_scores"
+    __table_args__ = (UniqueConstraint("site_id", name="uq_map_database_scores_site_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    site_id: Mapped[int] = mapped_column(ForeignKey("sites.id", ondelete="CASCADE"))
+    scores_key: Mapped[str] = mapped_column(String(64))
+    drives: Mapped[list[str]] = mapped_column(JSON)
+    scores_sha256: Mapped[str] = mapped_column(String(64))
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime(), default=utc_now)
+
+
 class MapPose(Base):
     """The optimised pose of one mapping frame in one map version (survey frame, metres, radians)."""
 

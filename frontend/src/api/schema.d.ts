@@ -2065,7 +2065,7 @@ export interface components {
             preset: "paper" | "fast";
             /**
              * Full
-             * @description Prepare every drive's odometry again and search loop closures afresh instead of reusing what earlier builds kept for drives that did not change (the version's stats count segments_reused and segments_prepared, loop_queries_reused and loop_queries_scored).
+             * @description Prepare every drive's odometry again and search loop closures afresh instead of reusing what earlier builds kept for drives that did not change (the version's stats count segments_reused and segments_prepared, loop_queries_reused and loop_queries_scored, database_pairs_reused and database_pairs_scored).
              * @default false
              */
             full: boolean;

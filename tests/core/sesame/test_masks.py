@@ -10,6 +10,7 @@ import pytest
 
 from driftmap.core.imaging.images import patch_normalise
 from driftmap.core.imaging.params import ImageParams, SadParams
+from driftmap.core.imaging.sad import sad_pairs
 from driftmap.core.sesame.masks import (
     SESAME_DEFAULT,
     SESAME_PAPER,
@@ -22,7 +23,12 @@ from driftmap.core.sesame.masks import (
     saliency_score_max,
     sesame_masks,
 )
-from driftmap.core.sesame.salient_database import build_salient_database, build_salient_databases, masked_sad
+from driftmap.core.sesame.salient_database import (
+    PairScores,
+    build_salient_database,
+    build_salient_databases,
+    masked_sad,
+)
 from driftmap.core.topomap.build import build_topomap
 from driftmap.core.topomap.database import salient_frame_selector
 from driftmap.core.topomap.model import NodeFrames
@@ -234,8 +240,9 @@ class TestBuildSalientDatabase:
         kept = build_salient_database(self.xy, self.sal, thumbs, masks, SESAME_DEFAULT)
         assert kept.tolist() == [1, 2]
 
-    def test_groups_in_lockstep_equal_algorithm_1_on_each(self) -> None:
-        """Many nodes at once give what the paper's loop gives on each node alone (a sequential oracle)."""
+    @staticmethod
+    def _crowded_nodes() -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Groups of frames of six views, most within A_th of each other: (groups, xy, sal, thumbs, masks)."""
         rng = np.random.default_rng(SEED + 1)
         views = rng.normal(size=(6, 32, 64)).astype(np.float32)
         n = 300
@@ -245,6 +252,11 @@ class TestBuildSalientDatabase:
         sal = rng.uniform(0.3, 1.0, n)
         xy = rng.uniform(0.0, 1.5, (n, 2))  # crowded: most frames have kept frames within A_th
         groups = [rng.choice(n, size, replace=False) for size in (0, 1, 40, 7, 90, 25)]
+        return groups, xy, sal, thumbs, masks
+
+    def test_groups_in_lockstep_equal_algorithm_1_on_each(self) -> None:
+        """Many nodes at once give what the paper's loop gives on each node alone (a sequential oracle)."""
+        groups, xy, sal, thumbs, masks = self._crowded_nodes()
         params = replace(SESAME_DEFAULT, similarity=0.5)
         got = build_salient_databases(groups, [xy[g] for g in groups], sal, thumbs, masks, params)
 
@@ -262,6 +274,33 @@ class TestBuildSalientDatabase:
 
         assert [k.tolist() for k in got] == [oracle(g) for g in groups]
         assert sum(k.size for k in got) < sum(g.size for g in groups) // 2  # the views were merged
+
+    def test_known_pair_scores_are_used_and_recorded(self) -> None:
+        """A second run handed the first run's pairs scores none again and decides alike; known scores are
+        what it decides on (made inf, the first run's merges do not happen)."""
+        groups, xy, sal, thumbs, masks = self._crowded_nodes()
+        params = replace(SESAME_DEFAULT, similarity=0.5)
+        args = (groups, [xy[g] for g in groups], sal, thumbs, masks, params)
+        first = PairScores()
+        plain = build_salient_databases(*args)
+        got = build_salient_databases(*args, scores=first)
+        assert [k.tolist() for k in got] == [k.tolist() for k in plain]
+        assert first.scored > 100  # (a few pairs recur: the groups share frames)
+        q, r, d = first.arrays()
+        assert q.size == first.scored and np.isinf(d).any()  # the masks without a salient pixel
+        np.testing.assert_array_equal(d, sad_pairs(thumbs, q, r, masks=masks).d)
+        second = PairScores(q, r, d)
+        again = build_salient_databases(*args, scores=second)
+        assert [k.tolist() for k in again] == [k.tolist() for k in plain]
+        assert (second.reused, second.scored) == (first.reused + first.scored, 0)
+        assert all(a.size == b.size for a, b in zip(second.arrays(), first.arrays(), strict=True))
+        unlike = PairScores(q, r, np.full(q.size, np.inf, dtype=np.float32))
+        apart = build_salient_databases(*args, scores=unlike)
+        assert sum(k.size for k in apart) > sum(k.size for k in plain)
+
+    def test_pair_scores_reject_ragged_arrays(self) -> None:
+        with pytest.raises(BadInputError, match="query, ref, d"):
+            PairScores(np.arange(3), np.arange(2), np.zeros(3, dtype=np.float32))
 
 
 class TestParams:

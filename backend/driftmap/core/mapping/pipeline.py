@@ -41,6 +41,7 @@ from driftmap.core.mapping.prepare import (
     restride_segment,
     variant,
 )
+from driftmap.core.sesame.salient_database import PairScores
 from driftmap.core.topomap.build import build_topomap
 from driftmap.core.topomap.database import database_selector, frame_stats
 from driftmap.core.topomap.model import TopoMap
@@ -113,6 +114,8 @@ class MapBuild:
         holistic_ptr: (M + 1,) int64 node offsets of [SSLAM]'s plain selection (the topomap's default
             selector), kept for holistic-SAD localisation when the SESAME database chose ``topomap.chosen``.
         holistic_thumbs: (S', h, w) float32 thumbnails of that plain selection, node by node.
+        database_scores: the SESAME database's pair scores this build used (flat frame indices), for the
+            next build of the same drives (None when SESAME is off).
     """
 
     wTi: tuple[F64, ...]
@@ -126,6 +129,7 @@ class MapBuild:
     reference_thumbs: NDArray[np.float32] | None = None
     holistic_ptr: NDArray[np.int64] | None = None
     holistic_thumbs: NDArray[np.float32] | None = None
+    database_scores: PairScores | None = None
 
 
 def solve_map(
@@ -134,13 +138,16 @@ def solve_map(
     params: MappingParams = MAPPING_DEFAULT,
     progress: ProgressFn | None = None,
     warm: Sequence[F64 | None] | None = None,
+    database_scores: PairScores | None = None,
 ) -> MapBuild:
     """Stages 4-5: the pose graph (with the closures and groundings the params allow) and the map.
 
     Drives that get no grounding (groundings off, or none recorded) start from their ``start_wT``
     when given; otherwise the pose graph places them through closures or anchors them weakly. ``warm``
     gives, per drive, (N_d, 3) poses of an earlier solution for the solver to start from (or None): the
-    graph is the same, the solution the same to the solver's tolerance.
+    graph is the same, the solution the same to the solver's tolerance. ``database_scores`` holds SESAME
+    database pair scores an earlier build of these drives computed (flat frame indices): the pairs it knows
+    are not scored again; the build returns the pairs it used in ``MapBuild.database_scores``.
     """
     report = progress or (lambda _stage, _fraction: None)
     timings = dict(prepared.timings)
@@ -181,7 +188,8 @@ def solve_map(
 
     start = time.perf_counter()
     report("topological map", 0.0)
-    topomap, database_stats, plain = _topomap_with_database(graph.wTi, prepared, drives, params)
+    scores = (database_scores or PairScores()) if params.database.use_sesame else None
+    topomap, database_stats, plain = _topomap_with_database(graph.wTi, prepared, drives, params, scores)
     report("topological map", 1.0)
     timings["topomap_s"] = time.perf_counter() - start
 
@@ -225,11 +233,16 @@ def solve_map(
         reference_thumbs=np.concatenate(prepared.thumbs)[topomap.chosen],
         holistic_ptr=None if plain is None else plain.chosen_ptr,
         holistic_thumbs=None if plain is None else np.concatenate(prepared.thumbs)[plain.chosen],
+        database_scores=scores,
     )
 
 
 def _topomap_with_database(
-    wTi: Sequence[F64], prepared: PreparedDrives, drives: Sequence[MappingDrive], params: MappingParams
+    wTi: Sequence[F64],
+    prepared: PreparedDrives,
+    drives: Sequence[MappingDrive],
+    params: MappingParams,
+    scores: PairScores | None,
 ) -> tuple[TopoMap, dict[str, float | int], TopoMap | None]:
     """Stage 5: the topological map, each node's frames chosen by the SESAME database when it is on.
 
@@ -244,7 +257,8 @@ def _topomap_with_database(
     if stats is None or prepared.frame_stats_params != (db, params.images):
         stats = frame_stats([d.frames for d in drives], counts, db, params.images)
     chain_ptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
-    select = database_selector(stats, np.concatenate(prepared.thumbs), chain_ptr, db, params.loops.sad)
+    thumbs = np.concatenate(prepared.thumbs)
+    select = database_selector(stats, thumbs, chain_ptr, db, params.loops.sad, scores)
     per_node = max(params.topomap.frames_per_node, db.frames_per_node if db.use_sesame else 0)
     topo_params = replace(params.topomap, frames_per_node=per_node)
     topomap = build_topomap(
@@ -254,6 +268,8 @@ def _topomap_with_database(
         "reference_frames": int(topomap.chosen.size),
         "quality_rejected_fraction": stats.rejected_fraction,
     }
+    if scores is not None:
+        figures["database_pairs_reused"], figures["database_pairs_scored"] = scores.reused, scores.scored
     if stats.classifier is not None:
         figures["quality_holdout_accuracy"] = stats.classifier.holdout_accuracy
     return topomap, figures, plain

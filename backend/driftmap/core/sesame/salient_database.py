@@ -9,7 +9,10 @@ The map build runs the algorithm on every node's frames (:mod:`driftmap.core.top
 group of frames the visit is sequential, since each frame is compared with the frames kept so far, but groups
 are independent: :func:`build_salient_databases` steps all groups in lockstep and scores the comparisons of
 each step in one :func:`~driftmap.core.imaging.sad.sad_pairs` call, so a few comparisons per frame cost a
-share of one pass over the shifts instead of a pass each.
+share of one pass over the shifts instead of a pass each. A pair's score depends only on the two frames'
+thumbnails and the query's mask, not on where the frames lie, so a :class:`PairScores` handed in answers
+the pairs an earlier run scored (an incremental map build scores only pairs it has not seen) and records
+every pair the run compared.
 """
 
 from __future__ import annotations
@@ -23,10 +26,61 @@ from numpy.typing import NDArray
 from driftmap.core.imaging.params import SAD_DEFAULT, SadParams
 from driftmap.core.imaging.sad import sad_one_to_many, sad_pairs
 from driftmap.core.sesame.masks import SESAME_DEFAULT, SesameParams
-from driftmap.core.types import F64, I64, BoolArr
+from driftmap.core.types import F32, F64, I64, BoolArr
 from driftmap.errors import BadInputError
 
-__all__ = ["build_salient_database", "build_salient_databases", "masked_sad"]
+__all__ = ["PairScores", "build_salient_database", "build_salient_databases", "masked_sad"]
+
+
+class PairScores:
+    """Masked SAD scores (eq. 6) of ``(query, reference)`` frame pairs, by flat frame index.
+
+    Built from an earlier run's pairs (all three arrays, or none), it answers :meth:`lookup` for those
+    pairs; :meth:`record` adds new ones. :meth:`arrays` gives the pairs looked up or recorded since it was
+    built: the ones a run used, which is what the next run is worth being handed.
+
+    Args:
+        query: ``(P,)`` int64 flat index of each pair's query frame.
+        ref: ``(P,)`` int64 flat index of its reference frame.
+        d: ``(P,)`` float32 score (``inf`` where no salient pixel overlaps).
+    """
+
+    def __init__(self, query: I64 | None = None, ref: I64 | None = None, d: F32 | None = None) -> None:
+        q = np.asarray(query if query is not None else [], dtype=np.int64)
+        r = np.asarray(ref if ref is not None else [], dtype=np.int64)
+        s = np.asarray(d if d is not None else [], dtype=np.float32)
+        if q.ndim != 1 or q.shape != r.shape or q.shape != s.shape:
+            raise BadInputError(f"need query, ref, d (P,); got {q.shape}, {r.shape}, {s.shape}", field="d")
+        self._known: dict[tuple[int, int], float] = dict(
+            zip(zip(q.tolist(), r.tolist(), strict=True), s.tolist(), strict=True)
+        )
+        self._used: dict[tuple[int, int], float] = {}
+        self.reused = 0  # lookups answered
+        self.scored = 0  # pairs recorded
+
+    def lookup(self, query: list[int], ref: list[int]) -> list[float | None]:
+        """Per pair, its known score or None."""
+        out = []
+        for pair in zip(query, ref, strict=True):
+            d = self._known.get(pair)
+            if d is not None:
+                self._used[pair] = d
+                self.reused += 1
+            out.append(d)
+        return out
+
+    def record(self, query: list[int], ref: list[int], d: list[float]) -> None:
+        """Add the scores of newly scored pairs."""
+        for pair, score in zip(zip(query, ref, strict=True), d, strict=True):
+            self._known[pair] = self._used[pair] = score
+        self.scored += len(d)
+
+    def arrays(self) -> tuple[I64, I64, F32]:
+        """``(query, ref, d)`` of the pairs used since construction, ``(P,)`` each, sorted by pair."""
+        pairs = sorted(self._used)
+        q = np.array([a for a, _b in pairs], dtype=np.int64)
+        r = np.array([b for _a, b in pairs], dtype=np.int64)
+        return q, r, np.array([self._used[p] for p in pairs], dtype=np.float32)
 
 
 def masked_sad(
@@ -87,6 +141,7 @@ def build_salient_databases(
     masks: BoolArr | None,
     params: SesameParams = SESAME_DEFAULT,
     sad_params: SadParams = SAD_DEFAULT,
+    scores: PairScores | None = None,
 ) -> list[I64]:
     """Algorithm 1 on many independent groups of frames at once, each as :func:`build_salient_database`.
 
@@ -142,16 +197,39 @@ def build_salient_databases(
                 kept[g].append(step)
         if not waiting:
             continue
-        d = sad_pairs(th, np.asarray(qi), np.asarray(rj), sad_params, weights).d.tolist()
+        d = _pair_scores(th, qi, rj, sad_params, weights, scores)
         at = 0
         for g, near in waiting:
             f, s = index[g], sal[index[g][step]]
-            scores = d[at : at + len(near)]
+            near_d = d[at : at + len(near)]
             at += len(near)
-            same = next((u for u, dist in zip(near, scores, strict=True) if dist < params.similarity), None)
+            same = next((u for u, dist in zip(near, near_d, strict=True) if dist < params.similarity), None)
             if same is None:
                 if s > params.saliency_min:
                     kept[g].append(step)
             elif s > sal[f[same]]:
                 kept[g][kept[g].index(same)] = step
     return [np.asarray(k, dtype=np.int64) for k in kept]
+
+
+def _pair_scores(
+    thumbs: NDArray[np.float32],
+    qi: list[int],
+    rj: list[int],
+    sad_params: SadParams,
+    weights: BoolArr | None,
+    scores: PairScores | None,
+) -> list[float]:
+    """Masked SAD of pairs ``(thumbs[qi[p]], thumbs[rj[p]])``, those ``scores`` knows taken from it."""
+    if scores is None:
+        scored: list[float] = sad_pairs(thumbs, np.asarray(qi), np.asarray(rj), sad_params, weights).d.tolist()
+        return scored
+    known = scores.lookup(qi, rj)
+    todo = [p for p, d in enumerate(known) if d is None]
+    if todo:
+        q, r = [qi[p] for p in todo], [rj[p] for p in todo]
+        new: list[float] = sad_pairs(thumbs, np.asarray(q), np.asarray(r), sad_params, weights).d.tolist()
+        scores.record(q, r, new)
+        for p, score in zip(todo, new, strict=True):
+            known[p] = score
+    return [float(d) for d in known if d is not None]

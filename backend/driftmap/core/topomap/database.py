@@ -40,7 +40,7 @@ from driftmap.core.sesame.glare_svm import (
     train_quality_classifier,
 )
 from driftmap.core.sesame.masks import SESAME_DEFAULT, SESAME_PAPER, SesameParams, frame_saliency
-from driftmap.core.sesame.salient_database import build_salient_databases
+from driftmap.core.sesame.salient_database import PairScores, build_salient_databases
 from driftmap.core.topomap.model import FrameSelector, NodeFrames, select_frames_by_heading, wrap_rad
 from driftmap.core.types import F64, I64
 from driftmap.errors import BadInputError
@@ -269,6 +269,7 @@ def database_selector(
     chain_ptr: I64,
     params: DatabaseParams = DATABASE_DEFAULT,
     sad_params: SadParams = SAD_DEFAULT,
+    scores: PairScores | None = None,
 ) -> FrameSelector:
     """The topomap ``FrameSelector`` of the SESAME database (see the module docstring).
 
@@ -278,6 +279,8 @@ def database_selector(
         chain_ptr: (chains + 1,) int64 first flat frame of each chain.
         params: database parameters; the selector returns at most ``min(k, frames_per_node)`` frames.
         sad_params: SAD shift ranges of Algorithm 1's similarity test.
+        scores: Algorithm 1's pair scores known from an earlier build, flat frame indices (see
+            :class:`~driftmap.core.sesame.salient_database.PairScores`); records the pairs compared.
 
     Returns:
         ``(nodes, k) -> per node (<= k,) int64`` rows of its frames (never empty for a node with frames);
@@ -315,6 +318,7 @@ def database_selector(
             stats.masks,
             params.sesame,
             sad_params,
+            scores,
         )
         limit = min(k, params.frames_per_node)
         picks = []
