@@ -230,11 +230,23 @@ def solve_map(
         topomap=topomap,
         odometry_confidence=prepared.confidence,
         stats=stats,
-        reference_thumbs=np.concatenate(prepared.thumbs)[topomap.chosen],
+        reference_thumbs=_flat_rows(prepared.thumbs, topomap.chosen),
         holistic_ptr=None if plain is None else plain.chosen_ptr,
-        holistic_thumbs=None if plain is None else np.concatenate(prepared.thumbs)[plain.chosen],
+        holistic_thumbs=None if plain is None else _flat_rows(prepared.thumbs, plain.chosen),
         database_scores=scores,
     )
+
+
+def _flat_rows(per_drive: Sequence[NDArray[np.float32]], flat: NDArray[np.int64]) -> NDArray[np.float32]:
+    """``(S, h, w)`` rows ``flat`` (flat frame indices over the drives in order) of per-drive ``(N_d, h, w)``
+    arrays, without joining them (the mapping frames' thumbnails of a large site are gigabytes)."""
+    ptr = np.r_[0, np.cumsum([a.shape[0] for a in per_drive])].astype(np.int64)
+    drive = np.searchsorted(ptr, flat, side="right") - 1
+    out = np.empty((flat.size, *per_drive[0].shape[1:]), dtype=np.float32)
+    for k in np.unique(drive).tolist():
+        at = drive == k
+        out[at] = per_drive[k][flat[at] - ptr[k]]
+    return out
 
 
 def _topomap_with_database(

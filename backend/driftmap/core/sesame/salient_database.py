@@ -222,7 +222,9 @@ def _pair_scores(
 ) -> list[float]:
     """Masked SAD of pairs ``(thumbs[qi[p]], thumbs[rj[p]])``, those ``scores`` knows taken from it."""
     if scores is None:
-        scored: list[float] = sad_pairs(thumbs, np.asarray(qi), np.asarray(rj), sad_params, weights).d.tolist()
+        scored: list[float] = sad_pairs(
+            thumbs, np.asarray(qi), np.asarray(rj), sad_params, weights
+        ).d.tolist()
         return scored
     known = scores.lookup(qi, rj)
     todo = [p for p, d in enumerate(known) if d is None]
