@@ -1,5 +1,6 @@
-"""The map build's speed-ups change no result: the lean gradient, packed mask warps, and the database's
-frame statistics computed in the odometry pass equal their plain counterparts exactly."""
+"""The map build's speed-ups change no result: the lean gradient, packed mask warps, the database's frame
+statistics computed in the odometry pass and its pair scores handed to a later build equal their plain
+counterparts exactly."""
 
 from __future__ import annotations
 
@@ -21,11 +22,13 @@ from driftmap.core.mapping.pipeline import (
     join_segments,
     prepare_drives,
     prepare_segment,
+    solve_map,
 )
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.odometry.drive import _horizon_offset
 from driftmap.core.odometry.grid import apply_homography, grid_masks, match_grid, warp_to_grid
 from driftmap.core.odometry.params import ODOMETRY_DEFAULT
+from driftmap.core.sesame.salient_database import PairScores
 from driftmap.core.topomap.database import DatabaseParams, FrameStatsPass, finish_frame_stats, frame_stats
 from driftmap.errors import BadInputError
 from tests.core.odometry.test_drive import pinhole_camera
@@ -183,3 +186,27 @@ def test_horizon_search_equals_the_full_grid_search() -> None:
         assert _horizon_offset(hom, pairs, 40.0) == ref
         found += ref is not None
     assert 30 < found < 270  # both outcomes are exercised
+
+
+def test_a_build_handed_its_database_pair_scores_scores_none_again_and_picks_the_same_references() -> None:
+    """The map's reference thumbnails, gathered drive by drive, are the chosen frames' thumbnails; a second
+    solve handed the first's pair scores compares nothing anew and chooses the same frames."""
+    stacks = [_frames(9, 40), _frames(10, 30)]
+    drives = [
+        MappingDrive(f"d{k}", CAM, np.arange(len(s), dtype=np.float64) * 0.1, _source(s))
+        for k, s in enumerate(stacks)
+    ]
+    params = replace(MAPPING_FAST, database=DatabaseParams(quality_sources=4), use_loop_closures=False)
+    prepared = prepare_drives(drives, params)
+    first = solve_map(prepared, drives, params)
+    thumbs = np.concatenate(prepared.thumbs)
+    assert first.reference_thumbs is not None and first.holistic_thumbs is not None
+    assert np.array_equal(first.reference_thumbs, thumbs[first.topomap.chosen])
+    assert first.holistic_ptr is not None and first.holistic_thumbs.shape[0] == first.holistic_ptr[-1]
+    assert first.database_scores is not None and first.stats["database_pairs_scored"] > 0
+    again = solve_map(prepared, drives, params, database_scores=PairScores(*first.database_scores.arrays()))
+    assert (again.stats["database_pairs_scored"], again.stats["database_pairs_reused"]) == (
+        0,
+        first.stats["database_pairs_scored"] + first.stats["database_pairs_reused"],
+    )
+    assert np.array_equal(again.topomap.chosen, first.topomap.chosen)
