@@ -2,8 +2,9 @@
 
 On the mini site (two mapping drives of 100 frames, one segment each) on a real database: a build after no
 change prepares nothing and gives the same map (its pose graph started from the last version's poses); a
-build after a new mapping drive prepares only it and equals a full build, its loop-closure search scoring only
-the new drive's keyframes and its SESAME database scoring only pairs it has not seen; a moved grounding
+build after a new mapping drive prepares only it and equals a full build (to the solver's tolerance), its
+SESAME database scoring only pairs it has not seen and, once the search's basis keyframes are kept, its
+loop-closure search scoring only the new drive's keyframes; a moved grounding
 re-solves the graph from the kept odometry; a full build prepares everything and replaces the kept pieces;
 deleting the site leaves no piece, no kept search or scores and no blob.
 """
@@ -30,10 +31,9 @@ from driftmap.store.storage import Storage
 from tests.jobs.mini_site import drive_folders
 from tests.sim_site import create_site, import_folders, version_poses
 
-POSE_TOLERANCE_M = 0.1
-"""Largest distance between an incremental build's pose and a full build's (the issue's target)."""
 SAME_M = 1e-6
-"""Largest change of a pose between two builds of unchanged data (the warm-started solver's tolerance)."""
+"""Largest distance between two builds' poses of one graph, one of them warm-started (the solver's tolerance;
+the issue's target for an incremental build against a full one is 0.1 m)."""
 GROUNDING_SHIFT_M = 5.0
 """How far the test moves a surveyed point: far beyond the graph's noise."""
 
@@ -134,7 +134,9 @@ class TestIncrementalBuild:
         assert full.stats["graph_warm_drives"] == 0 and full.stats["database_pairs_reused"] == 0
         incremental, rebuilt = _poses(storage, grown), _poses(storage, full)
         assert incremental.shape == rebuilt.shape == (200, 3)
-        assert np.linalg.norm(incremental[:, :2] - rebuilt[:, :2], axis=1).max() <= POSE_TOLERANCE_M
+        # Planned afresh like the full build's (the site has fewer keyframes than the search's basis takes):
+        # the same closures, the same graph, the same map to the solver's tolerance.
+        assert np.linalg.norm(incremental[:, :2] - rebuilt[:, :2], axis=1).max() <= SAME_M
         for name in ("closures_found", "closures_accepted", "nodes", "reference_frames"):
             assert grown.stats[name] == full.stats[name], name
         replaced = _kept(storage)  # the full build's pieces replace the kept ones, whose blobs are gone
@@ -146,12 +148,11 @@ class TestIncrementalBuild:
         self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch
     ) -> None:
         # Keyframes every 0.25 m in blocks of 8, one block to a map.loops subtask: several blocks per drive.
-        params = replace(
-            MAPPING_FAST, keyframe_spacing_m=0.25, loops=replace(MAPPING_FAST.loops, coarse_block=8)
-        )
+        # The basis from the first drive's 64 keyframes (of 133): the search of both resumes the first's.
+        loops = replace(MAPPING_FAST.loops, coarse_block=8, basis_keyframes=64)
+        params = replace(MAPPING_FAST, keyframe_spacing_m=0.25, loops=loops)
         monkeypatch.setitem(MAP_PRESETS, "fast", params)
         monkeypatch.setattr(loop_searches, "QUERIES_PER_BLOCK", 8)
-        monkeypatch.setattr(loop_searches, "MIN_KEPT_SHARE", 0.4)  # the first drive has 64 of 133 keyframes
         folders = drive_folders(mini_site, "map")
         _import(storage, mini_site, folders[:1], create=True)
         alone, _subtasks = _build(storage, queue)
@@ -178,10 +179,12 @@ class TestIncrementalBuild:
         )
         assert dropped and not any(storage.blobs.exists(sha) for sha in dropped)
         assert all(storage.blobs.exists(sha) for sha in [second.basis_sha256, *(b[2] for b in second.blocks)])
-        full, subtasks = _build(storage, queue, full=True)  # a full build searches afresh
+        full, subtasks = _build(storage, queue, full=True)  # a full build searches afresh: the same search
         assert (full.stats["loop_queries_reused"], full.stats["loop_queries_scored"]) == (0, keyframes)
+        for name in ("closures_found", "closures_accepted"):
+            assert grown.stats[name] == full.stats[name], name
         gap = np.linalg.norm(_poses(storage, grown)[:, :2] - _poses(storage, full)[:, :2], axis=1)
-        assert gap.max() <= POSE_TOLERANCE_M
+        assert gap.max() <= SAME_M  # the same graph: the same map to the solver's tolerance
 
     def test_a_moved_grounding_re_solves_the_graph_from_the_kept_odometry(
         self, storage: Storage, queue: JobQueue, mini_site: Path
@@ -198,7 +201,7 @@ class TestIncrementalBuild:
         assert moved.max() > 1.0  # the graph was solved again with the new surveyed point
         full, _subtasks = _build(storage, queue, full=True)
         gap = np.linalg.norm(_poses(storage, after)[:, :2] - _poses(storage, full)[:, :2], axis=1)
-        assert gap.max() <= POSE_TOLERANCE_M
+        assert gap.max() <= SAME_M
 
     def test_other_stage_one_parameters_prepare_every_drive_and_replace_the_kept_pieces(
         self, storage: Storage, queue: JobQueue, mini_site: Path, monkeypatch: pytest.MonkeyPatch

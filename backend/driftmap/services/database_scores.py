@@ -1,4 +1,4 @@
-"""SESAME database pair scores kept between map builds: what lets a build score only the pairs it has not seen.
+"""SESAME database pair scores kept between map builds: a build scores only the pairs it has not seen.
 
 Algorithm 1 (:mod:`driftmap.core.sesame.salient_database`) compares frames of one node that lie within
 ``A_th`` of each other; a pair's score depends on the two frames' thumbnails and the query's salient mask, not

@@ -8,10 +8,13 @@ next build whose first chains have those keys resumes it (:func:`plan_loops`): t
 thresholds plan the search, the blocks within those chains are taken as they are, and only the queries after
 them are scored. The closures are then decided over all queries as always.
 
-The basis (descriptor axes, background thresholds) is the first search's, carried from build to build while
-the kept chains hold at least :data:`MIN_KEPT_SHARE` of the keyframes; below that, a build plans afresh from
-all its keyframes, as a full build (``full``) always does. After a build :func:`keep_search` records its
-search and returns the blobs of the earlier one it no longer holds (for
+The basis (descriptor axes, background thresholds) comes from the first ``basis_keyframes`` keyframes
+(:class:`~driftmap.core.loop_closure.params.LoopParams`), or all of them on a site with fewer. A build resumes
+the kept search only when a plan afresh would have the same basis: the chains it shares hold the keyframes the
+kept basis came from, and it would take as many. The resumed search is then the search a full build (``full``,
+always planned afresh) makes. A site with fewer keyframes is searched afresh by every build that adds or
+changes a drive, and resumed by one that changed none (a moved grounding). After a build :func:`keep_search`
+records its search and returns the blobs of the earlier one it no longer holds (for
 :func:`driftmap.services.map_pieces.drop_stale`).
 """
 
@@ -44,13 +47,9 @@ from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.models import MapLoopSearch
 from driftmap.store.npz import arrays_bytes, bytes_arrays
 
-SEARCH_VERSION = 1
+SEARCH_VERSION = 2
 """Version of the search's algorithm and of its kept blobs: bump it when either changes, and the next build
 searches afresh."""
-
-MIN_KEPT_SHARE = 0.5
-"""A build resumes the kept search only when the chains it shares hold at least this share of its keyframes
-(the basis and thresholds then describe most of the site)."""
 
 QUERIES_PER_BLOCK = 1024
 """Query keyframes per scored block (whole blocks of the coarse ranking; a ``map.loops`` subtask each)."""
@@ -134,9 +133,7 @@ def plan_loops(
     """
     keys, thumbs, times = chains
     p = params.loops
-    earlier = (
-        None if full else _kept(session, blobs, site_id, search_key(params), keys, [len(t) for t in thumbs])
-    )
+    earlier = None if full else _kept(session, blobs, site_id, params, keys, [len(t) for t in thumbs])
     search = plan_search(thumbs, p, times, basis=earlier[0] if earlier else None)
     if search is None:
         return None
@@ -169,21 +166,31 @@ def decide(plan: LoopPlan, params: MappingParams, scored: Sequence[ScoredBlock])
 
 
 def _kept(
-    session: Session, blobs: BlobStore, site_id: int, key: str, chains: Sequence[str], sizes: Sequence[int]
+    session: Session,
+    blobs: BlobStore,
+    site_id: int,
+    params: MappingParams,
+    chains: Sequence[str],
+    sizes: Sequence[int],
 ) -> tuple[SearchBasis, list[ScoredBlock], int] | None:
     """The kept search of the site, if it can be resumed: its basis (descriptors of the shared chains'
     keyframes), blocks within the shared chains, and those chains' keyframes."""
     row = session.scalar(select(MapLoopSearch).where(MapLoopSearch.site_id == site_id))
-    if row is None or row.search_key != key or not blobs.exists(row.basis_sha256):
+    if row is None or row.search_key != search_key(params) or not blobs.exists(row.basis_sha256):
         return None
     shared = 0
     while shared < min(len(row.chains), len(chains)) and row.chains[shared] == chains[shared]:
         shared += 1
     kept_frames = int(sum(sizes[:shared]))
-    if shared == 0 or kept_frames < MIN_KEPT_SHARE * sum(sizes):
+    if shared == 0:
         return None
     basis = SearchBasis.from_arrays(bytes_arrays(blobs.get(row.basis_sha256), f"blob {row.basis_sha256}"))
-    if basis.desc.shape[0] < kept_frames:
+    # Its basis came from its first min(K, n) keyframes: the one a plan afresh has only if that is the same
+    # number now and those keyframes are shared.
+    first = min(params.loops.basis_keyframes, basis.desc.shape[0])
+    if basis.desc.shape[0] < kept_frames or kept_frames < first:
+        return None
+    if first != min(params.loops.basis_keyframes, int(sum(sizes))):
         return None
     blocks: list[ScoredBlock] = []
     for q0, q1, sha in sorted(row.blocks):

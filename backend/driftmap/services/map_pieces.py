@@ -136,8 +136,8 @@ def drive_piece_blobs(session: Session, drive_ids: Iterable[int]) -> set[str]:
 
 
 def stale_blobs(session: Session, shas: Iterable[str]) -> set[str]:
-    """Those of ``shas`` no kept piece, loop-closure search or database pair scores hold and no unfinished job names (keys
-    ending in ``_sha256``)."""
+    """Those of ``shas`` no kept piece, loop-closure search or database pair scores hold and no unfinished job
+    names (keys ending in ``_sha256``)."""
     wanted = set(shas)
     if not wanted:
         return set()

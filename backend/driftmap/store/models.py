@@ -282,7 +282,8 @@ class MapDatabaseScores(Base):
     ``drives`` lists the key of each drive the scores cover (its chain key,
     :func:`driftmap.services.loop_searches.chain_keys`); ``scores_key`` hashes the parameters they depend
     on and the code's version; ``scores_sha256`` names an ``.npz`` of the scored pairs (positions in
-    ``drives`` and frame rows of query and reference, and the score) (:mod:`driftmap.services.database_scores`).
+    ``drives`` and frame rows of query and reference, and the score;
+    :mod:`driftmap.services.database_scores`).
     """
 
     __tablename__ = "map_database_scores"

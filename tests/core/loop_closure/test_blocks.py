@@ -8,6 +8,7 @@ one stretch of a textured tunnel wall (the strip of test_loops), 900 keyframes, 
 from __future__ import annotations
 
 import io
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -104,6 +105,28 @@ def test_a_search_over_one_more_chain_resumes_the_earlier_one_exactly(three_pass
     assert same is not None and np.array_equal(same.desc, earlier.desc)
     with pytest.raises(ValueError, match="more than the 300 searched"):
         plan_search(three_passes[:1], params, basis=basis)
+
+
+def test_a_search_planned_afresh_over_more_chains_is_the_resumed_one(three_passes: list[F32]) -> None:
+    """With the basis taken from the first chain's keyframes, planning all three chains afresh (a full build)
+    gives the basis, descriptors and closures of resuming the search of the first two (an incremental one)."""
+    params = replace(LOOPS_DEFAULT, basis_keyframes=N_VIEWS)
+    earlier = plan(three_passes[:2], params)
+    fresh = plan(three_passes, params)
+    assert fresh.n_background > 0 and np.array_equal(fresh.background, earlier.background)
+    assert np.array_equal(fresh.mean, earlier.mean) and np.array_equal(fresh.axes, earlier.axes)
+    assert np.array_equal(fresh.desc[: earlier.n], earlier.desc)  # each row alike whatever the others
+    resumed = plan_search(three_passes, params, basis=earlier.basis())
+    assert resumed is not None and np.array_equal(resumed.desc, fresh.desc)
+    earlier_blocks = [score_queries(earlier, params, a, b) for a, b in split_queries(earlier, params, 512)]
+    kept = resumable_blocks(resumed, params, earlier_blocks, earlier.n)
+    rest = split_queries(resumed, params, 256, kept[-1].q1)
+    closures = decide_loops(resumed, kept + [score_queries(resumed, params, a, b) for a, b in rest], params)
+    assert closures.closures == detect_loops(three_passes, params).closures
+    # The default basis (all keyframes here) changes with the chains searched.
+    assert not np.array_equal(
+        plan(three_passes, LOOPS_DEFAULT).axes, plan(three_passes[:2], LOOPS_DEFAULT).axes
+    )
 
 
 def test_blocks_that_miss_or_repeat_queries_are_refused(three_passes: list[F32]) -> None:

@@ -3,8 +3,8 @@
 :func:`driftmap.core.loop_closure.search.detect_loops` is
 
 1. :func:`plan_search`, once for all keyframes: the frames' coarse descriptors (their mean and principal
-   axes come from all frames), the background median and sigma of eq. 3 on random pairs, and the
-   thresholds ``d_t`` and ``d_hit``;
+   axes come from the first ``basis_keyframes`` keyframes), the background median and sigma of eq. 3 on
+   random pairs among those keyframes, and the thresholds ``d_t`` and ``d_hit``;
 2. :func:`score_queries` on each block of query frames ``q0 .. q1 - 1``: coarse candidates, eq. 3 on
    them, the sequence checks of the best ones and of their neighbours (the rivals). A block needs only
    the plan, so blocks can run anywhere (a map build's ``map.loops`` subtasks); their boundaries follow
@@ -15,13 +15,20 @@
 
 Both results convert to flat arrays (``to_arrays`` / ``from_arrays``) for a blob store.
 
+The plan of a site's keyframes thus depends only on its first ``basis_keyframes`` keyframes, and a
+keyframe's descriptor only on its thumbnail and that basis
+(:func:`~driftmap.core.loop_closure.descriptors.project` computes each row alike whatever the other rows): a
+search over more chains, planned afresh, has the same basis, the same descriptors of the earlier keyframes and
+so the same scores for their queries.
+
 A search can resume an earlier one (an incremental map build): when the first chains are those of the earlier
-search, its :class:`~driftmap.core.loop_closure.resume.SearchBasis` (descriptor mean and axes, the descriptors of those chains' keyframes,
-background, thresholds) plans the new one (``plan_search(..., basis=)``), and its query blocks up to the last
-edge of the block grid within those chains, the last cut there
-(:func:`~driftmap.core.loop_closure.resume.resumable_blocks`), are the new
-search's blocks too: their queries' references are all earlier frames, ranked and scored exactly as the new
-search would. Only the queries after them are scored (``split_queries(..., start=)``).
+search and hold the keyframes its basis came from, its
+:class:`~driftmap.core.loop_closure.resume.SearchBasis` (descriptor mean and axes, the descriptors of those
+chains' keyframes, background, thresholds) plans the new one (``plan_search(..., basis=)``), and its query
+blocks up to the last edge of the block grid within those chains, the last cut there
+(:func:`~driftmap.core.loop_closure.resume.resumable_blocks`), are the new search's blocks too: their queries'
+references are all earlier frames, ranked and scored exactly as the new search would. Only the queries after
+them are scored (``split_queries(..., start=)``).
 """
 
 from __future__ import annotations
@@ -256,11 +263,13 @@ def plan_search(
         t1 = time.perf_counter()
         return LoopSearch(frames, chain, pos, limit, desc, mean, axes, basis.background, 0, t1 - t0)
     thumbs = thumbnails(frames, p.coarse_size_px, p.coarse_blur_px)
-    mean, axes = descriptor_basis(thumbs, p.coarse_dims)
+    first = min(frames.shape[0], p.basis_keyframes)
+    mean, axes = descriptor_basis(thumbs[:first], p.coarse_dims)
     desc = project(thumbs, mean, axes)
     t1 = time.perf_counter()
     cache = PairCache(frames, p.sad)
-    median, sigma = cache.background(limit, p.background_pairs, p.seed)
+    eligible = limit[:first] if limit[:first].any() else limit  # (a basis of too few keyframes)
+    median, sigma = cache.background(eligible, p.background_pairs, p.seed)
     sigma = max(sigma, p.sigma_floor * median, 1e-3)
     d_t = p.d_t if p.d_t is not None else median - p.d_t_sigmas * sigma
     d_hit = d_t if p.d_t is not None else median - p.hit_sigmas * sigma

@@ -111,6 +111,7 @@ def descriptor_basis(thumbs: NDArray, dims: int) -> tuple[NDArray[np.float32], N
 def project(thumbs: NDArray, mean: NDArray[np.float32], axes: NDArray[np.float32]) -> NDArray[np.float32]:
     """``(N, d)`` unit descriptors of ``(N, D)`` thumbnails in a basis of :func:`descriptor_basis` (of these
     or of other frames of the site): centred on ``mean``, projected on ``axes`` unless they are ``(D, 0)``.
+    Each row is computed alike whatever the other rows (bit for bit).
 
     Raises:
         ValueError: ``thumbs`` is not ``(N, D)`` with the basis' ``D``.
@@ -122,7 +123,7 @@ def project(thumbs: NDArray, mean: NDArray[np.float32], axes: NDArray[np.float32
         return np.zeros((0, axes.shape[1] or x.shape[1]), dtype=np.float32)
     x = x - mean
     if axes.shape[1]:
-        x = x @ axes
+        x = np.einsum("nd,dk->nk", x, axes)  # not BLAS, whose rounding of a row depends on the other rows
     norm = np.linalg.norm(x, axis=1, keepdims=True)
     return np.asarray(x / np.maximum(norm, np.float32(1e-12)), dtype=np.float32)
 

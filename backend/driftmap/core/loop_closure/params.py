@@ -23,6 +23,7 @@ class LoopParams:
     hit_sigmas: float = 3.0  # relative d_hit (a matching frame of a sequence), same form
     sigma_floor: float = 0.05  # background sigma used is at least this fraction of its median
     background_pairs: int = 2000  # random eligible pairs scored for the background median and sigma
+    basis_keyframes: int = 20000  # descriptor axes and background from at most the first this many keyframes
     sad: SadParams = SAD_DEFAULT  # shift search +-x_max, +-y_max of eq. 3, pixels of the frames
     recent_frames: int = 20  # same-chain frames i-1 .. i-recent_frames are never compared with i
     recent_s: float = 0.0  # also exclude same-chain frames less than this many seconds older
@@ -68,6 +69,7 @@ class LoopParams:
             "max_seq_checks",
             "max_closures_per_query",
             "coarse_block",
+            "basis_keyframes",
         ):
             if getattr(self, name) < 1:
                 raise ValueError(f"LoopParams.{name} must be >= 1, got {getattr(self, name)}")

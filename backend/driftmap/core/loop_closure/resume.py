@@ -33,8 +33,8 @@ class SearchBasis:
         mean: ``(P,)`` float32 mean coarse thumbnail (``P`` pixels,
             :func:`~driftmap.core.loop_closure.descriptors.thumbnails`).
         axes: ``(P, d)`` float32 principal axes of the descriptors (``(P, 0)``: centred thumbnails).
-        desc: ``(G0, d)`` float32 descriptors of the search's first ``G0`` keyframes (a matrix product's
-            rounding depends on its other rows: a later search takes them as they were).
+        desc: ``(G0, d)`` float32 descriptors of the search's first ``G0`` keyframes (a later search takes
+            them instead of projecting those keyframes again; they are the same bit for bit).
         background: ``(4,)`` float64 median and sigma of d over random eligible pairs, ``d_t``, ``d_hit``.
     """
 
