@@ -222,8 +222,9 @@ def build_site_map(
     segment again and searches afresh. The SESAME database looks up the pair scores the site's last build
     kept (:mod:`driftmap.services.database_scores`; not with ``full``) and keeps its own. Unless ``full`` or
     not ``warm_start``, the pose graph starts from the latest version's poses of the drives it has (the same
-    map to the solver's tolerance). ``stale``, when given, receives the blobs of the pieces, search and
-    scores this build dropped:
+    map to the solver's tolerance on small and medium sites, a nearby minimum on the 20 km one; see
+    :func:`~driftmap.core.mapping.pipeline.solve_map`). ``stale``, when given, receives the blobs of the
+    pieces, search and scores this build dropped:
     :func:`driftmap.services.map_pieces.drop_stale` them once committed.
     """
     loaded = load_site_drives(session, blobs, site)

@@ -145,7 +145,8 @@ def solve_map(
     Drives that get no grounding (groundings off, or none recorded) start from their ``start_wT``
     when given; otherwise the pose graph places them through closures or anchors them weakly. ``warm``
     gives, per drive, (N_d, 3) poses of an earlier solution for the solver to start from (or None): the
-    graph is the same, the solution the same to the solver's tolerance. ``database_scores`` holds SESAME
+    graph is the same; the solution is the cold start's to the solver's tolerance on small and medium sites,
+    a nearby minimum on the 20 km one (up to 7.6 m away). ``database_scores`` holds SESAME
     database pair scores an earlier build of these drives computed (flat frame indices): the pairs it knows
     are not scored again; the build returns the pairs it used in ``MapBuild.database_scores``.
     """
