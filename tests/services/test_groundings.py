@@ -39,7 +39,7 @@ def _site_id(storage: Storage) -> int:
 def _build_mini(storage: Storage) -> None:
     with storage.blobs.batch() as batch, storage.db.session() as session:
         site = site_service.get_site(session, "tiny")
-        map_service.build_site_map(session, storage.blobs, batch, site, MAPPING_FAST, warm_start=False)
+        map_service.build_site_map(session, storage.blobs, batch, site, MAPPING_FAST)
 
 
 def _poses(session: Session, version: MapVersion) -> np.ndarray:

@@ -181,14 +181,9 @@ def map_build(ctx: JobContext) -> None:
         site = _site(ctx, session)
         loaded = _site_drives(ctx, session, drives)
         prepared = join_drives(pieces, loaded.inputs, params, ctx.report, odometry_s, loops)
-        warm = (
-            None
-            if full
-            else map_pieces.previous_solution(session, site.id, [d for d, _n in drives], loaded.frame_ids)
-        )
         counts = [d.n_frames for d in loaded.inputs]
         known = database_scores.load_scores(session, storage.blobs, site.id, chains, counts, params, full)
-        build = solve_map(prepared, loaded.inputs, params, ctx.report, warm, known)
+        build = solve_map(prepared, loaded.inputs, params, ctx.report, known)
         queries = (search.plan.queries_kept, search.plan.search.n) if search else (0, 0)
         build.stats.update(map_service.reuse_stats(len(keys) - len(ids), len(keys), queries))
         dropped = map_pieces.keep_pieces(session, [d for d, _n in drives], segments)

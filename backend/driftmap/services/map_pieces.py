@@ -10,7 +10,6 @@ of a build, the quality classifier's frame sample, is retaken on loading
 (:func:`driftmap.core.mapping.pipeline.restride_segment`), so an incremental build gives the pieces a
 full one gives. After a build :func:`keep_pieces` records its pieces and drops its drives' pieces of other
 keys (a drive re-imported, other parameters), whose blobs :func:`stale_blobs` then names for deletion.
-The pose graph starts from the latest version's poses of the drives it has (:func:`previous_solution`).
 """
 
 from __future__ import annotations
@@ -19,8 +18,6 @@ import dataclasses
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
@@ -28,8 +25,7 @@ from driftmap.core.mapping.pipeline import MappingDrive, MappingParams, build_se
 from driftmap.services import database_scores, loop_searches
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, Frame, MapPiece, MapPose
-from driftmap.store.queries import latest_map_version
+from driftmap.store.models import Drive, Frame, MapPiece
 from driftmap.store.storage import Storage
 
 PIECE_VERSION = 1
@@ -161,26 +157,3 @@ def drop_stale(storage: Storage, shas: Iterable[str]) -> int:
     for sha in gone:
         storage.blobs.delete(sha)
     return len(gone)
-
-
-def previous_solution(
-    session: Session, site_id: int, drive_ids: Sequence[int], frame_ids: Sequence[NDArray[np.int64]]
-) -> list[NDArray[np.float64] | None]:
-    """Per drive, its (N, 3) poses [x_m, y_m, yaw_rad] in the site's latest map version, the pose graph's
-    warm start (:func:`driftmap.core.mapping.pipeline.solve_map`); None for a drive that version lacks
-    any frame of (a new or re-imported drive), and for every drive before the first version."""
-    latest = latest_map_version(session, site_id)
-    if latest is None:
-        return [None] * len(drive_ids)
-    rows = session.execute(
-        select(MapPose.frame_id, MapPose.x_m, MapPose.y_m, MapPose.yaw_rad)
-        .join(Frame, MapPose.frame_id == Frame.id)
-        .where(MapPose.map_version_id == latest.id, Frame.drive_id.in_(list(drive_ids)))
-    ).all()
-    poses = {int(f): (x, y, yaw) for f, x, y, yaw in rows}
-    out: list[NDArray[np.float64] | None] = []
-    for ids in frame_ids:
-        found = [poses.get(int(f)) for f in ids]
-        ok = bool(found) and all(p is not None for p in found)
-        out.append(np.array(found, dtype=np.float64).reshape(-1, 3) if ok else None)
-    return out

@@ -210,7 +210,6 @@ def build_site_map(
     workers: int = 1,
     *,
     full: bool = False,
-    warm_start: bool = True,
     stale: set[str] | None = None,
 ) -> tuple[MapVersion, MapBuild]:
     """Run the mapping pipeline on ``site``'s stored drives and store the result as a new version.
@@ -220,10 +219,9 @@ def build_site_map(
     way). The loop-closure search resumes the site's kept search over the drives it shares
     (:mod:`driftmap.services.loop_searches`: in its basis and thresholds) and is kept. ``full`` prepares every
     segment again and searches afresh. The SESAME database looks up the pair scores the site's last build
-    kept (:mod:`driftmap.services.database_scores`; not with ``full``) and keeps its own. Unless ``full`` or
-    not ``warm_start``, the pose graph starts from the latest version's poses of the drives it has (the same
-    map to the solver's tolerance on small and medium sites, a nearby minimum on the 20 km one; see
-    :func:`~driftmap.core.mapping.pipeline.solve_map`). ``stale``, when given, receives the blobs of the
+    kept (:mod:`driftmap.services.database_scores`; not with ``full``) and keeps its own. The pose graph is
+    solved afresh (:func:`~driftmap.core.mapping.pipeline.solve_map`), so the version equals a full build's.
+    ``stale``, when given, receives the blobs of the
     pieces, search and scores this build dropped:
     :func:`driftmap.services.map_pieces.drop_stale` them once committed.
     """
@@ -252,12 +250,9 @@ def build_site_map(
         found = () if plan is None else tuple(loop_searches.decide(plan, params, scored).closures)
         loops = (found, time.perf_counter() - start)
     prepared = join_drives(stage.pieces, loaded.inputs, params, progress, odometry_s, loops)
-    warm = None
-    if warm_start and not full:
-        warm = map_pieces.previous_solution(session, site.id, ids, loaded.frame_ids)
     counts = [d.n_frames for d in loaded.inputs]
     known = database_scores.load_scores(session, blobs, site.id, chains, counts, params, full)
-    build = solve_map(prepared, loaded.inputs, params, progress, warm, known)
+    build = solve_map(prepared, loaded.inputs, params, progress, known)
     queries = (plan.queries_kept, plan.search.n) if plan else (0, 0)
     build.stats.update(reuse_stats(stage.reused, len(stage.segments), queries))
     dropped = map_pieces.keep_pieces(session, ids, stage.segments)

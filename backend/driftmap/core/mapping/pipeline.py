@@ -137,16 +137,15 @@ def solve_map(
     drives: Sequence[MappingDrive],
     params: MappingParams = MAPPING_DEFAULT,
     progress: ProgressFn | None = None,
-    warm: Sequence[F64 | None] | None = None,
     database_scores: PairScores | None = None,
 ) -> MapBuild:
     """Stages 4-5: the pose graph (with the closures and groundings the params allow) and the map.
 
     Drives that get no grounding (groundings off, or none recorded) start from their ``start_wT``
-    when given; otherwise the pose graph places them through closures or anchors them weakly. ``warm``
-    gives, per drive, (N_d, 3) poses of an earlier solution for the solver to start from (or None): the
-    graph is the same; the solution is the cold start's to the solver's tolerance on small and medium sites,
-    a nearby minimum on the 20 km one (up to 7.6 m away). ``database_scores`` holds SESAME
+    when given; otherwise the pose graph places them through closures or anchors them weakly. The graph
+    always starts cold, so the map depends on the drives and groundings only, never on earlier builds (an
+    earlier solution as the starting point reached a nearby minimum up to 7.6 m away on the 20 km site).
+    ``database_scores`` holds SESAME
     database pair scores an earlier build of these drives computed (flat frame indices): the pairs it knows
     are not scored again; the build returns the pairs it used in ``MapBuild.database_scores``.
     """
@@ -174,7 +173,7 @@ def solve_map(
         if params.use_groundings
         for i, x, y in drive.groundings
     ]
-    graph = posegraph.optimise_pose_graph(chains, closures, groundings, params.graph, warm)
+    graph = posegraph.optimise_pose_graph(chains, closures, groundings, params.graph)
     graph, biases = solve_with_calibration(
         graph,
         chains,
@@ -212,7 +211,6 @@ def solve_map(
         "nodes": topomap.n_nodes,
         "graph_initial_error": graph.initial_error,
         "graph_final_error": graph.final_error,
-        "graph_warm_drives": 0 if warm is None else sum(w is not None for w in warm),
         "graph_iterations": graph.iterations,
         "graph_nodes": graph.num_nodes,
         "calibrated_drives": sum(b != NO_BIAS for b in biases),
