@@ -38,7 +38,6 @@ from driftmap.core.mapping.pipeline import (
     join_drives,
     join_segments,
     prepare_segment,
-    solve_map,
 )
 from driftmap.errors import ConflictError, DriftmapError, NotFoundError
 from driftmap.jobs.loop_tasks import FoundLoops, find_loops
@@ -51,8 +50,8 @@ from driftmap.jobs.subtasks import (
     stop_subtasks,
     submit_subtasks,
 )
-from driftmap.services import database_scores, loop_searches, map_drives, map_pieces
 from driftmap.services import jobs as job_service
+from driftmap.services import loop_searches, map_drives, map_pieces
 from driftmap.services import maps as map_service
 from driftmap.store.models import Drive, MapVersion, Site
 
@@ -181,17 +180,11 @@ def map_build(ctx: JobContext) -> None:
         site = _site(ctx, session)
         loaded = _site_drives(ctx, session, drives)
         prepared = join_drives(pieces, loaded.inputs, params, ctx.report, odometry_s, loops)
-        counts = [d.n_frames for d in loaded.inputs]
-        known = database_scores.load_scores(session, storage.blobs, site.id, chains, counts, params, full)
-        build = solve_map(prepared, loaded.inputs, params, ctx.report, known)
-        queries = (search.plan.queries_kept, search.plan.search.n) if search else (0, 0)
-        build.stats.update(map_service.reuse_stats(len(keys) - len(ids), len(keys), queries))
-        dropped = map_pieces.keep_pieces(session, [d for d, _n in drives], segments)
-        if search is not None:
-            dropped |= loop_searches.keep_search(session, site.id, params, chains, search.plan, search.scored)
-        if build.database_scores is not None:
-            scores = build.database_scores
-            dropped |= database_scores.keep_scores(session, batch, site.id, chains, counts, scores, params)
+        found = None if search is None else (search.plan, search.scored)
+        work = map_service.KeptWork(chains, [d for d, _n in drives], segments, len(keys) - len(ids), found)
+        build, dropped = map_service.solve_and_keep(
+            session, storage.blobs, batch, site, loaded, prepared, params, work, ctx.report, full
+        )
         version = map_service.store_map_version(session, batch, site, loaded, build, params, label)
         ctx.succeed(session, _result(version))  # no progress report from here: this transaction writes
     if search is not None and search.plan_sha256 is not None:
