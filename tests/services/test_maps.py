@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from driftmap.services import residuals as residual_service
 from driftmap.services import sites as site_service
 from driftmap.store.models import Drive, Frame, Grounding, MapNode, MapNodeFrame, MapPose, MapVersion
 from driftmap.store.storage import Storage
-from tests.sim_site import import_site
+from tests.sim_site import create_site, import_folders, import_site, version_poses
 
 MAP_ERROR_TOLERANCE_M = 3.0  # mean distance to truth of the tiny site's optimised map, metres
 
@@ -126,6 +127,26 @@ class TestWorkerProcesses:
         (_a, one), (_b, two) = versions
         assert [c.d_score for c in one.closures] == [c.d_score for c in two.closures]
         assert np.array_equal(one.topomap.centres_m, two.topomap.centres_m)
+
+    def test_kept_drives_joined_while_workers_prepare_a_new_one_give_the_full_build(
+        self, storage: Storage, tiny_site_dir: Path
+    ) -> None:
+        params = dataclasses.replace(MAPPING_FAST, segment_frames=128)  # the new drive: 3 segments
+        folders = [tiny_site_dir / "drives" / name for name in ("map-01", "map-02")]
+        create_site(storage, tiny_site_dir, "tiny")
+        versions = []
+        for imported, workers, full in ((folders[:1], 1, False), (folders[1:], 2, False), ([], 1, True)):
+            import_folders(storage, "tiny", imported)
+            with storage.blobs.batch() as batch, storage.db.session() as session:
+                site = site_service.get_site(session, "tiny")
+                version, build = map_service.build_site_map(
+                    session, storage.blobs, batch, site, params, workers=workers, full=full
+                )
+                versions.append((version.id, build.stats))
+        (_v1, _first), (grown_id, grown), (full_id, rebuilt) = versions
+        assert (grown["segments_reused"], grown["segments_prepared"]) == (6, 3)
+        assert rebuilt["segments_reused"] == 0
+        np.testing.assert_array_equal(version_poses(storage, grown_id), version_poses(storage, full_id))
 
 
 class TestRefusals:

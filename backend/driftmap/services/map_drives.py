@@ -169,9 +169,11 @@ def _segments_in_processes(
     params: MappingParams,
     workers: int,
     report: ProgressFn,
+    meanwhile: Callable[[], None] = lambda: None,
 ) -> list[bytes]:
     """Stage 1 of the segments ``work`` ((drive id, flat, span) each) in up to ``workers`` fresh processes
-    (spawned: no inherited connections); their pieces' bytes in order."""
+    (spawned: no inherited connections); their pieces' bytes in order. ``meanwhile`` runs here once they
+    are submitted."""
     context = multiprocessing.get_context("spawn")
     payload = (store[0], str(store[1]))
     done: list[bytes] = [b""] * len(work)
@@ -181,6 +183,7 @@ def _segments_in_processes(
             pool.submit(_prepare_in_child, payload, drive_id, params, flat, span): n
             for n, (drive_id, flat, span) in enumerate(work)
         }
+        meanwhile()
         for count, future in enumerate(as_completed(futures), start=1):
             done[futures[future]] = future.result()
             report("odometry", count / len(work))
@@ -233,8 +236,26 @@ def prepare_site_drives(
     found = kept(keys)
     todo = [n for n, key in enumerate(keys) if key not in found]
     work = [(drives[k][0], flats[k], span) for k, span in (segments[n] for n in todo)]
-    if workers > 1 and len(work) > 1:
-        made = _segments_in_processes(store, work, params, workers, report)
+    blobs = BlobStore(Path(store[1]))
+    of_drive = [[n for n, (j, _span) in enumerate(segments) if j == k] for k in range(len(inputs))]
+
+    def join(k: int, fresh: dict[str, bytes]) -> PreparedDrive:
+        """Drive ``k``'s piece: its segments' pieces (``fresh`` or kept) loaded and joined."""
+        done = []
+        for n in of_drive[k]:
+            data = fresh[keys[n]] if keys[n] in fresh else blobs.get(found[keys[n]])
+            first = flats[k][0] + segments[n][1][0]
+            done.append(piece_from_bytes(data, params, (first, flats[k][1]), inputs[k]))
+        return join_segments(inputs[k], done, params)
+
+    joined: dict[int, PreparedDrive] = {}
+    kept_drives = [k for k, ns in enumerate(of_drive) if all(keys[n] in found for n in ns)]
+
+    def join_kept() -> None:
+        joined.update({k: join(k, {}) for k in kept_drives})
+
+    if workers > 1 and len(work) > 1:  # the drives with nothing to prepare joined while the workers run
+        made = _segments_in_processes(store, work, params, workers, report, join_kept)
     else:
         made = []
         for count, n in enumerate(todo, start=1):
@@ -243,14 +264,6 @@ def prepare_site_drives(
             report("odometry", count / len(todo))
     fresh = {keys[n]: data for n, data in zip(todo, made, strict=True)}
     shas = dict(found) | {key: batch.put(data) for key, data in fresh.items()}
-    blobs = BlobStore(Path(store[1]))
-    done = []
-    for (k, (first, _stop)), key in zip(segments, keys, strict=True):
-        data = fresh[key] if key in fresh else blobs.get(shas[key])
-        done.append(piece_from_bytes(data, params, (flats[k][0] + first, flats[k][1]), inputs[k]))
-    pieces = [
-        join_segments(d, [s for (j, _span), s in zip(segments, done, strict=True) if j == k], params)
-        for k, d in enumerate(inputs)
-    ]
+    pieces = [joined[k] if k in joined else join(k, fresh) for k in range(len(inputs))]
     rows = [(drives[k][0], span, key, shas[key]) for (k, span), key in zip(segments, keys, strict=True)]
     return StageOne(pieces, rows, len(segments) - len(todo))

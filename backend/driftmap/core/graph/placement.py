@@ -147,17 +147,22 @@ def _near(travel: F64, at_m: F64, reach_m: float) -> NDArray[np.bool_]:
 def _implied(
     c: int, poses: list[F64], trusted: list[NDArray[np.bool_]], closure_frames: I64, closure_aTb: F64
 ) -> tuple[I64, F64]:
-    """Closures of drive ``c`` to trusted frames of other drives: (K,) own frames, (K, 3) implied poses."""
+    """Closures of drive ``c`` to trusted frames of other drives: (K,) own frames, (K, 3) implied poses
+    (closures with ``c`` as their b side first, then as their a side, each in closure order)."""
     a_side = (closure_frames[:, 0] == c) & (closure_frames[:, 2] != c)
     b_side = (closure_frames[:, 2] == c) & (closure_frames[:, 0] != c)
     frames, implied = [], []
     for rows, own, other, flip in ((b_side, 3, 0, False), (a_side, 1, 2, True)):
-        for k in np.flatnonzero(rows):
-            d, j = int(closure_frames[k, other]), int(closure_frames[k, other + 1])
-            if trusted[d][j]:
-                frames.append(int(closure_frames[k, own]))
-                implied.append(compose(poses[d][j], inverse(closure_aTb[k]) if flip else closure_aTb[k]))
-    return np.asarray(frames, dtype=np.int64), np.asarray(implied, dtype=np.float64).reshape(-1, 3)
+        k = np.flatnonzero(rows)
+        drive, frame = closure_frames[k, other], closure_frames[k, other + 1]
+        ok, there = np.zeros(k.size, dtype=bool), np.zeros((k.size, 3))
+        for d in np.unique(drive).tolist():
+            at = drive == d
+            ok[at], there[at] = trusted[d][frame[at]], poses[d][frame[at]]
+        relative = inverse(closure_aTb[k[ok]]) if flip else closure_aTb[k[ok]]
+        frames.append(closure_frames[k[ok], own])
+        implied.append(compose(there[ok], relative))
+    return np.concatenate(frames).astype(np.int64), np.concatenate(implied).reshape(-1, 3)
 
 
 def _consensus_points(

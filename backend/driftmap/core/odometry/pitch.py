@@ -245,17 +245,23 @@ def horizon_floor(
     ok = np.isfinite(est)
     if int(ok.sum()) < MIN_ESTIMATES:
         return None
-    at_median = _shifted(np.asarray(hom, dtype=np.float64), float(np.median(est[ok])))
+    hom = np.asarray(hom, dtype=np.float64)
+    counts = np.array([len(p) for p in pairs], dtype=np.int64)
+    pixels = np.array([point for p in pairs for a, b in p for point in (a, b)], dtype=np.float64)
+    pixels = pixels.reshape(-1, 2, 2)  # (M, previous/current, u/v) every step's matches in order
+    first = np.cumsum(counts) - counts  # each step's first (ROI-centre) match
     travel = np.zeros(len(est))
-    for k, p in enumerate(pairs):
-        if p:
-            f1, f2 = _to_floor(at_median, p[0][0]), _to_floor(at_median, p[0][1])
-            travel[k] = float(np.hypot(*(f1 - f2)))
+    has = counts > 0
+    centre = _to_floor(_shifted(hom, float(np.median(est[ok]))), pixels[first[has]])
+    travel[has] = np.hypot(*(centre[:, 0] - centre[:, 1]).T)
     track = track_horizon(est, travel, window_m, gate_z)
     assert track is not None  # as many finite estimates as checked above
-    homs: dict[float, NDArray[np.float64]] = {}
-    floor: list[list[FloorPair]] = []
-    for off, p in zip(track.offsets_px.tolist(), pairs, strict=True):
-        h = homs.setdefault(off, _shifted(np.asarray(hom, dtype=np.float64), off))
-        floor.append([(_to_floor(h, a), _to_floor(h, b)) for a, b in p])
+    # H(u, v + offset) = H(u, v) + offset * H[:, 1]: each match through its step's offset at once.
+    offset = np.repeat(track.offsets_px, counts)
+    h = pixels @ hom[:, :2].T + (hom[:, 1] * offset[:, None] + hom[:, 2])[:, None, :]
+    on_floor = h[..., :2] / h[..., 2:3]
+    floor: list[list[FloorPair]] = [
+        [(on_floor[m, 0], on_floor[m, 1]) for m in range(a, a + n)]
+        for a, n in zip(first.tolist(), counts.tolist(), strict=True)
+    ]
     return track, floor
