@@ -249,6 +249,16 @@ class TestClamping:
             ([chain], [LoopConstraint((0, 1), (0, 9), (0.1, 0.1, 0.1))], [], "closures[0].b"),
             (
                 [chain],
+                [
+                    LoopConstraint((0, 1), (0, 2), (0.1, 0.1, 0.1)),
+                    LoopConstraint((5, 1), (0, 2), (0.1, 0.1, 0.1)),
+                ],
+                [],
+                "closures[1].a",
+            ),
+            ([chain], [LoopConstraint((0, 1), (0, 2), (0.1, 0.0, 0.1))], [], "closures[0].sigmas"),
+            (
+                [chain],
                 [LoopConstraint((0, 1), (0, 2), (0.1, 0.1, 0.1), information=-np.eye(3))],
                 [],
                 "closures[0].information",

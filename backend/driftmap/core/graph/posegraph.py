@@ -92,6 +92,22 @@ def _information(sigmas: F64, information: F64 | None, params: PoseGraphParams, 
     return np.asarray(clamped, dtype=np.float64)
 
 
+def _closure_information(closures: Sequence[LoopConstraint], params: PoseGraphParams) -> F64:
+    """(K, 3, 3) information of each closure (its sigmas, or its matrix where given), clamped as
+    :func:`_information` does."""
+    sigmas = [np.asarray(lc.sigmas, dtype=np.float64) for lc in closures]
+    for k, s in enumerate(sigmas):
+        if s.shape not in ((3,), (1, 3)) or not np.all(np.isfinite(s)) or np.any(s <= 0):
+            raise _fail("sigmas must be (1, 3) or (3,), finite and positive", f"closures[{k}].sigmas")
+    stacked = np.array([s.reshape(3) for s in sigmas]).reshape(-1, 3)
+    information = _information(stacked, None, params, "closures")
+    given = [k for k, lc in enumerate(closures) if lc.information is not None]
+    for k in given:  # rare: checked and clamped one by one, naming the closure
+        matrix = np.asarray(closures[k].information, dtype=np.float64)[None]
+        information[k] = _information(stacked[k : k + 1], matrix, params, f"closures[{k}].information")[0]
+    return information
+
+
 class PoseGraphSession:
     """A pose graph that keeps its odometry and closures and re-solves after grounding edits.
 
@@ -145,17 +161,12 @@ class PoseGraphSession:
             self._covariance.append(np.asarray(np.linalg.inv(info), dtype=np.float64))
             self._chain_init.append(dead_reckon(steps) if init is None else np.array(init, dtype=np.float64))
         self._given = [c.wTi_init is not None for c in chains]
-        self._closure_frames = np.zeros((len(closures), 4), dtype=np.int64)
-        self._closure_aTb = np.zeros((len(closures), 3))
+        self._closure_frames = self._closure_refs(closures)  # (K, 4) [chain_a, frame_a, chain_b, frame_b]
+        self._closure_aTb = np.array([lc.aTb for lc in closures], dtype=np.float64).reshape(-1, 3)
+        kernel = _ESTIMATORS.get(params.loop_kernel)
         self._closure_models: list[tuple[gtsam.noiseModel.Base, gtsam.noiseModel.Base]] = []  # (base, robust)
-        for k, lc in enumerate(closures):
-            field = f"closures[{k}]"
-            a, b = self._check_ref(lc.a, field + ".a"), self._check_ref(lc.b, field + ".b")
-            self._closure_frames[k], self._closure_aTb[k] = (*a, *b), lc.aTb
-            given = None if lc.information is None else np.asarray(lc.information)[None]
-            sigmas = _sigmas(lc.sigmas, 1, field + ".sigmas")
-            base = _NM.Gaussian.Information(_information(sigmas, given, params, field + ".information")[0])
-            kernel = _ESTIMATORS.get(params.loop_kernel)
+        for info in _closure_information(closures, params):
+            base = _NM.Gaussian.Information(info)
             model = base if kernel is None else _NM.Robust.Create(kernel(params.kernel_width), base)
             self._closure_models.append((base, model))
         self._groundings: dict[int, GroundingConstraint] = {}
@@ -179,6 +190,29 @@ class PoseGraphSession:
         if c >= len(self._nodes) or k >= self._nodes[c].size or self._nodes[c][k] != i:
             raise KeyError(f"frame {tuple(ref)} is not a node of the graph")
         return int(self._offsets[c] + k)
+
+    def _keys(self, chain: I64, frame: I64) -> I64:
+        """GTSAM keys of frames ``(chain[k], frame[k])``, (K,) each, all nodes of the last solve."""
+        out = np.zeros(chain.size, dtype=np.int64)
+        for c in np.unique(chain).tolist():
+            at = chain == c
+            out[at] = self._offsets[c] + np.searchsorted(self._nodes[c], frame[at])
+        return out
+
+    def _closure_refs(self, closures: Sequence[LoopConstraint]) -> I64:
+        """(K, 4) ``[chain_a, frame_a, chain_b, frame_b]`` of ``closures``, each frame checked to exist."""
+        refs = np.array([(*lc.a, *lc.b) for lc in closures], dtype=np.int64).reshape(-1, 4)
+        sizes = np.array(self._sizes, dtype=np.int64)
+        bad = np.zeros((refs.shape[0], 2), dtype=bool)
+        for side in range(2):
+            c, i = refs[:, 2 * side], refs[:, 2 * side + 1]
+            known = (c >= 0) & (c < sizes.size)
+            bad[:, side] = ~known | (i < 0) | (i >= sizes[np.where(known, c, 0)])
+        if bad.any():
+            k, side = (int(v[0]) for v in np.nonzero(bad))
+            ref = tuple(refs[k, 2 * side : 2 * side + 2].tolist())
+            raise _fail(f"no frame {ref} (there are {sizes.size} chains)", f"closures[{k}].{'ab'[side]}")
+        return refs
 
     def _node_frames(self, required: Sequence[tuple[int, int]]) -> list[I64]:
         """Per chain, the frames the graph keeps (see :func:`~driftmap.core.graph.reduction.node_frames`)."""
@@ -208,12 +242,12 @@ class PoseGraphSession:
             self._node_steps.append(node_steps)
         self._first_closure = self._graph.size()
         self._closures = []
-        for (ca, ia, cb, ib), aTb, (base, model) in zip(
-            self._closure_frames, self._closure_aTb, self._closure_models, strict=True
+        f = self._closure_frames
+        keys_a, keys_b = self._keys(f[:, 0], f[:, 1]).tolist(), self._keys(f[:, 2], f[:, 3]).tolist()
+        for ka, kb, aTb, (base, model) in zip(
+            keys_a, keys_b, self._closure_aTb, self._closure_models, strict=True
         ):
-            factor = gtsam.BetweenFactorPose2(
-                self.key((ca, ia)), self.key((cb, ib)), gtsam.Pose2(*aTb), model
-            )
+            factor = gtsam.BetweenFactorPose2(ka, kb, gtsam.Pose2(*aTb), model)
             self._graph.add(factor)
             self._closures.append((factor, base))
 
