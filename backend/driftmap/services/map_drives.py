@@ -36,11 +36,11 @@ from driftmap.core.mapping.pipeline import (
 from driftmap.core.types import ProgressFn
 from driftmap.errors import NotFoundError
 from driftmap.formats.frame_images import decode_gray
-from driftmap.services.drives import drive_meta, frame_rows
+from driftmap.services.drives import drive_meta
 from driftmap.services.map_pieces import drive_content, segment_keys
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.db import Database
-from driftmap.store.models import Drive, Grounding, Site
+from driftmap.store.models import Drive, Frame, Grounding, Site
 from driftmap.store.npz import arrays_bytes, bytes_arrays
 
 
@@ -70,7 +70,8 @@ class LoadedDrive:
 
 def load_mapping_drive(session: Session, blobs: BlobStore, drive: Drive) -> LoadedDrive:
     """``drive`` with its enabled groundings as the pipeline takes it, frames streamed from the blob store."""
-    frames = frame_rows(session, drive)
+    columns = (Frame.id, Frame.t_s, Frame.blob_sha256, Frame.true_x_m, Frame.true_y_m, Frame.true_yaw_rad)
+    frames = session.execute(select(*columns).where(Frame.drive_id == drive.id).order_by(Frame.index)).all()
     position = {f.id: k for k, f in enumerate(frames)}
     marks = list(
         session.scalars(
@@ -87,17 +88,18 @@ def load_mapping_drive(session: Session, blobs: BlobStore, drive: Drive) -> Load
         if has_truth
         else None
     )
-    frame_range = _frame_range(blobs, [f.blob_sha256 for f in frames])
+    shas, times = [f.blob_sha256 for f in frames], [f.t_s for f in frames]
+    frame_range = _frame_range(blobs, shas)
     mapping = MappingDrive(
         name=drive.name,
         camera=drive_meta(drive).camera,
-        t_s=np.array([f.t_s for f in frames], dtype=np.float64),
+        t_s=np.array(times, dtype=np.float64),
         frames=lambda: frame_range(0, len(frames)),
         groundings=[(position[g.frame_id], g.x_m, g.y_m) for g in marks],
         frame_range=frame_range,
     )
     ids = np.array([f.id for f in frames], dtype=np.int64)
-    return LoadedDrive(drive, mapping, ids, [g.id for g in marks], truth, drive_content(drive, frames))
+    return LoadedDrive(drive, mapping, ids, [g.id for g in marks], truth, drive_content(drive, shas, times))
 
 
 def mapping_drives(session: Session, site: Site) -> list[Drive]:

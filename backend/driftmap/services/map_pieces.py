@@ -25,7 +25,7 @@ from driftmap.core.mapping.pipeline import MappingDrive, MappingParams, build_se
 from driftmap.services import database_scores, loop_searches
 from driftmap.store.blobs import BlobStore
 from driftmap.store.job_models import Job
-from driftmap.store.models import Drive, Frame, MapPiece
+from driftmap.store.models import Drive, MapPiece
 from driftmap.store.storage import Storage
 
 PIECE_VERSION = 1
@@ -33,11 +33,10 @@ PIECE_VERSION = 1
 frame statistics change, and every kept piece is recomputed by the next build."""
 
 
-def drive_content(drive: Drive, frames: Sequence[Frame]) -> str:
-    """SHA-256 (hex) of what a drive's stage 1 reads: its camera block, its frames' blobs and times."""
-    return loop_searches.json_digest(
-        {"camera": drive.camera, "frames": [f.blob_sha256 for f in frames], "t_s": [f.t_s for f in frames]}
-    )
+def drive_content(drive: Drive, blob_sha256: Sequence[str], t_s: Sequence[float]) -> str:
+    """SHA-256 (hex) of what a drive's stage 1 reads: its camera block, its frames' blobs and times (in frame
+    order)."""
+    return loop_searches.json_digest({"camera": drive.camera, "frames": list(blob_sha256), "t_s": list(t_s)})
 
 
 def stage1_params(params: MappingParams) -> dict[str, Any]:
