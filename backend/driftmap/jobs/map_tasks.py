@@ -51,7 +51,7 @@ from driftmap.jobs.subtasks import (
     submit_subtasks,
 )
 from driftmap.services import jobs as job_service
-from driftmap.services import loop_searches, map_drives, map_pieces
+from driftmap.services import kept_work, loop_searches, map_drives, map_pieces
 from driftmap.services import maps as map_service
 from driftmap.store.models import Drive, MapVersion, Site
 
@@ -181,9 +181,9 @@ def map_build(ctx: JobContext) -> None:
         loaded = _site_drives(ctx, session, drives)
         prepared = join_drives(pieces, loaded.inputs, params, ctx.report, odometry_s, loops)
         found = None if search is None else (search.plan, search.scored)
-        work = map_service.KeptWork(chains, [d for d, _n in drives], segments, len(keys) - len(ids), found)
-        build, dropped = map_service.solve_and_keep(
-            session, storage.blobs, batch, site, loaded, prepared, params, work, ctx.report, full
+        work = kept_work.KeptWork(chains, [d for d, _n in drives], segments, len(keys) - len(ids), found)
+        build, dropped = kept_work.solve_and_keep(
+            session, storage.blobs, batch, site, loaded.inputs, prepared, params, work, ctx.report, full
         )
         version = map_service.store_map_version(session, batch, site, loaded, build, params, label)
         ctx.succeed(session, _result(version))  # no progress report from here: this transaction writes

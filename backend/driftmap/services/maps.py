@@ -19,17 +19,15 @@ from driftmap.core.mapping.pipeline import (
     MapBuild,
     MappingDrive,
     MappingParams,
-    PreparedDrives,
     join_drives,
-    solve_map,
 )
 from driftmap.core.mapping.prepare import loop_inputs
 from driftmap.core.topomap.model import TopoMap
 from driftmap.core.types import ProgressFn
 from driftmap.errors import ConflictError, NotFoundError
 from driftmap.formats.csv_exports import PoseRow
-from driftmap.services import database_scores, loop_searches, map_pieces
 from driftmap.services import jobs as job_service
+from driftmap.services import kept_work, loop_searches, map_pieces
 from driftmap.services.jobs import Enqueue
 from driftmap.services.map_drives import load_mapping_drive, mapping_drives, prepare_site_drives
 from driftmap.store.blobs import BlobBatch, BlobStore
@@ -252,74 +250,13 @@ def build_site_map(
         loops = (found, time.perf_counter() - start)
     prepared = join_drives(stage.pieces, loaded.inputs, params, progress, odometry_s, loops)
     search = None if plan is None else (plan, scored)
-    kept = KeptWork(chains, ids, stage.segments, stage.reused, search)
-    build, dropped = solve_and_keep(
-        session, blobs, batch, site, loaded, prepared, params, kept, progress, full
+    kept = kept_work.KeptWork(chains, ids, stage.segments, stage.reused, search)
+    build, dropped = kept_work.solve_and_keep(
+        session, blobs, batch, site, loaded.inputs, prepared, params, kept, progress, full
     )
     if stale is not None:
         stale |= dropped
     return store_map_version(session, batch, site, loaded, build, params, created_by), build
-
-
-@dataclass(frozen=True)
-class KeptWork:
-    """What a build prepared and searched, to keep for the next build of its site.
-
-    Attributes:
-        chains: each drive's chain key (:func:`driftmap.services.loop_searches.chain_keys`).
-        drive_ids: the drives, in build order.
-        segments: every segment's ``(drive id, span, piece key, blob sha256)``.
-        reused: how many of ``segments`` were loaded, not prepared.
-        search: the loop-closure plan and the blocks this build scored (None without loop closures).
-    """
-
-    chains: list[str]
-    drive_ids: list[int]
-    segments: list[tuple[int, tuple[int, int], str, str]]
-    reused: int
-    search: tuple[loop_searches.LoopPlan, list[loop_searches.ScoredBlock]] | None
-
-
-def solve_and_keep(
-    session: Session,
-    blobs: BlobStore,
-    batch: BlobBatch,
-    site: Site,
-    loaded: SiteDrives,
-    prepared: PreparedDrives,
-    params: MappingParams,
-    kept: KeptWork,
-    progress: ProgressFn | None = None,
-    full: bool = False,
-) -> tuple[MapBuild, set[str]]:
-    """Stages 4-5 of a build of ``site`` (:func:`~driftmap.core.mapping.pipeline.solve_map`, the SESAME
-    database looking up the pair scores the site's last build kept unless ``full``), then keep its pieces,
-    loop-closure search and pair scores for the next build. Returns the build, with its reuse figures in its
-    stats, and the blobs it no longer holds (for :func:`driftmap.services.map_pieces.drop_stale`)."""
-    counts = [d.n_frames for d in loaded.inputs]
-    known = database_scores.load_scores(session, blobs, site.id, kept.chains, counts, params, full)
-    build = solve_map(prepared, loaded.inputs, params, progress, known)
-    queries = (kept.search[0].queries_kept, kept.search[0].search.n) if kept.search else (0, 0)
-    build.stats.update(reuse_stats(kept.reused, len(kept.segments), queries))
-    dropped = map_pieces.keep_pieces(session, kept.drive_ids, kept.segments)
-    if kept.search is not None:
-        dropped |= loop_searches.keep_search(session, site.id, params, kept.chains, *kept.search)
-    if build.database_scores is not None:
-        scores = build.database_scores
-        dropped |= database_scores.keep_scores(session, batch, site.id, kept.chains, counts, scores, params)
-    return build, dropped
-
-
-def reuse_stats(reused: int, segments: int, queries: tuple[int, int] = (0, 0)) -> dict[str, float | int]:
-    """The figures of a version saying what its build reused of earlier builds: drive segments (of
-    ``segments``) and loop-closure queries (kept, of all)."""
-    kept, total = queries
-    return {
-        "segments_reused": reused,
-        "segments_prepared": segments - reused,
-        "loop_queries_reused": kept,
-        "loop_queries_scored": total - kept,
-    }
 
 
 def get_map_version(session: Session, site: Site, version: int | None = None) -> MapVersion:

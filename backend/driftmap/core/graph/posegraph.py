@@ -25,8 +25,7 @@ import itertools
 import logging
 import math
 import time
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import gtsam
 import numpy as np
@@ -41,11 +40,17 @@ from driftmap.core.graph.constraints import (
     PoseGraphParams,
     PoseGraphResult,
 )
+from driftmap.core.graph.noise import (
+    ESTIMATORS,
+    check_sigmas,
+    closure_information,
+    fail,
+    information_matrices,
+)
 from driftmap.core.graph.placement import Anchor, initial_guess
 from driftmap.core.graph.reduction import compose_segments, expand_chain, node_frames
 from driftmap.core.graph.solvers import solve_batch
 from driftmap.core.types import F64, I64
-from driftmap.errors import BadInputError
 
 __all__ = ["PoseGraphSession", "optimise_pose_graph"]
 
@@ -53,59 +58,6 @@ log = logging.getLogger(__name__)
 
 _FREE_SIGMA_M = 1e3  # position sigma of a heading-only anchor, metres
 _NM = gtsam.noiseModel
-_M = _NM.mEstimator
-_ESTIMATORS: dict[str, Callable[[float], Any]] = {  # kernel name -> m-estimator factory
-    "huber": _M.Huber.Create,
-    "cauchy": _M.Cauchy.Create,
-    "dcs": _M.DCS.Create,
-    "geman_mcclure": _M.GemanMcClure.Create,
-}
-
-
-def _fail(message: str, field: str) -> BadInputError:
-    return BadInputError(message, field=field)
-
-
-def _sigmas(values: object, count: int, field: str) -> F64:
-    s = np.array(values, dtype=np.float64)
-    if s.shape == (3,):
-        s = np.tile(s, (count, 1))
-    if s.shape != (count, 3) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise _fail(f"sigmas must be ({count}, 3) or (3,), finite and positive", field)
-    return s
-
-
-def _information(sigmas: F64, information: F64 | None, params: PoseGraphParams, field: str) -> F64:
-    """(K, 3, 3) information matrices, sigmas clamped to the minimum (information to the matching maximum)."""
-    floor = np.array([params.min_sigma_m, params.min_sigma_m, params.min_sigma_rad])
-    if information is None:
-        inverse = 1.0 / np.maximum(sigmas, floor) ** 2
-        return np.asarray(np.einsum("ki,ij->kij", inverse, np.eye(3)), dtype=np.float64)
-    info = np.asarray(information, dtype=np.float64)
-    if info.shape != (sigmas.shape[0], 3, 3) or not np.all(np.isfinite(info)):
-        raise _fail(f"information must be ({sigmas.shape[0]}, 3, 3) and finite", field)
-    scaled = floor[:, None] * info * floor[None, :]  # information in units of the floor
-    w, V = np.linalg.eigh(0.5 * (scaled + scaled.transpose(0, 2, 1)))
-    if np.any(w <= 0):
-        raise _fail(f"matrix {int(np.flatnonzero((w <= 0).any(axis=1))[0])} is not positive definite", field)
-    clamped = np.einsum("kij,kj,klj->kil", V, np.minimum(w, 1.0), V) / floor[:, None] / floor[None, :]
-    return np.asarray(clamped, dtype=np.float64)
-
-
-def _closure_information(closures: Sequence[LoopConstraint], params: PoseGraphParams) -> F64:
-    """(K, 3, 3) information of each closure (its sigmas, or its matrix where given), clamped as
-    :func:`_information` does."""
-    sigmas = [np.asarray(lc.sigmas, dtype=np.float64) for lc in closures]
-    for k, s in enumerate(sigmas):
-        if s.shape not in ((3,), (1, 3)) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-            raise _fail("sigmas must be (1, 3) or (3,), finite and positive", f"closures[{k}].sigmas")
-    stacked = np.array([s.reshape(3) for s in sigmas]).reshape(-1, 3)
-    information = _information(stacked, None, params, "closures")
-    given = [k for k, lc in enumerate(closures) if lc.information is not None]
-    for k in given:  # rare: checked and clamped one by one, naming the closure
-        matrix = np.asarray(closures[k].information, dtype=np.float64)[None]
-        information[k] = _information(stacked[k : k + 1], matrix, params, f"closures[{k}].information")[0]
-    return information
 
 
 class PoseGraphSession:
@@ -135,13 +87,13 @@ class PoseGraphSession:
         warm: Sequence[F64 | None] | None = None,
     ) -> None:
         if not chains:
-            raise _fail("a pose graph needs at least one odometry chain", "chains")
+            raise fail("a pose graph needs at least one odometry chain", "chains")
         if warm is not None:
             if len(warm) != len(chains):
-                raise _fail(f"warm has {len(warm)} entries for {len(chains)} chains", "warm")
+                raise fail(f"warm has {len(warm)} entries for {len(chains)} chains", "warm")
             for c, (w, chain) in enumerate(zip(warm, chains, strict=True)):
                 if w is not None and (np.shape(w) != (chain.num_frames, 3) or not np.all(np.isfinite(w))):
-                    raise _fail(f"warm poses must be ({chain.num_frames}, 3) and finite", f"warm[{c}]")
+                    raise fail(f"warm poses must be ({chain.num_frames}, 3) and finite", f"warm[{c}]")
         self._warm = None if warm is None or all(w is None for w in warm) else list(warm)
         self.params = params
         self._sizes = [c.num_frames for c in chains]
@@ -151,21 +103,21 @@ class PoseGraphSession:
         for c, chain in enumerate(chains):
             steps = np.asarray(chain.iTj, dtype=np.float64)
             if steps.ndim != 2 or steps.shape[1] != 3 or not np.all(np.isfinite(steps)):
-                raise _fail("iTj must be (N-1, 3) and finite", f"chains[{c}].iTj")
-            sigmas = _sigmas(chain.sigmas, steps.shape[0], f"chains[{c}].sigmas")
-            info = _information(sigmas, chain.information, params, f"chains[{c}].information")
+                raise fail("iTj must be (N-1, 3) and finite", f"chains[{c}].iTj")
+            sigmas = check_sigmas(chain.sigmas, steps.shape[0], f"chains[{c}].sigmas")
+            info = information_matrices(sigmas, chain.information, params, f"chains[{c}].information")
             init = chain.wTi_init
             if init is not None and (np.shape(init) != (len(steps) + 1, 3) or not np.all(np.isfinite(init))):
-                raise _fail(f"wTi_init must be ({len(steps) + 1}, 3) and finite", f"chains[{c}].wTi_init")
+                raise fail(f"wTi_init must be ({len(steps) + 1}, 3) and finite", f"chains[{c}].wTi_init")
             self._steps.append(steps)
             self._covariance.append(np.asarray(np.linalg.inv(info), dtype=np.float64))
             self._chain_init.append(dead_reckon(steps) if init is None else np.array(init, dtype=np.float64))
         self._given = [c.wTi_init is not None for c in chains]
         self._closure_frames = self._closure_refs(closures)  # (K, 4) [chain_a, frame_a, chain_b, frame_b]
         self._closure_aTb = np.array([lc.aTb for lc in closures], dtype=np.float64).reshape(-1, 3)
-        kernel = _ESTIMATORS.get(params.loop_kernel)
+        kernel = ESTIMATORS.get(params.loop_kernel)
         self._closure_models: list[tuple[gtsam.noiseModel.Base, gtsam.noiseModel.Base]] = []  # (base, robust)
-        for info in _closure_information(closures, params):
+        for info in closure_information(closures, params):
             base = _NM.Gaussian.Information(info)
             model = base if kernel is None else _NM.Robust.Create(kernel(params.kernel_width), base)
             self._closure_models.append((base, model))
@@ -211,7 +163,7 @@ class PoseGraphSession:
         if bad.any():
             k, side = (int(v[0]) for v in np.nonzero(bad))
             ref = tuple(refs[k, 2 * side : 2 * side + 2].tolist())
-            raise _fail(f"no frame {ref} (there are {sizes.size} chains)", f"closures[{k}].{'ab'[side]}")
+            raise fail(f"no frame {ref} (there are {sizes.size} chains)", f"closures[{k}].{'ab'[side]}")
         return refs
 
     def _node_frames(self, required: Sequence[tuple[int, int]]) -> list[I64]:
@@ -254,7 +206,7 @@ class PoseGraphSession:
     def _check_ref(self, ref: FrameRef, field: str) -> FrameRef:
         c, i = int(ref[0]), int(ref[1])
         if not (0 <= c < len(self._sizes) and 0 <= i < self._sizes[c]):
-            raise _fail(f"no frame {tuple(ref)} (there are {len(self._sizes)} chains)", field)
+            raise fail(f"no frame {tuple(ref)} (there are {len(self._sizes)} chains)", field)
         return c, i
 
     @property
@@ -286,7 +238,7 @@ class PoseGraphSession:
         frame = self._check_ref(g.frame, field + ".frame")
         xy = (float(g.xy_m[0]), float(g.xy_m[1]))
         if not (math.isfinite(xy[0]) and math.isfinite(xy[1]) and math.isfinite(g.sigma_m) and g.sigma_m > 0):
-            raise _fail("position must be finite and sigma positive", field)
+            raise fail("position must be finite and sigma positive", field)
         self._groundings[gid] = GroundingConstraint(frame, xy, float(g.sigma_m))
 
     def solve(self) -> PoseGraphResult:
@@ -339,8 +291,8 @@ class PoseGraphSession:
             )
         )
         whitened = np.array([m.whiten(f.unwhitenedError(values)) for f, m in self._closures]).reshape(-1, 3)
-        if weights is None and p.loop_kernel in _ESTIMATORS:
-            kernel = _ESTIMATORS[p.loop_kernel](p.kernel_width)
+        if weights is None and p.loop_kernel in ESTIMATORS:
+            kernel = ESTIMATORS[p.loop_kernel](p.kernel_width)
             weights = np.array([kernel.weight(float(n)) for n in np.linalg.norm(whitened, axis=1)])
         d = np.array([wTi[c][i, :2] for c, i in g_frames]).reshape(-1, 2) - g_xy
         return PoseGraphResult(
