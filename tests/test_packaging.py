@@ -21,7 +21,7 @@ import yaml
 
 from driftmap.api.app import ui_dir
 from driftmap.store.db import MIGRATIONS_DIR
-from tests.processes import free_port, stop, wait_healthy
+from tests.processes import free_port, stop, wait_healthy, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "backend" / "driftmap"
@@ -227,6 +227,10 @@ class TestWheel:
             wait_healthy(server, base, log, SERVE_DEADLINE_S)
             page = httpx.get(f"{base}/", timeout=5.0)
             assert page.status_code == 200 and "<html" in page.text.lower()
-            assert httpx.get(f"{base}/api/health", timeout=5.0).json()["status"] == "ok"
+            wait_until(  # the worker process reports a moment after the port answers
+                lambda: httpx.get(f"{base}/api/health", timeout=5.0).json()["status"] == "ok",
+                "health ok with its worker",
+                SERVE_DEADLINE_S,
+            )
         finally:
             stop(server)

@@ -22,7 +22,7 @@ from driftmap.config import Settings
 from driftmap.services import users as user_service
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
-from tests.processes import alive, driftmap_env, start_server
+from tests.processes import alive, driftmap_env, start_server, wait_until
 
 pytestmark = pytest.mark.slow  # real server and worker processes
 
@@ -32,11 +32,7 @@ JOB_DEADLINE_S = 240.0
 
 
 def _wait_until(condition: Callable[[], bool], what: str, deadline_s: float = START_DEADLINE_S) -> None:
-    """Poll ``condition`` until it holds; fail naming ``what`` at the deadline."""
-    deadline = time.monotonic() + deadline_s
-    while not condition():
-        assert time.monotonic() < deadline, f"no {what} within {deadline_s} s"
-        time.sleep(0.2)
+    wait_until(condition, what, deadline_s)
 
 
 @pytest.fixture
