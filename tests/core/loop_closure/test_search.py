@@ -16,7 +16,7 @@ import pytest
 from numpy.typing import NDArray
 
 from driftmap.core.imaging.images import patch_normalise
-from driftmap.core.loop_closure.descriptors import _sequence_filter, _top_k_rows
+from driftmap.core.loop_closure.descriptors import _sequence_filter
 from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_PAPER, LoopParams
 from driftmap.core.loop_closure.search import LoopResult, detect_loops
 
@@ -272,14 +272,6 @@ class TestValidation:
 
 
 class TestScores:
-    def test_top_k_rows_is_a_sorted_top_k(self) -> None:
-        rng = np.random.default_rng(0)
-        for cols in (5, 300, 3001):
-            c = rng.normal(size=(7, cols)).astype(np.float32)
-            idx, val = _top_k_rows(c, 4)
-            np.testing.assert_array_equal(idx, np.argsort(-c, axis=1)[:, :4])
-            np.testing.assert_array_equal(val, np.take_along_axis(c, idx, axis=1))
-
     def test_sequence_filter_is_the_mean_along_diagonals_within_chains(self) -> None:
         rng = np.random.default_rng(0)
         for _ in range(20):

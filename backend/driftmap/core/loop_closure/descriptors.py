@@ -25,6 +25,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from driftmap.core.loop_closure.peaks import NEG, hfilter_max, top_local_maxima
+
 __all__ = [
     "CoarseCandidates",
     "coarse_candidates",
@@ -37,7 +39,6 @@ __all__ = [
 
 COARSE_BLOCK = 256
 """Queries per matrix product of :func:`coarse_candidates` (and the grid its query ranges follow)."""
-_NEG = np.float32(-1e30)  # "not eligible": below any cosine similarity, safe in OpenCV filters
 
 
 def thumbnails(frames: NDArray, size_px: tuple[int, int], blur_px: float = 0.0) -> NDArray[np.float32]:
@@ -142,14 +143,6 @@ class CoarseCandidates:
     n_compared: int
 
 
-def _hfilter_max(a: NDArray[np.float32], radius: int) -> NDArray[np.float32]:
-    """Running maximum along axis 1 over ``2 radius + 1`` columns (borders do not count)."""
-    if radius <= 0 or a.size == 0:
-        return a
-    kernel = np.ones((1, 2 * radius + 1), dtype=np.uint8)
-    return np.asarray(cv2.dilate(a, kernel, borderType=cv2.BORDER_REPLICATE), dtype=np.float32)
-
-
 def coarse_candidates(
     desc: NDArray,
     limit: NDArray,
@@ -222,7 +215,7 @@ def coarse_candidates(
         c = _sequence_filter(s, b0 - e0, p[b0:b1], p[:r], seq_len, jitter)
         idx = _select(c, lim[b0:b1], top_k, nms_radius)
         if top_k_single and seq_len > 1:
-            idx1 = _select(np.array(s[b0 - e0 :]), lim[b0:b1], top_k_single, nms_radius)
+            idx1 = _select(s[b0 - e0 :], lim[b0:b1], top_k_single, nms_radius)  # s is not used again
             idx1[(idx1[:, :, None] == idx[:, None, :]).any(axis=2)] = -1
             idx = np.concatenate([idx, idx1], axis=1)
         index[b0 - q0 : b1 - q0, : idx.shape[1]] = idx
@@ -247,43 +240,10 @@ def query_blocks(limit: NDArray, block: int = COARSE_BLOCK) -> list[int]:
 
 
 def _select(c: NDArray[np.float32], lim: NDArray[np.int64], k: int, nms_radius: int) -> NDArray[np.int64]:
-    """Top-``k`` eligible local maxima per row of ``c`` (overwritten), best first; -1 pads."""
+    """Top-``k`` eligible local maxima per row of ``c`` (its recent windows overwritten), best first; -1 pads."""
     for i in np.flatnonzero(lim < c.shape[1]).tolist():  # the recent window of the block's queries
-        c[i, lim[i] :] = _NEG
-    np.copyto(c, _NEG, where=c < _hfilter_max(c, nms_radius))
-    top, top_sim = _top_k_rows(c, min(k, c.shape[1]))
-    top = np.where(top_sim > _NEG, top, -1)
-    return np.pad(top, ((0, 0), (0, k - top.shape[1])), constant_values=-1)
-
-
-def _top_k_rows(
-    c: NDArray[np.float32], k: int, group: int = 64
-) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
-    """Column indices and values of the ``k`` largest entries of each row, largest first.
-
-    The ``k`` largest entries lie in the ``k`` column groups with the largest maxima, so a full
-    partition runs only over a row's group maxima and then over ``k`` groups.
-    """
-    rows, cols = c.shape
-    if cols > 4 * k * group:
-        n_groups = cols // group
-        g_max = c[:, : n_groups * group].reshape(rows, n_groups, group).max(axis=2)
-        if n_groups * group < cols:  # the ragged tail is one more group
-            g_max = np.concatenate([g_max, c[:, n_groups * group :].max(axis=1, keepdims=True)], axis=1)
-        best = np.argpartition(-g_max, k - 1, axis=1)[:, :k]
-        sub = (best[:, :, None] * group + np.arange(group)[None, None, :]).reshape(rows, -1)
-        over = sub >= cols  # past the end of the shorter tail group
-        sub = np.minimum(sub, cols - 1)
-        vals = np.take_along_axis(c, sub, axis=1)
-        vals[over] = _NEG
-    else:
-        sub = np.broadcast_to(np.arange(cols), (rows, cols))
-        vals = c
-    part = np.argpartition(-vals, k - 1, axis=1)[:, :k] if k < vals.shape[1] else np.argsort(-vals, axis=1)
-    idx = np.take_along_axis(sub, part, axis=1)
-    top = np.take_along_axis(vals, part, axis=1)
-    order = np.argsort(-top, axis=1, kind="stable")
-    return np.take_along_axis(idx, order, axis=1).astype(np.int64), np.take_along_axis(top, order, axis=1)
+        c[i, lim[i] :] = NEG
+    return top_local_maxima(c, k, nms_radius)
 
 
 def _sequence_filter(
@@ -303,7 +263,7 @@ def _sequence_filter(
     out = np.array(s[q0:], dtype=np.float32)
     if seq_len == 1:
         return out
-    s_wide = _hfilter_max(s, jitter)
+    s_wide = hfilter_max(s, jitter)
     rows, cols = out.shape
     for lag in range(1, min(seq_len, cols)):
         first = max(0, lag - q0)  # rows above this have no predecessor ``lag`` back in ``s`` (nor in a chain)
