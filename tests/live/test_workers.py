@@ -1,13 +1,10 @@
-"""Localiser worker processes: they do not outlive the server process that started them, and a database
-error inside one reaches the server as a readable error."""
+"""Localiser worker processes: a database error inside one reaches the server as a readable error. (That
+they end with the server: ``tests/test_processes.py``.)"""
 
 from __future__ import annotations
 
 import asyncio
 import pickle
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -19,33 +16,8 @@ from driftmap.live.workers import LiveDatabaseError, LocaliserWorkers
 from driftmap.services import vehicles as vehicle_service
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import built_tiny_data, copy_data, localisation_drive, recorded_frames
-from tests.processes import alive
 
 pytestmark = pytest.mark.db  # the workers open the database
-
-
-def test_a_worker_exits_when_its_parent_is_killed() -> None:
-    child = (
-        "from driftmap.live.workers import _exit_with_parent; print('ready', flush=True); "
-        "_exit_with_parent($$, poll_s=0.05)"
-    )
-    # The parent stands in for the server: it starts the worker, prints its pid, then is SIGKILLed.
-    parent = subprocess.Popen(
-        ["bash", "-c", f'{sys.executable} -c "{child}" & echo $!; sleep 60'],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert parent.stdout is not None
-    worker = int(parent.stdout.readline())
-    assert parent.stdout.readline().strip() == "ready"
-    time.sleep(0.5)  # ten polls
-    assert alive(worker), "the worker must run while its parent does"
-    parent.send_signal(signal.SIGKILL)
-    parent.wait(timeout=10)
-    deadline = time.monotonic() + 10
-    while alive(worker) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not alive(worker)
 
 
 def test_a_database_error_in_a_worker_reaches_the_server_as_text(

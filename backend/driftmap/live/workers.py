@@ -16,9 +16,6 @@ from __future__ import annotations
 import asyncio
 import functools
 import multiprocessing
-import os
-import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -33,6 +30,7 @@ from driftmap.formats.frame_images import decode_gray
 from driftmap.live import localise
 from driftmap.live.events import DEFAULT_EVENTS, EventParams
 from driftmap.live.localise import FrameOutcome, LiveMaps, LiveSlot
+from driftmap.processes import end_with_parent
 from driftmap.store.storage import Storage
 
 R = TypeVar("R")
@@ -49,18 +47,7 @@ def _start_worker(settings_json: str) -> None:
     settings = Settings.model_validate_json(settings_json)
     _storage = Storage.open(settings, upgrade=False)
     _events = EventParams.of(settings)
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
-
-
-def _exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
-    """End this worker process when the server process that started it is gone (even SIGKILLed).
-
-    A pool worker waits on its call queue forever, so without this a killed server would leave its
-    localiser processes running, holding the map in memory and the database open.
-    """
-    while os.getppid() == parent_pid:
-        time.sleep(poll_s)
-    os._exit(0)
+    end_with_parent()  # a killed server leaves no localiser process holding the map and the database
 
 
 def _opened() -> Storage:

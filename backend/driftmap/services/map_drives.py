@@ -36,6 +36,7 @@ from driftmap.core.mapping.pipeline import (
 from driftmap.core.types import ProgressFn
 from driftmap.errors import NotFoundError
 from driftmap.formats.frame_images import decode_gray
+from driftmap.processes import end_with_parent
 from driftmap.services.drives import drive_meta
 from driftmap.services.map_pieces import drive_content, segment_keys
 from driftmap.store.blobs import BlobBatch, BlobStore
@@ -160,9 +161,11 @@ def single_threaded_worker() -> None:
     """Initializer of a pool whose processes fill the cores already: OpenCV on one thread each.
 
     OpenCV's default pool takes every core; with two odometry processes on two cores each spends ~45 %
-    more CPU per frame on its second thread (28-29 vs 17-21 ms here) for no gain in wall time.
+    more CPU per frame on its second thread (28-29 vs 17-21 ms here) for no gain in wall time. A killed
+    build takes its pool processes with it.
     """
     cv2.setNumThreads(1)
+    end_with_parent()
 
 
 def _segments_in_processes(

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from driftmap.processes import end_with_parent
 from driftmap.sim.geometry import FloatArray
 from driftmap.sim.obscurants import LEVELS, apply_level
 from driftmap.sim.render import Renderer
@@ -44,8 +45,14 @@ class Chunk:
 
 
 def init_worker(renderer: Renderer) -> None:
-    """Install the renderer of this process (pool initializer)."""
+    """Install the renderer of this process."""
     _worker["renderer"] = renderer
+
+
+def init_pool_worker(renderer: Renderer) -> None:
+    """Pool initializer: install the renderer; end this process when the simulation's process is gone."""
+    init_worker(renderer)
+    end_with_parent()
 
 
 def encode_png(img: np.ndarray) -> bytes:

@@ -300,5 +300,5 @@ def _run(
         return
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
-    with ctx.Pool(n_workers, initializer=frame_worker.init_worker, initargs=(renderer,)) as pool:
+    with ctx.Pool(n_workers, initializer=frame_worker.init_pool_worker, initargs=(renderer,)) as pool:
         yield from zip(tasks, pool.imap(frame_worker.render_chunk, tasks), strict=True)
