@@ -16,6 +16,8 @@ within 1.5 m and 45 degrees of heading that got a correct closure) for the prese
 
 Usage: ``.venv/bin/python bench/bench_loops.py [--runs 3] [--sizes 1000 4000 16000]``
        ``.venv/bin/python bench/bench_loops.py --site OUT [--localisation] [--spacing 1.0]``
+       ``.venv/bin/python bench/bench_loops.py --peaks [4000 20000 76000]``: only the choice of each query's
+       distinct places, in the best groups of its row against suppression over the whole row
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from driftmap.core.imaging.images import patch_normalise, preprocess
 from driftmap.core.imaging.params import IMAGES_DEFAULT
 from driftmap.core.imaging.sad import sad_matrix
 from driftmap.core.loop_closure.params import LOOPS_DEFAULT, LOOPS_FAST, LOOPS_PAPER, LoopParams
+from driftmap.core.loop_closure.peaks import top_local_maxima, top_local_maxima_whole_rows
 from driftmap.core.loop_closure.search import LoopResult, detect_loops
 from driftmap.formats.drive_folder import read_drive_folder
 from driftmap.formats.frame_images import decode_gray
@@ -145,6 +148,37 @@ def bench_site(site: Path, spacing_m: float, localisation: bool) -> None:
         )
 
 
+def bench_peaks(sizes: list[int], runs: int, block: int = 256, seed: int = 0) -> None:
+    """Each query block's distinct places (top-k local maxima of its similarity rows) in the best groups
+    of each row against suppression over whole rows, on ``block`` x N rows of a smooth random walk's
+    similarities (neighbouring keyframes look alike, as in a tunnel)."""
+    rng = np.random.default_rng(seed)
+    params = LOOPS_DEFAULT
+    print(
+        f"\ntop-{params.top_k} local maxima (radius {params.nms_radius}) of {block} similarity rows of N keyframes"
+    )
+    header = f"{'N':>7} {'whole rows ms':>14} {'best groups ms':>15} {'speed-up':>9} {'same values':>12}"
+    print(header)
+    print("-" * len(header))
+    for n in sizes:
+        walk = np.cumsum(rng.normal(size=(n, 64)).astype(np.float32), axis=0)
+        walk -= walk.mean(axis=0)
+        desc = walk / np.linalg.norm(walk, axis=1, keepdims=True)
+        rows = desc[rng.integers(0, n, block)] @ desc.T
+        times: dict[str, list[float]] = {"whole": [], "groups": []}
+        for _ in range(runs):
+            for name, select in (("whole", top_local_maxima_whole_rows), ("groups", top_local_maxima)):
+                t0 = time.perf_counter()
+                got = select(rows, params.top_k, params.nms_radius)
+                times[name].append(time.perf_counter() - t0)
+                picked = np.sort(np.take_along_axis(rows, np.maximum(got, 0), axis=1), axis=1)
+                if name == "whole":
+                    want = picked
+        whole, groups = (statistics.median(times[k]) * 1e3 for k in ("whole", "groups"))
+        same = bool(np.array_equal(picked, want))
+        print(f"{n:>7,} {whole:>14.1f} {groups:>15.1f} {whole / groups:>8.1f}x {same!s:>12}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3, help="timed runs per size (median reported)")
@@ -152,7 +186,13 @@ def main() -> None:
     parser.add_argument("--site", type=Path, help="evaluate on this simulated site instead")
     parser.add_argument("--localisation", action="store_true", help="with --site: add localisation drives")
     parser.add_argument("--spacing", type=float, default=1.0, help="with --site: keyframe spacing, metres")
+    parser.add_argument(
+        "--peaks", type=int, nargs="*", help="only time the choice of distinct places per query at these N"
+    )
     args = parser.parse_args()
+    if args.peaks is not None:
+        bench_peaks(args.peaks or [4000, 20000, 76000], args.runs)
+        return
     if args.site is not None:
         bench_site(args.site, args.spacing, args.localisation)
         return

@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from driftmap.core.loop_closure.peaks import GROUP, NEG, SPARE_GROUPS, top_k_rows, top_local_maxima
+from driftmap.core.loop_closure.peaks import (
+    GROUP,
+    NEG,
+    SPARE_GROUPS,
+    top_k_rows,
+    top_local_maxima,
+    top_local_maxima_whole_rows,
+)
+
+Select = Callable[[NDArray[np.float32], int, int], NDArray[np.int64]]
 
 
 def _peaks(row: NDArray[np.float32], radius: int) -> list[int]:
@@ -32,14 +43,15 @@ def _assert_top_peaks(c: NDArray[np.float32], got: NDArray[np.int64], k: int, ra
 class TestTopLocalMaxima:
     @pytest.mark.parametrize("cols", [3, GROUP * 6, GROUP * 12 + 17, GROUP * 40])
     @pytest.mark.parametrize("radius", [0, 2])
-    def test_equals_suppression_over_whole_rows(self, cols: int, radius: int) -> None:
+    @pytest.mark.parametrize("select", [top_local_maxima, top_local_maxima_whole_rows])
+    def test_the_largest_local_maxima_best_first(self, cols: int, radius: int, select: Select) -> None:
         rng = np.random.default_rng(cols + radius)
         c = rng.normal(size=(40, cols)).astype(np.float32)
         c[:, ::7] = np.round(c[:, ::7], 1)  # ties, some of them neighbours
         c[5, cols // 2 :] = NEG  # a query's recent window
         c[6] = NEG  # nothing eligible
         c[7, : cols - 3] = NEG  # fewer than k maxima
-        _assert_top_peaks(c, top_local_maxima(c, 4, radius), 4, radius)
+        _assert_top_peaks(c, select(c, 4, radius), 4, radius)
 
     def test_peaks_spread_over_many_groups_fall_back_to_whole_rows(self) -> None:
         """A smooth ramp has one local maximum; its best groups hold no k maxima, so the whole row decides."""
@@ -48,10 +60,11 @@ class TestTopLocalMaxima:
         c = np.stack([ramp, ramp[::-1], np.sin(np.arange(cols, dtype=np.float32) / 40.0)])
         _assert_top_peaks(c, top_local_maxima(c, 4, 2), 4, 2)
 
-    def test_input_is_not_modified(self) -> None:
+    @pytest.mark.parametrize("select", [top_local_maxima, top_local_maxima_whole_rows])
+    def test_input_is_not_modified(self, select: Select) -> None:
         c = np.random.default_rng(1).normal(size=(3, GROUP * 20)).astype(np.float32)
         before = c.copy()
-        top_local_maxima(c, 4, 2)
+        select(c, 4, 2)
         np.testing.assert_array_equal(c, before)
 
 

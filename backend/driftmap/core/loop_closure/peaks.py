@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["NEG", "hfilter_max", "top_k_rows", "top_local_maxima"]
+__all__ = ["NEG", "hfilter_max", "top_k_rows", "top_local_maxima", "top_local_maxima_whole_rows"]
 
 NEG = np.float32(-1e30)
 """"Not eligible": below any cosine similarity, safe in OpenCV filters."""
@@ -64,11 +64,27 @@ def top_local_maxima(c: NDArray[np.float32], k: int, nms_radius: int) -> NDArray
         top, top_sim, exact = _top_in_best_groups(c, kk, nms_radius, kk + SPARE_GROUPS)
         redo = ~exact
     if redo.any():
-        sub = c[redo]  # a copy
-        np.copyto(sub, NEG, where=sub < hfilter_max(sub, nms_radius))
-        top[redo], top_sim[redo] = top_k_rows(sub, kk)
+        top[redo], top_sim[redo] = _suppressed_top_k(c[redo], kk, nms_radius)
     top = np.where(top_sim > NEG, top, -1)
     return np.pad(top, ((0, 0), (0, k - kk)), constant_values=-1)
+
+
+def top_local_maxima_whole_rows(c: NDArray[np.float32], k: int, nms_radius: int) -> NDArray[np.int64]:
+    """:func:`top_local_maxima` by suppression over every column of every row (its fallback, and the
+    baseline of ``bench/bench_loops.py --peaks``)."""
+    kk = min(k, c.shape[1])
+    top, top_sim = _suppressed_top_k(c.copy(), kk, nms_radius)
+    top = np.where(top_sim > NEG, top, -1)
+    return np.pad(top, ((0, 0), (0, k - kk)), constant_values=-1)
+
+
+def _suppressed_top_k(
+    c: NDArray[np.float32], k: int, radius: int
+) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
+    """Top ``k`` (``<= C``) columns and values per row after suppressing, in ``c`` itself, every entry with a
+    larger one within ``radius`` columns."""
+    np.copyto(c, NEG, where=c < hfilter_max(c, radius))
+    return top_k_rows(c, k)
 
 
 def _top_in_best_groups(
