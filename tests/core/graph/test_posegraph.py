@@ -257,6 +257,8 @@ class TestClamping:
                 "closures[1].a",
             ),
             ([chain], [LoopConstraint((0, 1), (0, 2), (0.1, 0.0, 0.1))], [], "closures[0].sigmas"),
+            ([chain], [LoopConstraint((0, 1, 2), (0, 2), (0.1, 0.1, 0.1))], [], "closures[0].a"),  # type: ignore[arg-type]
+            ([chain], [LoopConstraint((0, 1), (0, 1.5), (0.1, 0.1, 0.1))], [], "closures[0].b"),  # type: ignore[arg-type]
             (
                 [chain],
                 [LoopConstraint((0, 1), (0, 2), (0.1, 0.1, 0.1), information=-np.eye(3))],

@@ -153,6 +153,10 @@ class PoseGraphSession:
 
     def _closure_refs(self, closures: Sequence[LoopConstraint]) -> I64:
         """(K, 4) ``[chain_a, frame_a, chain_b, frame_b]`` of ``closures``, each frame checked to exist."""
+        for k, lc in enumerate(closures):
+            for end, ref in (("a", lc.a), ("b", lc.b)):
+                if not _is_frame_ref(ref):
+                    raise fail(f"{ref!r} is not a (chain, frame) pair of integers", f"closures[{k}].{end}")
         refs = np.array([(*lc.a, *lc.b) for lc in closures], dtype=np.int64).reshape(-1, 4)
         sizes = np.array(self._sizes, dtype=np.int64)
         bad = np.zeros((refs.shape[0], 2), dtype=bool)
@@ -357,3 +361,12 @@ def optimise_pose_graph(
 ) -> PoseGraphResult:
     """Build and solve the pose graph of several drives; see :class:`PoseGraphSession` for the arguments."""
     return PoseGraphSession(chains, closures, groundings, params, warm).solve()
+
+
+def _is_frame_ref(ref: object) -> bool:
+    """Whether ``ref`` is a ``(chain, frame)`` pair of integers."""
+    return (
+        isinstance(ref, tuple | list)
+        and len(ref) == 2
+        and all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in ref)
+    )
