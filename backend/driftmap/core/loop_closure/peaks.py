@@ -65,17 +65,19 @@ def top_local_maxima(c: NDArray[np.float32], k: int, nms_radius: int) -> NDArray
         redo = ~exact
     if redo.any():
         top[redo], top_sim[redo] = _suppressed_top_k(c[redo], kk, nms_radius)
-    top = np.where(top_sim > NEG, top, -1)
-    return np.pad(top, ((0, 0), (0, k - kk)), constant_values=-1)
+    return _padded(top, top_sim, k)
 
 
 def top_local_maxima_whole_rows(c: NDArray[np.float32], k: int, nms_radius: int) -> NDArray[np.int64]:
     """:func:`top_local_maxima` by suppression over every column of every row (its fallback, and the
     baseline of ``bench/bench_loops.py --peaks``)."""
-    kk = min(k, c.shape[1])
-    top, top_sim = _suppressed_top_k(c.copy(), kk, nms_radius)
+    return _padded(*_suppressed_top_k(c.copy(), min(k, c.shape[1]), nms_radius), k)
+
+
+def _padded(top: NDArray[np.int64], top_sim: NDArray[np.float32], k: int) -> NDArray[np.int64]:
+    """``(R, k)`` columns: ``top``'s where its value is eligible, -1 elsewhere and in the missing columns."""
     top = np.where(top_sim > NEG, top, -1)
-    return np.pad(top, ((0, 0), (0, k - kk)), constant_values=-1)
+    return np.pad(top, ((0, 0), (0, k - top.shape[1])), constant_values=-1)
 
 
 def _suppressed_top_k(
@@ -96,10 +98,7 @@ def _top_in_best_groups(
     exact: its ``k``-th value beats every group left out (or nothing eligible is left out).
     """
     rows, cols = c.shape
-    full = cols // GROUP
-    g_max = c[:, : full * GROUP].reshape(rows, full, GROUP).max(axis=2)
-    if full * GROUP < cols:  # the ragged tail is one more group
-        g_max = np.concatenate([g_max, c[:, full * GROUP :].max(axis=1, keepdims=True)], axis=1)
+    g_max = _group_maxima(c)
     part = np.argpartition(-g_max, n_best, axis=1)
     best, left_out = part[:, :n_best], np.take_along_axis(g_max, part[:, n_best : n_best + 1], axis=1)[:, 0]
     offsets = np.arange(-radius, GROUP + radius)
@@ -128,11 +127,7 @@ def top_k_rows(c: NDArray[np.float32], k: int) -> tuple[NDArray[np.int64], NDArr
     """
     rows, cols = c.shape
     if cols > 4 * k * GROUP:
-        n_groups = cols // GROUP
-        g_max = c[:, : n_groups * GROUP].reshape(rows, n_groups, GROUP).max(axis=2)
-        if n_groups * GROUP < cols:  # the ragged tail is one more group
-            g_max = np.concatenate([g_max, c[:, n_groups * GROUP :].max(axis=1, keepdims=True)], axis=1)
-        best = np.argpartition(-g_max, k - 1, axis=1)[:, :k]
+        best = np.argpartition(-_group_maxima(c), k - 1, axis=1)[:, :k]
         sub = (best[:, :, None] * GROUP + np.arange(GROUP)[None, None, :]).reshape(rows, -1)
         over = sub >= cols  # past the end of the shorter tail group
         sub = np.minimum(sub, cols - 1)
@@ -143,6 +138,16 @@ def top_k_rows(c: NDArray[np.float32], k: int) -> tuple[NDArray[np.int64], NDArr
         vals = c
     idx, top = _sorted_top_k(vals, k)
     return np.take_along_axis(sub, idx, axis=1).astype(np.int64), top
+
+
+def _group_maxima(c: NDArray[np.float32]) -> NDArray[np.float32]:
+    """``(R, ceil(C / GROUP))`` maximum of each row's groups of ``GROUP`` columns (the last may be shorter)."""
+    rows, cols = c.shape
+    full = cols // GROUP
+    g_max: NDArray[np.float32] = c[:, : full * GROUP].reshape(rows, full, GROUP).max(axis=2)
+    if full * GROUP < cols:  # the ragged tail is one more group
+        g_max = np.concatenate([g_max, c[:, full * GROUP :].max(axis=1, keepdims=True)], axis=1)
+    return g_max
 
 
 def _sorted_top_k(vals: NDArray[np.float32], k: int) -> tuple[NDArray[np.intp], NDArray[np.float32]]:
