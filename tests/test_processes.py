@@ -9,7 +9,7 @@ import subprocess
 import sys
 import time
 
-from tests.processes import alive
+from tests.processes import alive, wait_until
 
 EXIT_DEADLINE_S = 10.0  # a worker ends within this of its parent's death, seconds (it checks every 1 s)
 
@@ -28,32 +28,28 @@ if __name__ == "__main__":
 """
 
 
-def _worker_outlives_a_killed_parent(script: str) -> bool:
-    """Run ``script`` as the parent, SIGKILL it once it printed its worker's pid; whether the worker still
-    runs ``EXIT_DEADLINE_S`` later."""
+def _kill_parent_then_wait_for_its_worker(script: str) -> None:
+    """Run ``script`` as the parent, SIGKILL it once it printed its worker's pid and the worker ran past its
+    first check; fail unless the worker is gone within ``EXIT_DEADLINE_S``."""
     parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     try:
         assert parent.stdout is not None
         worker = int(parent.stdout.readline())
-        assert alive(worker), "the worker must run while its parent does"
         time.sleep(1.5)  # past its first check
         assert alive(worker), "the worker must run while its parent does"
         parent.send_signal(signal.SIGKILL)
         parent.wait(timeout=10)
-        deadline = time.monotonic() + EXIT_DEADLINE_S
-        while alive(worker) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        return alive(worker)
+        wait_until(lambda: not alive(worker), "end of the worker after its parent's", EXIT_DEADLINE_S)
     finally:
         parent.kill()
 
 
 def test_a_map_builds_odometry_process_ends_with_the_build() -> None:
-    assert not _worker_outlives_a_killed_parent(MAP_BUILD_POOL)
+    _kill_parent_then_wait_for_its_worker(MAP_BUILD_POOL)
 
 
 def test_a_process_that_watches_ends_with_its_parent() -> None:
     watcher = "from driftmap.processes import end_with_parent; import os, time; end_with_parent(0.05); print(os.getpid(), flush=True); time.sleep(120)"
-    assert not _worker_outlives_a_killed_parent(
+    _kill_parent_then_wait_for_its_worker(
         f"import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', {watcher!r}]); time.sleep(120)"
     )
