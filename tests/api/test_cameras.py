@@ -23,7 +23,7 @@ from driftmap.store.access_models import Vehicle
 from driftmap.store.models import CameraProfile
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import Actors, make_actors
-from tests.core.imaging.boards import FISHEYE, PINHOLE, board_poses, render_view
+from tests.core.imaging.boards import CHARUCO, FISHEYE, PINHOLE, board_poses, render_view
 from tests.floor_frames import PATCH_M, patch_frame, pinhole_camera
 
 FOCAL_REL_TOL = 0.01  # issue 21: focal length within 1 %
@@ -93,6 +93,25 @@ class TestIntrinsics:
         assert [v["name"] for v in body["views"]] == [f"view{k}.png" for k in range(VIEWS)]
         assert max(v["rms_px"] for v in body["views"]) <= RMS_TOL_PX
         assert body["skipped"] == ["blank.png"]
+
+    def test_a_charuco_board(self, actors: Actors) -> None:
+        views = [
+            (f"charuco{k}.png", encode_png(render_view(PINHOLE, r, t, CHARUCO, ss=2)))
+            for k, (r, t) in enumerate(board_poses(4, 0.45, board=CHARUCO))
+        ]
+        form = {"board": "9x6", "square_m": "0.03", "marker_m": "0.022", "dictionary": "DICT_4X4_50"}
+        response = actors.client.post(
+            "/api/cameras/intrinsics", data=form, files=_files(views), headers=actors.auth("surveyor")
+        )
+        assert response.status_code == 200, response.text
+        assert abs(response.json()["lens"]["K"][0][0] / PINHOLE.K[0][0] - 1) < FOCAL_REL_TOL
+        bad = {**form, "dictionary": "DICT_9X9_1"}
+        body = _error(
+            actors.client.post(
+                "/api/cameras/intrinsics", data=bad, files=_files(views), headers=actors.auth("surveyor")
+            )
+        )
+        assert body["field"] == "dictionary" and "DICT_4X4_50" in body["detail"]
 
     def test_too_few_views_is_422_naming_images(
         self, actors: Actors, board_pngs: list[tuple[str, bytes]]

@@ -19,7 +19,7 @@ from driftmap.formats.drive_folder import write_drive_folder
 from driftmap.formats.drive_json import lens_to_json
 from driftmap.formats.frame_images import encode_png
 from driftmap.formats.records import DriveMeta, FrameRow
-from tests.core.imaging.boards import PINHOLE, board_poses, floor_pose, render_view
+from tests.core.imaging.boards import CHARUCO, PINHOLE, board_poses, floor_pose, render_view
 from tests.core.odometry.test_scale_check import straight_frames
 from tests.floor_frames import pinhole_camera
 
@@ -68,6 +68,37 @@ class TestIntrinsicsCommand:
         assert result.exit_code == 1
         assert "found in 2 view(s); calibration needs at least 3" in result.output
         assert not (tmp_path / "c.json").exists()
+
+    def test_charuco_board(self, tmp_path: Path) -> None:
+        """A ChArUco board is named by --marker-m (and --dictionary); a chessboard view is not one."""
+        for k, (rvec, tvec) in enumerate(board_poses(4, 0.45, board=CHARUCO)):
+            cv2.imwrite(str(tmp_path / f"charuco{k}.png"), render_view(PINHOLE, rvec, tvec, CHARUCO, ss=2))
+        chess_rvec, chess_tvec = board_poses(1, 0.45)[0]
+        cv2.imwrite(str(tmp_path / "chess.png"), render_view(PINHOLE, chess_rvec, chess_tvec, ss=2))
+        out = tmp_path / "camera.json"
+        files = sorted(str(p) for p in tmp_path.glob("*.png"))
+        board = ["--board", "9x6", "--square-m", "0.03", "--marker-m", "0.022", "--dictionary", "DICT_4X4_50"]
+        result = runner.invoke(app, ["camera", "intrinsics", *files, *board, "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        assert "chess.png: no 9x6 ChArUco board found" in result.output
+        assert result.output.count("reprojection RMS") == 4
+        assert abs(read_camera_file(out)["lens"]["K"][0][0] / PINHOLE.K[0][0] - 1) < 0.01
+        bad = [
+            "--board",
+            "9x6",
+            "--square-m",
+            "0.03",
+            "--marker-m",
+            "0.04",
+            "--out",
+            str(tmp_path / "x.json"),
+        ]
+        result = runner.invoke(app, ["camera", "intrinsics", *files, *bad])
+        assert (
+            result.exit_code == 1
+            and "marker_m" in result.output
+            and "less than the square side" in result.output
+        )
 
     def test_bad_board_option(self, board_dir: Path, tmp_path: Path) -> None:
         args = _intrinsics(board_dir, tmp_path / "c.json", "view0.png")

@@ -102,6 +102,23 @@ class TestIntrinsics:
     def test_board_text(self, text: str, board: Board) -> None:
         assert cal.parse_board(text, 0.03) == board
 
+    def test_charuco_board(self) -> None:
+        board = cal.parse_board("9x6", 0.03, marker_m=0.022)
+        assert (board.is_charuco, board.dictionary, board.describe()) == (True, "DICT_4X4_50", "9x6 ChArUco")
+        assert (
+            cal.parse_board("9x6", 0.03, marker_m=0.022, dictionary="DICT_5X5_100").dictionary
+            == "DICT_5X5_100"
+        )
+        with pytest.raises(BadInputError, match="needs the markers' side") as err:
+            cal.parse_board("9x6", 0.03, dictionary="DICT_5X5_100")
+        assert err.value.field == "marker_m"
+
+    def test_a_board_on_the_floor_must_be_a_chessboard(self) -> None:
+        board = cal.parse_board("9x6", 0.03, marker_m=0.022)
+        with pytest.raises(BadInputError, match="plain chessboard") as err:
+            cal.board_ground_points(np.zeros((48, 64), np.uint8), "floor.png", board, (2.0, 0.0), 0.0, None)
+        assert err.value.field == "board"
+
     def test_bad_board_text_names_the_callers_field(self) -> None:
         with pytest.raises(BadInputError) as err:
             cal.parse_board("8by6", 0.03, field="--board")

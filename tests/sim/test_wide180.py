@@ -76,9 +76,9 @@ def found(site: Path) -> tuple[dict, dict, object]:
     spec = boards["intrinsics"]
     views = []
     for name in spec["images"]:
-        corners = find_board(cv2.imread(str(site / "calibration" / name), cv2.IMREAD_GRAYSCALE), _board(spec))
-        assert corners is not None, name
-        views.append(corners)
+        view = find_board(cv2.imread(str(site / "calibration" / name), cv2.IMREAD_GRAYSCALE), _board(spec))
+        assert view is not None, name
+        views.append(view)
     return boards, truth, calibrate_lens(views, _board(spec), (944, 800), spec["model"])
 
 
@@ -97,8 +97,9 @@ class TestCalibratedByTheProduct:
         boards, truth, cal = found
         spec = boards["floor"]
         img = cv2.imread(str(site / "calibration" / spec["image"]), cv2.IMREAD_GRAYSCALE)
-        corners = find_board(img, _board(spec))
-        assert corners is not None
+        view = find_board(img, _board(spec))
+        assert view is not None
+        corners = view.pixels
         floor = board_floor_points(corners, _board(spec), tuple(spec["centre_m"]), spec["yaw_rad"], cal.lens)
         cam = truth["camera"]
         fit = fit_ground(corners, floor, tuple(cam["ground_roi"]), cal.lens)

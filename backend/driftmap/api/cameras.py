@@ -77,9 +77,20 @@ def post_intrinsics(
         UploadFile | None, File(description="One video of the board, instead of images.")
     ] = None,
     every: Annotated[int, Form(ge=1, le=10_000, description="Use every N-th frame of the video.")] = 15,
+    marker_m: Annotated[
+        Finite | None,
+        Form(gt=0, le=MAX_SQUARE_M, description="A ChArUco board: side of its markers, metres."),
+    ] = None,
+    dictionary: Annotated[
+        str | None,
+        Form(
+            max_length=20, description="A ChArUco board's marker dictionary, e.g. DICT_4X4_50 (the default)."
+        ),
+    ] = None,
 ) -> IntrinsicsRead:
-    """Calibrate a lens from chessboard views (images or one video); each view's reprojection RMS, pixels."""
-    target = cal.parse_board(board, square_m)
+    """Calibrate a lens from chessboard or ChArUco views (images or one video); each view's reprojection RMS,
+    pixels."""
+    target = cal.parse_board(board, square_m, marker_m=marker_m, dictionary=dictionary)
     if bool(images) == (video is not None):
         raise BadInputError("give either images or one video of the board", field="images")
     if images:

@@ -59,14 +59,20 @@ def intrinsics(
     model: Annotated[LensName, typer.Option("--model", help="The lens model.")] = "pinhole",
     camera: Annotated[Path | None, typer.Option("--camera", help="camera.json to add the lens to.")] = None,
     every: Annotated[int, typer.Option("--every", help="Use every N-th frame of a video.")] = 15,
+    marker_m: Annotated[
+        float | None, typer.Option("--marker-m", help="A ChArUco board: side of its markers, metres.")
+    ] = None,
+    dictionary: Annotated[
+        str | None, typer.Option("--dictionary", help="A ChArUco board's markers [default: DICT_4X4_50].")
+    ] = None,
 ) -> None:
-    """Calibrate the lens (K and distortion) from chessboard views; print the reprojection RMS per view."""
+    """Calibrate the lens (K and distortion) from chessboard or ChArUco views; print the RMS per view."""
     with user_errors():
-        target = cal.parse_board(board, square_m, field="--board")
+        target = cal.parse_board(board, square_m, "--board", marker_m=marker_m, dictionary=dictionary)
         block = _start(camera)
         found = cal.calibrate_intrinsics(calibration_images(inputs, every), target, model, field="IMAGES")
         for name in found.skipped:
-            err_console.print(f"skipped {name}: no {board} board found")
+            err_console.print(f"skipped {name}: no {target.describe()} board found")
         for name, rms in found.views:
             console.print(f"{name}: reprojection RMS {rms:.3f} px")
         block, stale = cal.add_lens(block, found, str(camera or "camera"))

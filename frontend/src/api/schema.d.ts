@@ -283,7 +283,8 @@ export interface paths {
         put?: never;
         /**
          * Post Intrinsics
-         * @description Calibrate a lens from chessboard views (images or one video); each view's reprojection RMS, pixels.
+         * @description Calibrate a lens from chessboard or ChArUco views (images or one video); each view's reprojection RMS,
+         *     pixels.
          */
         post: operations["post_intrinsics_api_cameras_intrinsics_post"];
         delete?: never;
@@ -1392,6 +1393,16 @@ export interface components {
              * @default 15
              */
             every: number;
+            /**
+             * Marker M
+             * @description A ChArUco board: side of its markers, metres.
+             */
+            marker_m?: number | null;
+            /**
+             * Dictionary
+             * @description A ChArUco board's marker dictionary, e.g. DICT_4X4_50 (the default).
+             */
+            dictionary?: string | null;
         };
         /** Body_post_preview_api_cameras_preview_post */
         Body_post_preview_api_cameras_preview_post: {

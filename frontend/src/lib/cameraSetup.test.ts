@@ -1,5 +1,6 @@
 import { describe, expect, it } from "vitest";
 import {
+  CHARUCO_DICTIONARIES,
   NO_POINTS,
   cameraBlock,
   groundBody,
@@ -163,6 +164,14 @@ describe("request bodies", () => {
     expect(form.get("board")).toBe("9x6");
     expect(form.get("square_m")).toBe("0.025");
     expect(form.get("model")).toBe("fisheye");
+    expect(form.get("marker_m")).toBeNull();
+  });
+  it("a ChArUco board's markers", () => {
+    const form = intrinsicsForm([], 9, 6, 0.03, "pinhole", { markerM: 0.022, dictionary: "DICT_5X5_100" });
+    expect(form.get("marker_m")).toBe("0.022");
+    expect(form.get("dictionary")).toBe("DICT_5X5_100");
+    expect(CHARUCO_DICTIONARIES).toContain("DICT_4X4_50");
+    expect(CHARUCO_DICTIONARIES).toHaveLength(16);
   });
 });
 

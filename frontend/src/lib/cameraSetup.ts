@@ -176,19 +176,35 @@ export function boardText(cols: number, rows: number): string {
   return `${cols}x${rows}`;
 }
 
-/** The multipart body of ``POST /api/cameras/intrinsics`` for board images. */
+/** The ArUco dictionaries a ChArUco board may use, as the server names them (OpenCV's ``DICT_NxN_M``). */
+export const CHARUCO_DICTIONARIES: string[] = [4, 5, 6, 7].flatMap((bits) =>
+  [50, 100, 250, 1000].map((count) => `DICT_${bits}X${bits}_${count}`),
+);
+
+/** A ChArUco board's markers: their side, metres, and their dictionary. */
+export interface Charuco {
+  markerM: number;
+  dictionary: string;
+}
+
+/** The multipart body of ``POST /api/cameras/intrinsics`` for board images (a ChArUco board with ``charuco``). */
 export function intrinsicsForm(
   files: File[],
   cols: number,
   rows: number,
   squareM: number,
   model: Lens["model"],
+  charuco: Charuco | null = null,
 ): FormData {
   const form = new FormData();
   for (const f of files) form.append("images", f, f.name);
   form.append("board", boardText(cols, rows));
   form.append("square_m", String(squareM));
   form.append("model", model);
+  if (charuco) {
+    form.append("marker_m", String(charuco.markerM));
+    form.append("dictionary", charuco.dictionary);
+  }
   return form;
 }
 

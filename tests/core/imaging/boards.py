@@ -1,8 +1,9 @@
-"""Synthetic chessboard views through a known lens, rendered by ray casting (for calibration tests).
+"""Synthetic chessboard and ChArUco views through a known lens, rendered by ray casting (calibration tests).
 
 Each pixel is split into ``ss x ss`` samples; each sample's ray (from the lens's exact undistortion) is cut
 with the board plane, and the board's colour there is averaged. The board has ``(cols + 1) x (rows + 1)``
-squares around its inner corners, a white margin one square wide, and a mid-grey world behind it.
+squares around its inner corners, a white margin one square wide, and a mid-grey world behind it. A ChArUco
+board's squares and markers are OpenCV's own drawing of it, sampled where each ray meets the board.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ FISHEYE = Lens(
 )
 SIZE = (640, 480)
 BOARD = Board(8, 6, 0.03)
+CHARUCO = Board(9, 6, 0.03, marker_m=0.022, dictionary="DICT_4X4_50")
+_TEXELS_PER_SQUARE = 60
 
 
 @lru_cache(maxsize=4)
@@ -72,17 +75,37 @@ def render_view(
     hit = ok & (s > 0)
     squares = hit & (bx >= -1) & (bx < board.cols) & (by >= -1) & (by < board.rows)
     margin = hit & (bx >= -2) & (bx < board.cols + 1) & (by >= -2) & (by < board.rows + 1)
-    black = squares & ((np.floor(bx) + np.floor(by)) % 2 == 0)
-    value = np.where(black, 20.0, np.where(margin, 235.0, 128.0))
+    if board.is_charuco:
+        texture = _charuco_texture(board)
+        tu = ((bx + 1) * _TEXELS_PER_SQUARE - 0.5).astype(np.float32)
+        tv = ((by + 1) * _TEXELS_PER_SQUARE - 0.5).astype(np.float32)
+        drawn = cv2.remap(texture, tu, tv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        value = np.where(squares, 20.0 + drawn * (215.0 / 255.0), np.where(margin, 235.0, 128.0))
+    else:
+        black = squares & ((np.floor(bx) + np.floor(by)) % 2 == 0)
+        value = np.where(black, 20.0, np.where(margin, 235.0, 128.0))
     width, height = size
     img = value.reshape(height, ss, width, ss).mean(axis=(1, 3))
     return np.clip(np.round(img), 0, 255).astype(np.uint8)
 
 
-def board_poses(count: int, distance_m: float, seed: int = 3) -> list[tuple[NDArray, NDArray]]:
+@lru_cache(maxsize=2)
+def _charuco_texture(board: Board) -> NDArray[np.float32]:
+    """OpenCV's drawing of the ChArUco board's squares, ``_TEXELS_PER_SQUARE`` texels a square, 0-255."""
+    assert board.marker_m is not None
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary))
+    squares = (board.cols + 1, board.rows + 1)
+    drawing = cv2.aruco.CharucoBoard(squares, board.square_m, board.marker_m, dictionary)
+    size = (squares[0] * _TEXELS_PER_SQUARE, squares[1] * _TEXELS_PER_SQUARE)
+    return np.asarray(drawing.generateImage(size, marginSize=0, borderBits=1), dtype=np.float32)
+
+
+def board_poses(
+    count: int, distance_m: float, seed: int = 3, board: Board = BOARD
+) -> list[tuple[NDArray, NDArray]]:
     """``count`` board poses (rvec, tvec): tilted up to ~35 degrees, centred near the axis, varied offset."""
     rng = np.random.default_rng(seed)
-    centre = np.array([(BOARD.cols - 1) * BOARD.square_m / 2, (BOARD.rows - 1) * BOARD.square_m / 2, 0.0])
+    centre = np.array([(board.cols - 1) * board.square_m / 2, (board.rows - 1) * board.square_m / 2, 0.0])
     poses = []
     for _ in range(count):
         rvec = np.array([rng.uniform(-0.6, 0.6), rng.uniform(-0.6, 0.6), rng.uniform(-0.4, 0.4)])

@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from driftmap.core.imaging.calibration import MIN_VIEWS, Board, board_points, calibrate_lens, find_board
+from driftmap.core.imaging.calibration import (
+    MIN_CORNERS,
+    MIN_VIEWS,
+    Board,
+    BoardView,
+    board_points,
+    calibrate_lens,
+    find_board,
+)
 from driftmap.core.imaging.lens import Lens
 from driftmap.errors import BadInputError
-from tests.core.imaging.boards import BOARD, FISHEYE, PINHOLE, SIZE, board_poses, render_view
+from tests.core.imaging.boards import BOARD, CHARUCO, FISHEYE, PINHOLE, SIZE, board_poses, render_view
 
 FOCAL_REL_TOL = 0.01  # issue 21: focal length within 1 %
 CENTRE_TOL_PX = 2.0  # principal point within 2 px
@@ -19,7 +28,7 @@ DISTANCE_M = {"pinhole": 0.45, "fisheye": 0.3}
 
 
 @pytest.fixture(scope="module", params=[PINHOLE, FISHEYE], ids=["pinhole", "fisheye"])
-def seen(request: pytest.FixtureRequest) -> tuple[Lens, list[NDArray[np.float64]]]:
+def seen(request: pytest.FixtureRequest) -> tuple[Lens, list[BoardView]]:
     lens: Lens = request.param
     views = [
         find_board(render_view(lens, r, t), BOARD) for r, t in board_poses(VIEWS, DISTANCE_M[lens.model])
@@ -29,7 +38,7 @@ def seen(request: pytest.FixtureRequest) -> tuple[Lens, list[NDArray[np.float64]
 
 
 class TestIntrinsics:
-    def test_recovers_the_lens(self, seen: tuple[Lens, list[NDArray[np.float64]]]) -> None:
+    def test_recovers_the_lens(self, seen: tuple[Lens, list[BoardView]]) -> None:
         lens, views = seen
         result = calibrate_lens(views, BOARD, SIZE, lens.model)
         k, truth = result.lens.matrix(), lens.matrix()
@@ -41,16 +50,77 @@ class TestIntrinsics:
         assert len(result.view_rms_px) == VIEWS and max(result.view_rms_px) <= RMS_TOL_PX
         assert len(result.lens.distortion) == (5 if lens.model == "pinhole" else 4)
 
-    def test_too_few_views_say_how_many(self, seen: tuple[Lens, list[NDArray[np.float64]]]) -> None:
+    def test_too_few_views_say_how_many(self, seen: tuple[Lens, list[BoardView]]) -> None:
         lens, views = seen
         with pytest.raises(BadInputError, match=f"found in 2 view.*at least {MIN_VIEWS}") as err:
             calibrate_lens(views[:2], BOARD, SIZE, lens.model)
         assert err.value.field == "images"
 
-    def test_wrong_corner_count_is_named(self, seen: tuple[Lens, list[NDArray[np.float64]]]) -> None:
+    @pytest.mark.parametrize(
+        ("ids", "match"), [(np.arange(3), "view 2 has 3 corners"), (np.arange(1, 49), "numbered 1..48")]
+    )
+    def test_a_view_the_board_cannot_have_is_named(
+        self, seen: tuple[Lens, list[BoardView]], ids: NDArray[np.int64], match: str
+    ) -> None:
         lens, views = seen
-        with pytest.raises(BadInputError, match="view 2 has 47 corners"):
-            calibrate_lens([views[0], views[1][:-1], views[2]], BOARD, SIZE, lens.model)
+        bad = BoardView(ids, views[1].pixels[: len(ids)])
+        with pytest.raises(BadInputError, match=match) as err:
+            calibrate_lens([views[0], bad, views[2]], BOARD, SIZE, lens.model)
+        assert err.value.field == "images"
+
+
+@pytest.fixture(scope="module", params=[PINHOLE, FISHEYE], ids=["pinhole", "fisheye"])
+def charuco_seen(request: pytest.FixtureRequest) -> tuple[Lens, list[BoardView]]:
+    """Eight ChArUco views through each lens; the fisheye's boards run off the image in part."""
+    lens: Lens = request.param
+    poses = board_poses(VIEWS, DISTANCE_M[lens.model], board=CHARUCO)
+    views = [find_board(render_view(lens, r, t, CHARUCO), CHARUCO) for r, t in poses]
+    assert all(v is not None for v in views)
+    return lens, [v for v in views if v is not None]
+
+
+class TestCharuco:
+    def test_recovers_the_lens(self, charuco_seen: tuple[Lens, list[BoardView]]) -> None:
+        lens, views = charuco_seen
+        result = calibrate_lens(views, CHARUCO, SIZE, lens.model)
+        k, truth = result.lens.matrix(), lens.matrix()
+        assert abs(k[0, 0] / truth[0, 0] - 1) < FOCAL_REL_TOL
+        assert abs(k[1, 1] / truth[1, 1] - 1) < FOCAL_REL_TOL
+        assert np.hypot(k[0, 2] - truth[0, 2], k[1, 2] - truth[1, 2]) < CENTRE_TOL_PX
+        assert result.rms_px <= RMS_TOL_PX and max(result.view_rms_px) <= RMS_TOL_PX
+
+    def test_corners_come_numbered(self, charuco_seen: tuple[Lens, list[BoardView]]) -> None:
+        _, views = charuco_seen
+        for view in views:
+            assert len(np.unique(view.ids)) == len(view.ids) >= MIN_CORNERS
+            assert view.ids.max() < CHARUCO.cols * CHARUCO.rows
+
+    def test_a_board_cut_by_the_image_edge_still_counts(self) -> None:
+        rvec, tvec = np.zeros(3), np.array([-0.33, -0.05, 0.3])  # the board's left third is out of view
+        chess = Board(CHARUCO.cols, CHARUCO.rows, CHARUCO.square_m)
+        assert find_board(render_view(PINHOLE, rvec, tvec, chess), chess) is None
+        view = find_board(render_view(PINHOLE, rvec, tvec, CHARUCO), CHARUCO)
+        assert view is not None and MIN_CORNERS <= len(view.ids) < CHARUCO.cols * CHARUCO.rows
+        pts = board_points(CHARUCO)[view.ids]
+        proj, _ = cv2.projectPoints(pts, rvec, tvec, PINHOLE.matrix(), PINHOLE.coeffs())
+        assert np.max(np.linalg.norm(proj.reshape(-1, 2) - view.pixels, axis=1)) < 0.5  # right numbers
+
+    def test_blank_image_has_no_board(self) -> None:
+        assert find_board(np.full((120, 160), 128, np.uint8), CHARUCO) is None
+
+    @pytest.mark.parametrize(
+        ("kwargs", "field"),
+        [
+            ({"marker_m": 0.03}, "marker_m"),
+            ({"marker_m": 0.02, "dictionary": "DICT_3X3_9"}, "dictionary"),
+            ({"marker_m": 0.02, "dictionary": "DICT_4X4_50", "cols": 11, "rows": 11}, "dictionary"),
+        ],
+    )
+    def test_bad_charuco_board(self, kwargs: dict, field: str) -> None:
+        args = {"cols": 9, "rows": 6, "square_m": 0.03, **kwargs}
+        with pytest.raises(BadInputError) as err:
+            Board(**args)
+        assert err.value.field == field
 
 
 class TestBoard:

@@ -125,10 +125,11 @@ class TestBoardOnTheFloor:
     def test_scales_from_a_board(self, distortion: tuple[float, ...], yaw_rad: float) -> None:
         lens = Lens("pinhole", K_640, distortion)
         rvec, tvec = floor_pose(FLOOR_BOARD, (3.0, 0.0), yaw_rad)
-        corners = find_board(
+        view = find_board(
             render_view(lens, rvec, tvec, board=FLOOR_BOARD, size=(640, 480), ss=2), FLOOR_BOARD
         )
-        assert corners is not None
+        assert view is not None
+        corners = view.pixels
         floor = board_floor_points(corners, FLOOR_BOARD, (3.0, 0.0), yaw_rad, lens)
         fit = fit_ground(corners, floor, ROI_640, lens)
         k_x, k_y = _truth_640()

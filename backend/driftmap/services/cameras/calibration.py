@@ -1,4 +1,5 @@
-"""Camera calibration: lens intrinsics from chessboard views, the ground plane from floor points, scale check.
+"""Camera calibration: lens intrinsics from chessboard or ChArUco views, the ground plane from floor points,
+a scale check.
 
 Every function takes plain data (decoded images, point arrays, a camera block as a JSON object) and returns a
 result value, so ``driftmap camera`` and ``/api/cameras`` calibrate identically. Errors are
@@ -19,7 +20,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from driftmap.core.imaging.calibration import Board, calibrate_lens, find_board
+from driftmap.core.imaging.calibration import Board, BoardView, calibrate_lens, find_board
 from driftmap.core.imaging.lens import LENS_MODELS, Lens, LensModel
 from driftmap.core.odometry.camera import CameraModel
 from driftmap.core.odometry.drive import dead_reckon
@@ -51,12 +52,28 @@ FITTED_GROUND: tuple[str, ...] = ("k_x", "k_y", "y_h", "ground_homography")
 _BOARD_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 
-def parse_board(text: str, square_m: float, field: str = "board") -> Board:
-    """The board ``COLSxROWS`` (inner corners, e.g. ``9x6``) with squares of ``square_m`` metres."""
+def parse_board(
+    text: str,
+    square_m: float,
+    field: str = "board",
+    *,
+    marker_m: float | None = None,
+    dictionary: str | None = None,
+) -> Board:
+    """The board ``COLSxROWS`` (inner corners, e.g. ``9x6``) with squares of ``square_m`` metres; a ChArUco
+    board when ``marker_m`` (its markers' side, metres) is given, of ``dictionary`` (default ``DICT_4X4_50``).
+
+    Raises:
+        BadInputError: a malformed ``text`` (``field``), a bad square or marker side, an unknown dictionary or
+            one with too few markers, or a dictionary without a marker side (``marker_m``).
+    """
     match = _BOARD_RE.match(text)
     if match is None:
         raise BadInputError(f"must be COLSxROWS inner corners, e.g. 9x6, found {text!r}", field=field)
-    return Board(int(match.group(1)), int(match.group(2)), square_m)
+    if dictionary is not None and marker_m is None:
+        raise BadInputError("a ChArUco dictionary needs the markers' side too", field="marker_m")
+    extra = {"dictionary": dictionary} if dictionary is not None else {}
+    return Board(int(match.group(1)), int(match.group(2)), square_m, marker_m, **extra)
 
 
 def parse_lens(lens: object, field: str = "lens") -> Lens:
@@ -125,7 +142,7 @@ def calibrate_intrinsics(
     if model not in LENS_MODELS:
         raise BadInputError(f"must be one of {', '.join(LENS_MODELS)}, found {model!r}", field="model")
     names: list[str] = []
-    views: list[NDArray[np.float64]] = []
+    views: list[BoardView] = []
     skipped: list[str] = []
     size: tuple[int, int] | None = None
     for name, image in images:
@@ -141,18 +158,18 @@ def calibrate_intrinsics(
                 f"is {shape[0]}x{shape[1]}, the first image {size[0]}x{size[1]}", file=name, field=field
             )
         size = shape
-        corners = find_board(image, board)
-        if corners is None:
+        view = find_board(image, board)
+        if view is None:
             skipped.append(name)
             continue
         names.append(name)
-        views.append(corners)
+        views.append(view)
     if size is None:
         raise BadInputError("no images given", field=field)
     try:
         result = calibrate_lens(views, board, size, cast(LensModel, model))
     except BadInputError as exc:
-        missing = f" (no {board.cols}x{board.rows} board in: {', '.join(skipped)})" if skipped else ""
+        missing = f" (no {board.describe()} board in: {', '.join(skipped)})" if skipped else ""
         raise BadInputError(exc.reason + missing, field=field) from None
     return Intrinsics(
         result.lens,
@@ -293,14 +310,16 @@ def board_ground_points(
     Raises:
         BadInputError: no board found in the frame, or a board an upright camera cannot see (naming ``name``).
     """
-    corners = find_board(image, board)
-    if corners is None:
-        raise BadInputError(f"no {board.cols}x{board.rows} board found", file=name)
+    if board.is_charuco:
+        raise BadInputError("a board on the floor must be a plain chessboard", field="board")
+    view = find_board(image, board)
+    if view is None:
+        raise BadInputError(f"no {board.describe()} board found", file=name)
     try:
-        floor = board_floor_points(corners, board, centre_m, yaw_rad, lens)
+        floor = board_floor_points(view.pixels, board, centre_m, yaw_rad, lens)
     except BadInputError as exc:
         raise BadInputError(exc.reason, file=name, field=exc.field) from None
-    return corners, floor
+    return view.pixels, floor
 
 
 def add_ground(

@@ -1,10 +1,10 @@
 // The optional lens: none (a pinhole without distortion, frames used as recorded), calibrated from chessboard
-// images (POST /api/cameras/intrinsics: each view's RMS and the images the board was not found in), or a lens
-// block pasted as JSON (e.g. from `driftmap camera intrinsics`).
+// or ChArUco images (POST /api/cameras/intrinsics: each view's RMS and the images the board was not found in),
+// or a lens block pasted as JSON (e.g. from `driftmap camera intrinsics`).
 import { useState } from "react";
 import { postIntrinsics } from "../../api/cameras";
 import type { Schemas } from "../../api/client";
-import { intrinsicsForm, parseLens, type Lens } from "../../lib/cameraSetup";
+import { CHARUCO_DICTIONARIES, intrinsicsForm, parseLens, type Lens } from "../../lib/cameraSetup";
 import { useErrors } from "../useErrors";
 
 type Source = "none" | "board" | "paste";
@@ -21,6 +21,9 @@ export function LensPanel({ lens, onLens }: Props) {
   const [rows, setRows] = useState(6);
   const [square, setSquare] = useState(0.025);
   const [model, setModel] = useState<Lens["model"]>("pinhole");
+  const [charuco, setCharuco] = useState(false);
+  const [marker, setMarker] = useState(0.018);
+  const [dictionary, setDictionary] = useState("DICT_4X4_50");
   const [result, setResult] = useState<Schemas["IntrinsicsRead"] | null>(null);
   const [pasted, setPasted] = useState(lens ? JSON.stringify(lens) : "");
   const [busy, setBusy] = useState(false);
@@ -34,7 +37,9 @@ export function LensPanel({ lens, onLens }: Props) {
     void run(async () => {
       setBusy(true);
       try {
-        const found = await postIntrinsics(intrinsicsForm(files, cols, rows, square, model));
+        const found = await postIntrinsics(
+          intrinsicsForm(files, cols, rows, square, model, charuco ? { markerM: marker, dictionary } : null),
+        );
         setResult(found);
         onLens(found.lens, { width: found.width, height: found.height });
       } finally {
@@ -86,7 +91,36 @@ export function LensPanel({ lens, onLens }: Props) {
             <span className="muted">{files.length} chosen</span>
           </div>
           <div className="row">
-            corners
+            <select
+              value={charuco ? "charuco" : "chessboard"}
+              onChange={(e) => setCharuco(e.target.value === "charuco")}
+              data-testid="camera-board-kind"
+            >
+              <option value="chessboard">chessboard</option>
+              <option value="charuco">ChArUco</option>
+            </select>
+            {charuco && (
+              <>
+                marker m
+                <input
+                  className="small"
+                  type="number"
+                  step="0.001"
+                  min={0}
+                  value={marker}
+                  onChange={(e) => setMarker(+e.target.value)}
+                  data-testid="camera-board-marker"
+                />
+                <select value={dictionary} onChange={(e) => setDictionary(e.target.value)}>
+                  {CHARUCO_DICTIONARIES.map((d) => (
+                    <option key={d}>{d}</option>
+                  ))}
+                </select>
+              </>
+            )}
+          </div>
+          <div className="row">
+            inner corners
             <input className="small" type="number" min={2} value={cols} onChange={(e) => setCols(+e.target.value)} />x
             <input className="small" type="number" min={2} value={rows} onChange={(e) => setRows(+e.target.value)} />
             square m
