@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -16,11 +17,12 @@ from driftmap.core.odometry.grid import apply_homography
 from driftmap.core.odometry.scale_check import scale_camera
 from driftmap.formats.camera_setup import complete_camera, read_camera_file, write_camera_file
 from driftmap.formats.drive_folder import write_drive_folder
-from driftmap.formats.drive_json import lens_to_json
+from driftmap.formats.drive_json import camera_to_json, lens_to_json
 from driftmap.formats.frame_images import encode_png
 from driftmap.formats.records import DriveMeta, FrameRow
 from tests.core.imaging.boards import CHARUCO, PINHOLE, board_poses, floor_pose, render_view
 from tests.core.odometry.test_scale_check import straight_frames
+from tests.core.odometry.test_turn_check import TRUE_Y_C_M, Y_C_TOL_M, mirrored, straight_then_turn
 from tests.floor_frames import pinhole_camera
 
 runner = CliRunner()
@@ -230,6 +232,28 @@ class TestCheckCommand:
         fixed = complete_camera(read_camera_file(out), out)
         assert fixed is not None
         assert fixed.k_y_m_per_px == pytest.approx(pinhole_camera().k_y_m_per_px, rel=0.01)
+
+    def test_mounting_from_a_drive_that_turns(self, tmp_path: Path) -> None:
+        frames = straight_then_turn()
+        drive, out = tmp_path / "turn", tmp_path / "mounted.json"
+        meta = DriveMeta("turn", "mapping", 10.0, dataclasses.replace(pinhole_camera(), forward_sign=-1))
+        write_drive_folder(
+            drive, meta, [FrameRow(i, i / 10) for i in range(len(frames))], map(encode_png, frames)
+        )
+        result = runner.invoke(app, ["camera", "check", str(drive), "--turn-deg", "45", "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        assert "(forward_sign is wrong)" in result.output and "rotation centre at y_c 0." in result.output
+        fixed = complete_camera(read_camera_file(out), out)
+        assert fixed is not None and fixed.forward_sign == 1
+        assert fixed.y_c_m == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
+        mirror_file = tmp_path / "mirrored.json"
+        write_camera_file(mirror_file, camera_to_json(mirrored(pinhole_camera())))
+        args = ["--turn-deg", "45", "--camera", str(mirror_file), "--out", str(tmp_path / "no.json")]
+        result = runner.invoke(app, ["camera", "check", str(drive), *args])
+        assert result.exit_code == 1 and "the WRONG WAY" in result.output and "mirrored" in result.output
+        assert not (tmp_path / "no.json").exists()
+        result = runner.invoke(app, ["camera", "check", str(drive), "--turn-deg", "45", "--distance-m", "2"])
+        assert result.exit_code == 2 and "--turn-deg" in result.output
 
     def test_distance_must_be_positive(self, tmp_path: Path) -> None:
         frames = straight_frames(n=2)

@@ -1,6 +1,6 @@
 """``driftmap camera``: set up a camera: lens intrinsics from a chessboard, the ground plane from floor points,
-a check of the floor scale and ``forward_sign`` against a drive over a measured distance, and named camera
-profiles (``save``, ``profiles``) that drive imports and vehicles use.
+checks of the floor scale against a drive over a measured distance and of the mounting (``forward_sign``, the
+turn's direction, the lever ``y_c``) against a drive that turns, and named camera profiles (``save``, ``profiles``) that drive imports and vehicles use.
 
 The set-up commands read an optional ``--camera camera.json`` (a camera block in progress), add what they measure
 and write ``--out``, so ``intrinsics`` then ``ground`` combine into one camera block (``docs/formats.md``).
@@ -181,30 +181,71 @@ def _roi(text: str | None, block: dict[str, Any]) -> list[int] | None:
 @camera_app.command("check")
 def check(
     drive_dir: Annotated[
-        Path, typer.Argument(help="A drive folder: a straight drive over a measured distance.")
+        Path, typer.Argument(help="A drive folder: straight over a measured distance, or with a turn.")
     ],
-    distance_m: Annotated[float, typer.Option("--distance-m", help="The distance driven, metres.")],
+    distance_m: Annotated[
+        float | None, typer.Option("--distance-m", help="A straight drive: the distance driven, metres.")
+    ] = None,
+    turn_deg: Annotated[
+        float | None,
+        typer.Option("--turn-deg", help="A drive that turns: the turn driven, degrees, + left, at least 20."),
+    ] = None,
     camera: Annotated[
         Path | None, typer.Option("--camera", help="camera.json to check (default: the drive's camera).")
     ] = None,
     reverse: Annotated[bool, typer.Option("--reverse", help="The drive was in reverse.")] = False,
     out: Annotated[Path | None, typer.Option("--out", help="Write the corrected camera.json here.")] = None,
 ) -> None:
-    """Check the floor scale and forward_sign against a drive over a measured distance."""
+    """Check the floor scale (--distance-m) or the mounting: forward_sign, turn direction, lever y_c
+    (--turn-deg) against a drive."""
     with user_errors():
+        if (distance_m is None) == (turn_deg is None):
+            raise BadInputError(
+                "give --distance-m (a straight drive) or --turn-deg (a turn)", field="--distance-m"
+            )
         folder = read_drive_folder(drive_dir)
         model = folder.meta.camera
         if camera is not None:
             model = complete_camera(read_camera_file(camera), camera) or _incomplete(camera)
         frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
-        result, fixed = cal.check_drive_scale(frames, model, distance_m, reverse=reverse)
+        if distance_m is not None:
+            result, fixed = cal.check_drive_scale(frames, model, distance_m, reverse=reverse)
+            verdict = (
+                f"odometry travelled {result.travelled_m:+.3f} m, measured {distance_m:.3f} m: floor lengths x "
+                f"{result.ratio:.4f} ({100 * (result.ratio - 1):+.1f} %)"
+                + ("; forward_sign is wrong" if result.sign_wrong else "")
+            )
+        else:
+            assert turn_deg is not None
+            turned, mounted = cal.check_drive_turn(frames, model, math.radians(turn_deg), reverse=reverse)
+            verdict = _turn_verdict(turned)
+            if mounted is None:
+                err_console.print(verdict)
+                raise BadInputError(
+                    "the turn came out the wrong way: the ground plane is mirrored (floor y must be measured "
+                    "to the camera's left); fit it again",
+                    field="drive",
+                )
+            fixed = mounted
         if out is not None:
             write_camera_file(out, camera_to_json(fixed))
-    console.print(
-        f"odometry travelled {result.travelled_m:+.3f} m, measured {distance_m:.3f} m: floor lengths x "
-        f"{result.ratio:.4f} ({100 * (result.ratio - 1):+.1f} %)"
-        + ("; forward_sign is wrong" if result.sign_wrong else "")
-        + (f"; wrote {out}" if out is not None else "")
+    console.print(verdict + (f"; wrote {out}" if out is not None else ""))
+
+
+def _turn_verdict(check: cal.TurnCheck) -> str:
+    """One paragraph: travel and forward_sign, the turn against the stated one, the lever found."""
+    lever = (
+        f"the turns put the rotation centre at y_c {check.fitted_y_c_m:.2f} +- {check.fitted_se_m:.2f} m "
+        f"(camera: {check.configured_y_c_m:.2f} m)"
+        if check.fitted_y_c_m is not None and check.fitted_se_m is not None
+        else f"the turns do not determine y_c (camera: {check.configured_y_c_m:.2f} m kept)"
+    )
+    return (
+        f"odometry travelled {check.travelled_m:+.2f} m"
+        + (" (forward_sign is wrong)" if check.sign_wrong else "")
+        + f" and turned {math.degrees(check.turned_rad):+.1f} degrees for {math.degrees(check.stated_rad):+.1f}"
+        + (" (the WRONG WAY)" if check.direction_wrong else f" (x {check.turn_ratio:.3f})")
+        + f"; {lever}"
     )
 
 

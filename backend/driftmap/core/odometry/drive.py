@@ -75,6 +75,8 @@ class DeadReckoning:
         horizon_offset_px: horizon offset applied by the self-calibration (0 when off or unobservable).
         lever_m: the rotation-centre lever arm (rear axle to camera, metres) the steps were solved with:
             the camera's ``y_c_m``, or the self-calibrated one when it was well determined.
+        lever_se_m: the standard error of the self-calibrated lever, metres; None when the drive's turns did
+            not determine it (``lever_m`` is then the camera's).
     """
 
     wTi: NDArray[np.float64]
@@ -82,6 +84,7 @@ class DeadReckoning:
     ms_per_step: NDArray[np.float64]
     horizon_offset_px: float
     lever_m: float
+    lever_se_m: float | None = None
 
 
 def _horizon_offset(hom: NDArray, pairs: list[Pair], max_px: float) -> float | None:
@@ -179,17 +182,18 @@ def _self_calibrate(
     camera: CameraModel,
     hom: NDArray,
     params: OdometryParams,
-) -> tuple[float, float]:
+) -> tuple[float, float, float | None]:
     """The drive's horizon offset (median of the steps' ``estimates``, :func:`_step_horizon`; tracked where
     the pitch demonstrably varies, :mod:`driftmap.core.odometry.pitch`) and rotation centre
     (:mod:`driftmap.core.odometry.rotation_centre`); re-solves ``steps`` in place with both. Returns the median offset
-    (0 when unobservable, steps then untouched) and the lever arm used, metres."""
+    (0 when unobservable, steps then untouched), the lever arm used and its standard error (None: the
+    camera's), metres."""
     usable = [_usable(s, params) for s in steps]
     tracked = horizon_floor(hom, pairs, estimates, params.pitch_window_m, params.pitch_gate_z)
     if tracked is None:  # fewer than 3 estimates
-        return 0.0, camera.y_c_m
+        return 0.0, camera.y_c_m, None
     offset, floor = tracked[0].median_px, tracked[1]  # median; local pitch where it demonstrably varies
-    lever = camera.y_c_m
+    lever, lever_se = camera.y_c_m, None
     if params.calibrate_lever:
         rows = [k for k, (u, f) in enumerate(zip(usable, floor, strict=True)) if u and len(f) == 3]
         fit = fit_rotation_centre(
@@ -199,13 +203,14 @@ def _self_calibrate(
             camera.y_c_m,
             params.lever_max_gain_se,
         )
-        lever = camera.y_c_m if fit is None else fit[0]
+        if fit is not None:
+            lever, lever_se = fit
     solved = dataclasses.replace(camera, y_c_m=lever)
     for k, (s, f) in enumerate(zip(steps, floor, strict=True)):
         if not s.stationary and f:
             d, theta = solve_arc(f[0][0], f[0][1], lever)
             steps[k] = finish_step(d, theta, s.shift_px, s.confidence, solved, s.model, params)
-    return offset, lever
+    return offset, lever, lever_se
 
 
 @dataclass(frozen=True)
@@ -308,14 +313,16 @@ def reckon(
     """
     start = _start_pose(start_wT)
     steps = list(matched.steps)
-    offset, lever = 0.0, camera.y_c_m
+    offset, lever, lever_se = 0.0, camera.y_c_m, None
     hom = camera.homography()
     if params.self_calibrate and steps and steps[0].model == "homography" and hom is not None:
-        offset, lever = _self_calibrate(steps, matched.pairs, matched.horizon_px, camera, hom, params)
+        offset, lever, lever_se = _self_calibrate(
+            steps, matched.pairs, matched.horizon_px, camera, hom, params
+        )
     poses = [start]
     for s in steps:
         poses.append(compose(poses[-1], s.prev_T_curr))
-    return DeadReckoning(np.stack(poses), steps, matched.ms_per_step, offset, lever)
+    return DeadReckoning(np.stack(poses), steps, matched.ms_per_step, offset, lever, lever_se)
 
 
 def dead_reckon(

@@ -27,6 +27,7 @@ from driftmap.core.odometry.drive import dead_reckon
 from driftmap.core.odometry.grid import Rect
 from driftmap.core.odometry.ground_setup import GroundFit, board_floor_points, fit_ground
 from driftmap.core.odometry.scale_check import ScaleCheck, check_scale, scale_camera
+from driftmap.core.odometry.turn_check import TurnCheck, check_turn, mount_camera
 from driftmap.errors import BadInputError, PayloadTooLargeError
 from driftmap.formats.drive_json import lens_to_json, parse_lens_block
 from driftmap.formats.frame_images import check_frame_pixels, decode_gray
@@ -35,11 +36,13 @@ __all__ = [
     "FITTED_GROUND",
     "Ground",
     "Intrinsics",
+    "TurnCheck",
     "add_ground",
     "add_lens",
     "board_ground_points",
     "calibrate_intrinsics",
     "check_drive_scale",
+    "check_drive_turn",
     "choose_roi",
     "decode_images",
     "fit_ground_points",
@@ -340,3 +343,13 @@ def check_drive_scale(
     camera (floor lengths times the ratio, ``forward_sign`` flipped when the travel came out backwards)."""
     result = check_scale(dead_reckon(frames, camera).wTi, distance_m, reverse=reverse)
     return result, scale_camera(camera, result.ratio, flip_sign=result.sign_wrong)
+
+
+def check_drive_turn(
+    frames: Iterable[NDArray[np.uint8]], camera: CameraModel, turn_rad: float, *, reverse: bool = False
+) -> tuple[TurnCheck, CameraModel | None]:
+    """Dead-reckon a drive that turns through ``turn_rad`` (+ left) with ``camera``; the check and the camera
+    with the mounting found (the fitted lever, ``forward_sign``), or None when the turn came out the wrong
+    way (a mirrored ground plane: fit it again)."""
+    result = check_turn(dead_reckon(frames, camera), camera.y_c_m, turn_rad, reverse=reverse)
+    return result, None if result.direction_wrong else mount_camera(camera, result)
