@@ -4,6 +4,7 @@ through a known lens, floor points of a known homography, a floor patch of known
 from __future__ import annotations
 
 import base64
+import dataclasses
 import json
 import math
 from collections.abc import Iterator
@@ -17,13 +18,19 @@ import pytest
 from driftmap.config import Settings
 from driftmap.core.imaging.lens import undistort_image, undistort_points
 from driftmap.core.odometry.grid import apply_homography
-from driftmap.formats.drive_json import lens_to_json
+from driftmap.formats.drive_folder import write_drive_folder
+from driftmap.formats.drive_json import camera_to_json, lens_to_json
 from driftmap.formats.frame_images import decode_gray, encode_png
+from driftmap.formats.records import DriveMeta, FrameRow
+from driftmap.services import drives as drive_service
+from driftmap.services import sites as site_service
+from driftmap.services.cameras import drive_check
 from driftmap.store.access_models import Vehicle
 from driftmap.store.models import CameraProfile
 from driftmap.store.storage import Storage
 from tests.api.access_helpers import Actors, make_actors
 from tests.core.imaging.boards import CHARUCO, FISHEYE, PINHOLE, board_poses, render_view
+from tests.core.odometry.test_turn_check import TRUE_Y_C_M, Y_C_TOL_M, mirrored, straight_then_turn
 from tests.floor_frames import PATCH_M, patch_frame, pinhole_camera
 
 FOCAL_REL_TOL = 0.01  # issue 21: focal length within 1 %
@@ -442,3 +449,72 @@ class TestVehicleProfile:
         assert (
             actors.client.put(url, json=CAMERA, headers=surveyor).status_code == 200
         )  # the block form works
+
+
+class TestCameraCheck:
+    """``POST /api/drives/{id}/camera-check`` on a stored drive: straight, then 46 degrees left about a point
+    0.5 m behind the camera whose block says 1.5 m and that it looks behind."""
+
+    @pytest.fixture
+    def drive_id(self, actors: Actors, storage: Storage, tmp_path: Path) -> int:
+        frames = straight_then_turn()
+        camera = dataclasses.replace(pinhole_camera(), forward_sign=-1)
+        folder = tmp_path / "turn"
+        rows = [FrameRow(i, i / 10) for i in range(len(frames))]
+        write_drive_folder(folder, DriveMeta("turn", "mapping", 10.0, camera), rows, map(encode_png, frames))
+        with storage.blobs.batch() as batch, storage.db.session() as session:
+            site = site_service.create_site(session, "check")
+            drive = drive_service.import_drive(session, batch, site, folder)
+            session.commit()
+            return drive.id
+
+    def _check(self, actors: Actors, drive_id: int, body: dict[str, Any], role: str = "surveyor") -> Any:
+        return actors.client.post(
+            f"/api/drives/{drive_id}/camera-check", json=body, headers=actors.auth(role)
+        )
+
+    def test_the_mounting_from_a_turn(self, actors: Actors, drive_id: int) -> None:
+        response = self._check(actors, drive_id, {"turn_deg": 45})
+        assert response.status_code == 200, response.text
+        body = response.json()
+        assert body["sign_wrong"] and body["direction_wrong"] is False and body["ratio"] is None
+        assert body["turned_deg"] == pytest.approx(46.4, abs=3.0) and body["y_c_m"] == 1.5
+        assert body["fitted_y_c_m"] == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
+        assert body["camera"]["forward_sign"] == 1 and body["camera"]["y_c"] == body["fitted_y_c_m"]
+
+    def test_a_mirrored_camera_is_not_corrected(self, actors: Actors, drive_id: int) -> None:
+        block = camera_to_json(mirrored(dataclasses.replace(pinhole_camera(), forward_sign=-1)))
+        body = self._check(actors, drive_id, {"turn_deg": 45, "camera": block}).json()
+        assert body["direction_wrong"] is True and body["camera"] is None
+
+    def test_the_scale_on_its_straight_part_is_asked_for_by_distance(
+        self, actors: Actors, drive_id: int
+    ) -> None:
+        body = self._check(actors, drive_id, {"distance_m": 6.0}).json()
+        assert body["ratio"] is not None and body["turned_deg"] is None and body["sign_wrong"]
+
+    @pytest.mark.parametrize(
+        ("body", "field"),
+        [
+            ({}, "distance_m"),
+            ({"turn_deg": 45, "distance_m": 6}, "distance_m"),
+            ({"turn_deg": 5}, "turn_deg"),
+            ({"turn_deg": 45, "camera": {**CAMERA}}, "camera.width"),
+            ({"turn_deg": 45, "camera": {"width": 320}}, "camera.height"),
+        ],
+    )
+    def test_bad_requests_name_the_field(
+        self, actors: Actors, drive_id: int, body: dict[str, Any], field: str
+    ) -> None:
+        assert _error(self._check(actors, drive_id, body))["field"] == field
+
+    def test_a_drive_too_long_to_check_while_the_request_waits(
+        self, actors: Actors, drive_id: int, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        monkeypatch.setattr(drive_check, "MAX_CHECK_FRAMES", 20)
+        body = _error(self._check(actors, drive_id, {"turn_deg": 45}))
+        assert body["field"] == "drive" and "25 frames" in body["detail"] and "at most 20" in body["detail"]
+
+    def test_viewers_may_not_and_a_missing_drive_is_404(self, actors: Actors, drive_id: int) -> None:
+        assert self._check(actors, drive_id, {"turn_deg": 45}, role="viewer").status_code == 403
+        assert self._check(actors, drive_id + 1000, {"turn_deg": 45}).status_code == 404

@@ -20,6 +20,10 @@ homography, the bird's-eye view of the floor around the ROI's footprint, both as
 an image or not ``width`` x ``height``: 422 naming ``frame``; a bad block or an ROI reaching above the
 horizon: 422 naming ``camera.<key>``.
 
+``POST /api/drives/{id}/camera-check`` (JSON) checks a camera against a stored drive: the floor scale from a
+straight drive over a measured ``distance_m``, or the mounting (``forward_sign``, the turn's direction, the
+lever ``y_c``) from a drive that turns through ``turn_deg``; it answers the figures and the corrected block.
+
 ``/api/camera-profiles``: stored, named camera blocks (global, not per site), checked as a drive import checks
 its ``camera`` block (422 naming ``camera.<key>``; nothing stored). ``PUT /api/vehicles/{id}/camera`` with
 ``{"profile": <id>}`` gives a vehicle a copy of a profile's block.
@@ -27,6 +31,7 @@ its ``camera`` block (422 naming ``camera.<key>``; nothing stored). ``PUT /api/v
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -34,6 +39,8 @@ import numpy as np
 from fastapi import APIRouter, Depends, File, Form, Query, UploadFile, status
 
 from driftmap.api.cameras_schemas import (
+    CameraCheckRead,
+    CameraCheckRequest,
     CameraProfileCreate,
     CameraProfileRead,
     CameraProfileUpdate,
@@ -45,7 +52,8 @@ from driftmap.api.cameras_schemas import (
     preview_read,
     profile_read,
 )
-from driftmap.api.deps import SURVEYOR, VIEWER, SessionDep, SettingsDep
+from driftmap.api.deps import SURVEYOR, VIEWER, SessionDep, SettingsDep, StorageDep
+from driftmap.api.drives import drive_by_id
 from driftmap.api.input_types import Count, Finite, Id
 from driftmap.api.schemas_access import CameraLens
 from driftmap.api.schemas_data import Page, paged
@@ -57,6 +65,7 @@ from driftmap.formats.camera_setup import video_frames
 from driftmap.formats.drive_json import lens_to_json
 from driftmap.services import uploads
 from driftmap.services.cameras import calibration as cal
+from driftmap.services.cameras import drive_check
 from driftmap.services.cameras import preview as preview_service
 from driftmap.services.cameras import profiles as profile_service
 
@@ -145,6 +154,37 @@ def post_ground(body: GroundRequest) -> GroundRead:
     floor = np.array([[p.x_m, p.y_m] for p in body.points], dtype=np.float64).reshape(-1, 2)
     ground = cal.fit_ground_points(pixels, floor, body.width, body.height, body.ground_roi, lens)
     return GroundRead(**ground.block_values(), residuals_m=[float(r) for r in ground.fit.residuals_m])
+
+
+@router.post("/drives/{drive_id}/camera-check", dependencies=[Depends(SURVEYOR)])
+def post_camera_check(
+    drive_id: Id, body: CameraCheckRequest, session: SessionDep, storage: StorageDep
+) -> CameraCheckRead:
+    """Check a camera (the drive's, or ``camera``) against a stored drive: the floor scale (``distance_m``, a
+    straight drive) or the mounting (``turn_deg``, a drive that turns); the camera block as corrected."""
+    drive = drive_by_id(session, drive_id)
+    found = drive_check.check_stored_drive(
+        session,
+        storage.blobs,
+        drive,
+        distance_m=body.distance_m,
+        turn_deg=body.turn_deg,
+        reverse=body.reverse,
+        camera=body.camera,
+    )
+    run = found.scale or found.turn
+    assert run is not None
+    return CameraCheckRead(
+        travelled_m=run.travelled_m,
+        sign_wrong=run.sign_wrong,
+        ratio=found.scale.ratio if found.scale is not None else None,
+        turned_deg=math.degrees(found.turn.turned_rad) if found.turn is not None else None,
+        direction_wrong=found.turn.direction_wrong if found.turn is not None else None,
+        y_c_m=found.y_c_m,
+        fitted_y_c_m=found.turn.fitted_y_c_m if found.turn is not None else None,
+        fitted_se_m=found.turn.fitted_se_m if found.turn is not None else None,
+        camera=found.camera,
+    )
 
 
 @router.post("/cameras/preview", dependencies=[Depends(SURVEYOR), Depends(check_content_length)])

@@ -13,7 +13,7 @@ import base64
 from datetime import datetime
 from typing import Annotated, Any
 
-from annotated_types import Ge, Le, Len
+from annotated_types import Ge, Gt, Le, Len
 from pydantic import BaseModel, WithJsonSchema
 
 from driftmap.api.input_types import CameraSide, Description, Finite, Name
@@ -206,3 +206,39 @@ def preview_read(preview: Preview) -> PreviewRead:
         undistorted_png=base64.b64encode(preview.undistorted_png).decode("ascii"),
         birdseye=birdseye,
     )
+
+
+class CameraCheckRequest(BaseModel):
+    """What to check against a stored drive: its scale or its mounting (give exactly one)."""
+
+    distance_m: Annotated[Finite, Gt(0)] | None = None
+    """A straight drive: the distance driven, metres, measured on the floor."""
+    turn_deg: Finite | None = None
+    """A drive that turns: the turn driven, degrees, + left (counter-clockwise seen from above), at least 20."""
+    reverse: bool = False
+    """The drive was in reverse."""
+    camera: CameraBody | None = None
+    """The camera block to check; absent: the drive's own."""
+
+
+class CameraCheckRead(BaseModel):
+    """The outcome of a check and the camera block as it corrects it."""
+
+    travelled_m: float
+    """Odometry's travel, metres (+ forward): along the starting heading (scale), summed along the path (turn)."""
+    sign_wrong: bool
+    """The travel came out the wrong way: ``forward_sign`` is wrong (flipped in ``camera``)."""
+    ratio: float | None
+    """Scale: measured over odometry's distance; every floor length of the calibration is multiplied by it."""
+    turned_deg: float | None
+    """Turn: odometry's heading change, degrees, + left."""
+    direction_wrong: bool | None
+    """Turn: odometry turned the other way: the ground plane is mirrored (``camera`` is null: fit it again)."""
+    y_c_m: float
+    """The checked camera's lever (rear axle to camera), metres."""
+    fitted_y_c_m: float | None
+    """Turn: the lever the drive's turns determine, metres (null: they do not)."""
+    fitted_se_m: float | None
+    """Its standard error, metres."""
+    camera: dict[str, Any] | None
+    """The camera block as corrected (scale, ``forward_sign``, ``y_c``); null when it cannot be."""

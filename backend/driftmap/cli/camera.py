@@ -34,6 +34,7 @@ from driftmap.formats.drive_folder import iter_frame_images, read_drive_folder
 from driftmap.formats.drive_json import camera_to_json
 from driftmap.formats.frame_images import decode_gray
 from driftmap.services.cameras import calibration as cal
+from driftmap.services.cameras import drive_check
 from driftmap.services.cameras import profiles as profile_service
 
 LensName = Literal["pinhole", "fisheye"]
@@ -209,7 +210,7 @@ def check(
             model = complete_camera(read_camera_file(camera), camera) or _incomplete(camera)
         frames = (decode_gray(data, str(drive_dir)) for _row, data in iter_frame_images(folder))
         if distance_m is not None:
-            result, fixed = cal.check_drive_scale(frames, model, distance_m, reverse=reverse)
+            result, fixed = drive_check.check_drive_scale(frames, model, distance_m, reverse=reverse)
             verdict = (
                 f"odometry travelled {result.travelled_m:+.3f} m, measured {distance_m:.3f} m: floor lengths x "
                 f"{result.ratio:.4f} ({100 * (result.ratio - 1):+.1f} %)"
@@ -217,7 +218,9 @@ def check(
             )
         else:
             assert turn_deg is not None
-            turned, mounted = cal.check_drive_turn(frames, model, math.radians(turn_deg), reverse=reverse)
+            turned, mounted = drive_check.check_drive_turn(
+                frames, model, math.radians(turn_deg), reverse=reverse
+            )
             verdict = _turn_verdict(turned)
             if mounted is None:
                 err_console.print(verdict)
@@ -232,7 +235,7 @@ def check(
     console.print(verdict + (f"; wrote {out}" if out is not None else ""))
 
 
-def _turn_verdict(check: cal.TurnCheck) -> str:
+def _turn_verdict(check: drive_check.TurnCheck) -> str:
     """One paragraph: travel and forward_sign, the turn against the stated one, the lever found."""
     lever = (
         f"the turns put the rotation centre at y_c {check.fitted_y_c_m:.2f} +- {check.fitted_se_m:.2f} m "

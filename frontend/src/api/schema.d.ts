@@ -313,6 +313,27 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/drives/{drive_id}/camera-check": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Post Camera Check
+         * @description Check a camera (the drive's, or ``camera``) against a stored drive: the floor scale (``distance_m``, a
+         *     straight drive) or the mounting (``turn_deg``, a drive that turns); the camera block as corrected.
+         */
+        post: operations["post_camera_check_api_drives__drive_id__camera_check_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/cameras/preview": {
         parameters: {
             query?: never;
@@ -1481,6 +1502,51 @@ export interface components {
             forward_sign: number;
         } & {
             [key: string]: unknown;
+        };
+        /**
+         * CameraCheckRead
+         * @description The outcome of a check and the camera block as it corrects it.
+         */
+        CameraCheckRead: {
+            /** Travelled M */
+            travelled_m: number;
+            /** Sign Wrong */
+            sign_wrong: boolean;
+            /** Ratio */
+            ratio: number | null;
+            /** Turned Deg */
+            turned_deg: number | null;
+            /** Direction Wrong */
+            direction_wrong: boolean | null;
+            /** Y C M */
+            y_c_m: number;
+            /** Fitted Y C M */
+            fitted_y_c_m: number | null;
+            /** Fitted Se M */
+            fitted_se_m: number | null;
+            /** Camera */
+            camera: {
+                [key: string]: unknown;
+            } | null;
+        };
+        /**
+         * CameraCheckRequest
+         * @description What to check against a stored drive: its scale or its mounting (give exactly one).
+         */
+        CameraCheckRequest: {
+            /** Distance M */
+            distance_m?: number | null;
+            /** Turn Deg */
+            turn_deg?: number | null;
+            /**
+             * Reverse
+             * @default false
+             */
+            reverse: boolean;
+            /** Camera */
+            camera?: {
+                [key: string]: unknown;
+            } | null;
         };
         /**
          * CameraLens
@@ -4957,6 +5023,104 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["GroundRead"];
+                };
+            };
+            /** @description The request cannot be read (wrong content type, no body). */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No valid credentials (see ``WWW-Authenticate``). */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The credentials do not allow this. */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The thing named in the path does not exist. */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The request clashes with what is stored. */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, or a value in it, is over a configured limit. */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The request was read but a value in it cannot be used. */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A fault of the server. */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    post_camera_check_api_drives__drive_id__camera_check_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                drive_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CameraCheckRequest"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CameraCheckRead"];
                 };
             };
             /** @description The request cannot be read (wrong content type, no body). */

@@ -1,5 +1,4 @@
-"""Camera calibration: lens intrinsics from chessboard or ChArUco views, the ground plane from floor points,
-a scale check.
+"""Camera calibration: lens intrinsics from chessboard or ChArUco views, the ground plane from floor points.
 
 Every function takes plain data (decoded images, point arrays, a camera block as a JSON object) and returns a
 result value, so ``driftmap camera`` and ``/api/cameras`` calibrate identically. Errors are
@@ -22,12 +21,8 @@ from numpy.typing import NDArray
 
 from driftmap.core.imaging.calibration import Board, BoardView, calibrate_lens, find_board
 from driftmap.core.imaging.lens import LENS_MODELS, Lens, LensModel
-from driftmap.core.odometry.camera import CameraModel
-from driftmap.core.odometry.drive import dead_reckon
 from driftmap.core.odometry.grid import Rect
 from driftmap.core.odometry.ground_setup import GroundFit, board_floor_points, fit_ground
-from driftmap.core.odometry.scale_check import ScaleCheck, check_scale, scale_camera
-from driftmap.core.odometry.turn_check import TurnCheck, check_turn, mount_camera
 from driftmap.errors import BadInputError, PayloadTooLargeError
 from driftmap.formats.drive_json import lens_to_json, parse_lens_block
 from driftmap.formats.frame_images import check_frame_pixels, decode_gray
@@ -36,13 +31,10 @@ __all__ = [
     "FITTED_GROUND",
     "Ground",
     "Intrinsics",
-    "TurnCheck",
     "add_ground",
     "add_lens",
     "board_ground_points",
     "calibrate_intrinsics",
-    "check_drive_scale",
-    "check_drive_turn",
     "choose_roi",
     "decode_images",
     "fit_ground_points",
@@ -334,22 +326,3 @@ def add_ground(
     out["y_c"] = y_c_m if y_c_m is not None else out.get("y_c", 0.0)
     out["forward_sign"] = forward_sign if forward_sign is not None else out.get("forward_sign", 1)
     return out
-
-
-def check_drive_scale(
-    frames: Iterable[NDArray[np.uint8]], camera: CameraModel, distance_m: float, *, reverse: bool = False
-) -> tuple[ScaleCheck, CameraModel]:
-    """Dead-reckon a straight drive over ``distance_m`` metres with ``camera``; the check and the corrected
-    camera (floor lengths times the ratio, ``forward_sign`` flipped when the travel came out backwards)."""
-    result = check_scale(dead_reckon(frames, camera).wTi, distance_m, reverse=reverse)
-    return result, scale_camera(camera, result.ratio, flip_sign=result.sign_wrong)
-
-
-def check_drive_turn(
-    frames: Iterable[NDArray[np.uint8]], camera: CameraModel, turn_rad: float, *, reverse: bool = False
-) -> tuple[TurnCheck, CameraModel | None]:
-    """Dead-reckon a drive that turns through ``turn_rad`` (+ left) with ``camera``; the check and the camera
-    with the mounting found (the fitted lever, ``forward_sign``), or None when the turn came out the wrong
-    way (a mirrored ground plane: fit it again)."""
-    result = check_turn(dead_reckon(frames, camera), camera.y_c_m, turn_rad, reverse=reverse)
-    return result, None if result.direction_wrong else mount_camera(camera, result)
