@@ -481,6 +481,7 @@ class TestCameraCheck:
         assert body["turned_deg"] == pytest.approx(46.4, abs=3.0) and body["y_c_m"] == 1.5
         assert body["fitted_y_c_m"] == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
         assert body["camera"]["forward_sign"] == 1 and body["camera"]["y_c"] == body["fitted_y_c_m"]
+        assert body["turn_y_c_m"] == pytest.approx(TRUE_Y_C_M, abs=0.3)
 
     def test_a_mirrored_camera_is_not_corrected(self, actors: Actors, drive_id: int) -> None:
         block = camera_to_json(mirrored(dataclasses.replace(pinhole_camera(), forward_sign=-1)))

@@ -183,6 +183,7 @@ def post_camera_check(
         y_c_m=found.y_c_m,
         fitted_y_c_m=found.turn.fitted_y_c_m if found.turn is not None else None,
         fitted_se_m=found.turn.fitted_se_m if found.turn is not None else None,
+        turn_y_c_m=found.turn.turn_y_c_m if found.turn is not None else None,
         camera=found.camera,
     )
 

@@ -237,8 +237,10 @@ class CameraCheckRead(BaseModel):
     y_c_m: float
     """The checked camera's lever (rear axle to camera), metres."""
     fitted_y_c_m: float | None
-    """Turn: the lever the drive's turns determine, metres (null: they do not)."""
+    """Turn: the lever the floor's own rotation determines, metres (null: it does not)."""
     fitted_se_m: float | None
     """Its standard error, metres."""
+    turn_y_c_m: float | None
+    """Turn: the lever with which odometry turns through ``turn_deg``, metres (null: none within 5 m)."""
     camera: dict[str, Any] | None
     """The camera block as corrected (scale, ``forward_sign``, ``y_c``); null when it cannot be."""

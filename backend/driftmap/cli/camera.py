@@ -236,19 +236,21 @@ def check(
 
 
 def _turn_verdict(check: drive_check.TurnCheck) -> str:
-    """One paragraph: travel and forward_sign, the turn against the stated one, the lever found."""
-    lever = (
-        f"the turns put the rotation centre at y_c {check.fitted_y_c_m:.2f} +- {check.fitted_se_m:.2f} m "
-        f"(camera: {check.configured_y_c_m:.2f} m)"
-        if check.fitted_y_c_m is not None and check.fitted_se_m is not None
-        else f"the turns do not determine y_c (camera: {check.configured_y_c_m:.2f} m kept)"
-    )
+    """One paragraph: travel and forward_sign, the turn against the stated one, the levers found."""
+    levers = []
+    if check.fitted_y_c_m is not None and check.fitted_se_m is not None:
+        levers.append(
+            f"the floor's rotation puts y_c at {check.fitted_y_c_m:.2f} +- {check.fitted_se_m:.2f} m"
+        )
+    if check.turn_y_c_m is not None:
+        levers.append(f"odometry turns through the stated angle with y_c {check.turn_y_c_m:.2f} m")
+    found = "; ".join(levers) if levers else "no lever is found"
     return (
         f"odometry travelled {check.travelled_m:+.2f} m"
         + (" (forward_sign is wrong)" if check.sign_wrong else "")
         + f" and turned {math.degrees(check.turned_rad):+.1f} degrees for {math.degrees(check.stated_rad):+.1f}"
         + (" (the WRONG WAY)" if check.direction_wrong else f" (x {check.turn_ratio:.3f})")
-        + f"; {lever}"
+        + f"; {found} (camera: {check.configured_y_c_m:.2f} m; the check's: {check.y_c_m:.2f} m)"
     )
 
 

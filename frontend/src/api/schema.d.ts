@@ -1524,6 +1524,8 @@ export interface components {
             fitted_y_c_m: number | null;
             /** Fitted Se M */
             fitted_se_m: number | null;
+            /** Turn Y C M */
+            turn_y_c_m: number | null;
             /** Camera */
             camera: {
                 [key: string]: unknown;

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from driftmap.core.odometry.camera import CameraModel
-from driftmap.core.odometry.drive import DeadReckoning, dead_reckon
-from driftmap.core.odometry.turn_check import check_turn, mount_camera
+from driftmap.core.odometry.drive import MatchedSteps, match_frames
+from driftmap.core.odometry.params import ODOMETRY_DEFAULT
+from driftmap.core.odometry.turn_check import check_turn, lever_for_turn, mount_camera
 from driftmap.errors import BadInputError
 from tests.floor_frames import arc_step, floor_texture, pinhole_camera, render
 
@@ -41,10 +42,15 @@ def frames() -> np.ndarray:
     return straight_then_turn()
 
 
+@pytest.fixture(scope="module")
+def matched(frames: np.ndarray) -> MatchedSteps:
+    return match_frames(frames, pinhole_camera())
+
+
 class TestCheckTurn:
-    def test_a_good_mounting_and_the_lever(self, frames: np.ndarray) -> None:
+    def test_a_good_mounting_and_the_lever(self, matched: MatchedSteps) -> None:
         cam = pinhole_camera()
-        result = check_turn(dead_reckon(frames, cam), cam.y_c_m, math.radians(45.0))
+        result = check_turn(matched, cam, math.radians(45.0))
         assert not result.sign_wrong and not result.direction_wrong
         assert result.travelled_m == pytest.approx(6.0, rel=0.03)
         assert result.turned_rad == pytest.approx(TURN_RAD, rel=TURN_TOL_FRAC)
@@ -53,42 +59,59 @@ class TestCheckTurn:
         assert result.fitted_y_c_m == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
         assert result.fitted_se_m is not None and 0 < result.fitted_se_m < Y_C_TOL_M
         fixed = mount_camera(cam, result)
-        assert fixed.y_c_m == result.fitted_y_c_m and fixed.forward_sign == cam.forward_sign
+        assert fixed.y_c_m == result.y_c_m == result.fitted_y_c_m and fixed.forward_sign == cam.forward_sign
+
+    @pytest.mark.parametrize("configured_m", [0.0, 1.5, 3.0])
+    def test_the_lever_that_turns_through_the_stated_angle(
+        self, frames: np.ndarray, configured_m: float
+    ) -> None:
+        """Told the true turn, whatever lever the camera starts from; the fit off (as for a short region)."""
+        cam = dataclasses.replace(pinhole_camera(), y_c_m=configured_m)
+        lever = lever_for_turn(match_frames(frames, cam), cam, TURN_RAD)
+        assert lever == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
+        assert lever_for_turn(match_frames(frames, cam), cam, 1.6 * TURN_RAD) is not None  # a shorter lever
+        assert lever_for_turn(match_frames(frames, cam), cam, 0.2 * TURN_RAD) is None  # none within 5 m
+
+    def test_the_stated_lever_is_used_when_the_floor_does_not_fit_one(self, matched: MatchedSteps) -> None:
+        cam = pinhole_camera()
+        no_fit = dataclasses.replace(ODOMETRY_DEFAULT, calibrate_lever=False)
+        result = check_turn(matched, cam, TURN_RAD, no_fit)
+        assert result.fitted_y_c_m is None and result.fitted_se_m is None
+        assert result.turn_y_c_m == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
+        assert mount_camera(cam, result).y_c_m == result.turn_y_c_m
+
+    def test_without_the_birdseye_model_no_lever_is_found(self, frames: np.ndarray) -> None:
+        cam = dataclasses.replace(pinhole_camera(), ground_homography=None)  # the linear model
+        no_fit = dataclasses.replace(ODOMETRY_DEFAULT, calibrate_lever=False)
+        result = check_turn(match_frames(frames, cam), cam, TURN_RAD, no_fit)
+        assert result.turn_y_c_m is None and result.fitted_y_c_m is None
+        assert mount_camera(cam, result).y_c_m == cam.y_c_m
 
     def test_a_mirrored_ground_plane_turns_the_wrong_way(self, frames: np.ndarray) -> None:
         cam = mirrored(pinhole_camera())
-        result = check_turn(dead_reckon(frames, cam), cam.y_c_m, math.radians(45.0))
+        result = check_turn(match_frames(frames, cam), cam, math.radians(45.0))
         assert result.direction_wrong and result.turn_ratio < 0 and not result.sign_wrong
+        assert result.turn_y_c_m is None
         with pytest.raises(BadInputError, match="mirrored") as err:
             mount_camera(cam, result)
         assert err.value.field == "turn_deg"
 
     def test_a_wrong_forward_sign(self, frames: np.ndarray) -> None:
         cam = dataclasses.replace(pinhole_camera(), forward_sign=-1)
-        result = check_turn(dead_reckon(frames, cam), cam.y_c_m, math.radians(45.0))
+        steps = match_frames(frames, cam)
+        result = check_turn(steps, cam, math.radians(45.0))
         assert result.sign_wrong and result.travelled_m < 0
         assert mount_camera(cam, result).forward_sign == 1
-        assert not check_turn(
-            dead_reckon(frames, cam), cam.y_c_m, math.radians(45.0), reverse=True
-        ).sign_wrong
+        assert not check_turn(steps, cam, math.radians(45.0), reverse=True).sign_wrong
 
-    def test_a_lever_the_turns_do_not_determine_is_kept(self) -> None:
-        cam = pinhole_camera()
-        steps = dead_reckon(straight_then_turn(), cam).steps
-        run = DeadReckoning(np.zeros((len(steps) + 1, 3)), steps, np.zeros(len(steps)), 0.0, cam.y_c_m, None)
-        result = check_turn(run, cam.y_c_m, math.radians(45.0))
-        assert result.fitted_y_c_m is None and result.fitted_se_m is None
-        assert mount_camera(cam, result).y_c_m == cam.y_c_m
-
-    @pytest.mark.parametrize(("turn_deg", "field"), [(10.0, "turn_deg"), (math.nan, "turn_deg")])
-    def test_a_turn_too_small_to_check(self, frames: np.ndarray, turn_deg: float, field: str) -> None:
-        cam = pinhole_camera()
+    @pytest.mark.parametrize("turn_deg", [10.0, math.nan])
+    def test_a_turn_too_small_to_check(self, matched: MatchedSteps, turn_deg: float) -> None:
         with pytest.raises(BadInputError) as err:
-            check_turn(dead_reckon(frames[:3], cam), cam.y_c_m, math.radians(turn_deg))
-        assert err.value.field == field
+            check_turn(matched, pinhole_camera(), math.radians(turn_deg))
+        assert err.value.field == "turn_deg"
 
     def test_a_drive_that_does_not_turn(self) -> None:
         cam = pinhole_camera()
         with pytest.raises(BadInputError, match="no usable turn") as err:
-            check_turn(dead_reckon(straight_then_turn(0.0), cam), cam.y_c_m, math.radians(45.0))
+            check_turn(match_frames(straight_then_turn(0.0), cam), cam, math.radians(45.0))
         assert err.value.field == "drive"

@@ -8,12 +8,18 @@ the mine. Dead reckoning with the camera's calibration (self-calibrating, as eve
 - the turn's direction: the heading change must have the sign of the turn driven. Floor points measured to
   the camera's right instead of its left mirror the ground plane, and every turn then comes out the wrong way;
   a mirrored calibration cannot be mended by a factor: the ground plane must be fitted again;
-- the lever ``y_c`` (rear axle to camera, metres): the floor's own rotation between the near and far parts of
-  the ground region, against the arc model, says where the vehicle turns about
-  (:mod:`driftmap.core.odometry.rotation_centre`), with a standard error. A drive whose turns do not
-  determine it well enough leaves it unknown; a straight drive never does.
+- the lever ``y_c`` (rear axle to camera, metres), two ways. The floor's own rotation between the near and far
+  parts of the ground region, against the arc model, says where the vehicle turns about
+  (:mod:`driftmap.core.odometry.rotation_centre`), with a standard error, whatever the turn's angle; a ground
+  region too short for that (a wide lens's, whose floor region spans ~2 m against a ~5 m lever arm) leaves it
+  undetermined. And the lever with which odometry turns through exactly the stated angle: every step's turn
+  is its floor motion across over its lever arm, so the drive's total turn falls as the lever grows, and the
+  one lever that matches the stated angle is found by bisection (bird's-eye model; the steps are re-solved,
+  not matched again). Its accuracy is the stated angle's: 5 degrees off a 90-degree junction moves it by about
+  6 % of the lever arm, a full circle in a yard by under 2 %.
 
-The stated angle need not be exact: the ratio of odometry's turn to it is reported, not judged.
+The self-calibrated lever is preferred when determined (odometry uses it on such drives anyway); else the
+stated turn's.
 """
 
 from __future__ import annotations
@@ -25,13 +31,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from driftmap.core.odometry.camera import CameraModel
-from driftmap.core.odometry.drive import DeadReckoning
+from driftmap.core.odometry.drive import MatchedSteps, reckon
+from driftmap.core.odometry.params import ODOMETRY_DEFAULT, OdometryParams
+from driftmap.core.odometry.rotation_centre import LEVER_SEARCH_M
 from driftmap.core.odometry.scale_check import MIN_TRAVEL_M
+from driftmap.core.odometry.step import OdometryStep
 from driftmap.errors import BadInputError
 
-__all__ = ["MIN_TURN_RAD", "TurnCheck", "check_turn", "mount_camera"]
+__all__ = ["MIN_TURN_RAD", "TurnCheck", "check_turn", "lever_for_turn", "mount_camera"]
 
 MIN_TURN_RAD = math.radians(20.0)  # a stated turn below this is too small to check a direction or a lever
+LEVER_SAMPLES = 41  # levers tried across the search range before the bisection
+LEVER_TOL_M = 0.005  # the bisection stops this close to the lever that turns through the stated angle
 
 
 @dataclass(frozen=True)
@@ -46,8 +57,10 @@ class TurnCheck:
         direction_wrong: the heading change has the opposite sign to the turn driven: the ground plane is
             mirrored (fit it again).
         configured_y_c_m: the camera's lever, metres.
-        fitted_y_c_m: the lever the drive's turns determine, metres; None when they do not.
+        fitted_y_c_m: the lever the floor's own rotation determines, metres; None when it does not.
         fitted_se_m: its standard error, metres; None with ``fitted_y_c_m``.
+        turn_y_c_m: the lever with which odometry turns through the stated angle, metres; None without the
+            bird's-eye model, or when no lever within 5 m of the configured one does.
     """
 
     travelled_m: float
@@ -58,6 +71,15 @@ class TurnCheck:
     configured_y_c_m: float
     fitted_y_c_m: float | None
     fitted_se_m: float | None
+    turn_y_c_m: float | None = None
+
+    @property
+    def y_c_m(self) -> float:
+        """The lever the check finds: the fitted one, else the stated turn's, else the configured one."""
+        for lever in (self.fitted_y_c_m, self.turn_y_c_m):
+            if lever is not None:
+                return lever
+        return self.configured_y_c_m
 
     @property
     def turn_ratio(self) -> float:
@@ -66,14 +88,20 @@ class TurnCheck:
 
 
 def check_turn(
-    run: DeadReckoning, configured_y_c_m: float, stated_rad: float, *, reverse: bool = False
+    matched: MatchedSteps,
+    camera: CameraModel,
+    stated_rad: float,
+    params: OdometryParams = ODOMETRY_DEFAULT,
+    *,
+    reverse: bool = False,
 ) -> TurnCheck:
-    """Compare a dead-reckoned drive that turns with the turn driven.
+    """Compare a drive that turns, dead-reckoned with ``camera``, with the turn driven.
 
     Args:
-        run: the drive's dead reckoning (:func:`~driftmap.core.odometry.drive.dead_reckon`, self-calibrating).
-        configured_y_c_m: the camera's lever ``y_c``, metres.
+        matched: the drive's steps (:func:`~driftmap.core.odometry.drive.match_frames` with ``camera``).
+        camera: the camera checked.
         stated_rad: the turn driven, radians, + left (counter-clockwise seen from above); at least 20 degrees.
+        params: odometry parameters (as the steps were matched with).
         reverse: the drive was in reverse.
 
     Raises:
@@ -86,32 +114,73 @@ def check_turn(
             f"{math.degrees(stated_rad):.1f}",
             field="turn_deg",
         )
+    run = reckon(matched, camera, params)
     travelled = float(sum(step.prev_T_curr[0] for step in run.steps))
     if abs(travelled) < MIN_TRAVEL_M:
         raise BadInputError(
             f"odometry travelled only {travelled:.3f} m: the drive shows no usable motion", field="drive"
         )
-    turned = float(sum(step.prev_T_curr[2] for step in run.steps))
+    turned = _turned(run.steps)
     if abs(turned) < 0.5 * MIN_TURN_RAD:
         raise BadInputError(
             f"odometry turned only {math.degrees(turned):.1f} degrees: the drive shows no usable turn",
             field="drive",
         )
     fitted = run.lever_se_m is not None
+    direction_wrong = bool(np.sign(turned) != np.sign(stated_rad))
     return TurnCheck(
         travelled_m=travelled,
         turned_rad=turned,
         stated_rad=float(stated_rad),
         sign_wrong=(travelled < 0) != reverse,
-        direction_wrong=bool(np.sign(turned) != np.sign(stated_rad)),
-        configured_y_c_m=float(configured_y_c_m),
+        direction_wrong=direction_wrong,
+        configured_y_c_m=float(camera.y_c_m),
         fitted_y_c_m=float(run.lever_m) if fitted else None,
         fitted_se_m=run.lever_se_m,
+        turn_y_c_m=None if direction_wrong else lever_for_turn(matched, camera, stated_rad, params),
     )
 
 
+def _turned(steps: list[OdometryStep]) -> float:
+    """The heading change over ``steps``, radians (+ left)."""
+    return float(sum(step.prev_T_curr[2] for step in steps))
+
+
+def lever_for_turn(
+    matched: MatchedSteps, camera: CameraModel, stated_rad: float, params: OdometryParams = ODOMETRY_DEFAULT
+) -> float | None:
+    """The lever ``y_c`` (metres) with which the drive's dead reckoning turns through ``stated_rad``.
+
+    The steps are re-solved with each lever tried (the lever's self-calibration off, the horizon's on), over
+    ``configured +- 5 m``; the total turn's magnitude falls as the lever grows, and the longest-lever bracket
+    where it crosses the stated one is bisected to :data:`LEVER_TOL_M` (levers whose arms come near zero make
+    turns of any size, and are not the vehicle's). None without the bird's-eye model with
+    self-calibration (its steps cannot be re-solved), or when no lever in the range turns that far.
+    """
+    if not (params.self_calibrate and camera.homography() is not None and matched.steps):
+        return None
+    if matched.steps[0].model != "homography":
+        return None
+    fixed = dataclasses.replace(params, calibrate_lever=False)
+
+    def excess(lever: float) -> float:
+        turned = _turned(reckon(matched, dataclasses.replace(camera, y_c_m=lever), fixed).steps)
+        return abs(turned) - abs(stated_rad)
+
+    levers = np.linspace(camera.y_c_m - LEVER_SEARCH_M, camera.y_c_m + LEVER_SEARCH_M, LEVER_SAMPLES)
+    values = [excess(float(y)) for y in levers]
+    for k in reversed(range(LEVER_SAMPLES - 1)):  # from long lever arms down, to stop before any near zero
+        if np.isfinite(values[k]) and np.isfinite(values[k + 1]) and values[k] >= 0 > values[k + 1]:
+            lo, hi = float(levers[k]), float(levers[k + 1])
+            while hi - lo > LEVER_TOL_M:
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if excess(mid) >= 0 else (lo, mid)
+            return 0.5 * (lo + hi)
+    return None
+
+
 def mount_camera(camera: CameraModel, check: TurnCheck) -> CameraModel:
-    """The camera with the mounting the check found: the fitted lever (when determined) and ``forward_sign``
+    """The camera with the mounting the check found: its lever (:attr:`TurnCheck.y_c_m`) and ``forward_sign``
     flipped when the travel came out backwards.
 
     Raises:
@@ -125,6 +194,5 @@ def mount_camera(camera: CameraModel, check: TurnCheck) -> CameraModel:
             "floor y measured to the camera's left",
             field="turn_deg",
         )
-    y_c = check.fitted_y_c_m if check.fitted_y_c_m is not None else camera.y_c_m
     sign = -camera.forward_sign if check.sign_wrong else camera.forward_sign
-    return dataclasses.replace(camera, y_c_m=y_c, forward_sign=sign)
+    return dataclasses.replace(camera, y_c_m=check.y_c_m, forward_sign=sign)

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
 from driftmap.core.odometry.camera import CameraModel
-from driftmap.core.odometry.drive import dead_reckon
+from driftmap.core.odometry.drive import dead_reckon, match_frames
 from driftmap.core.odometry.scale_check import ScaleCheck, check_scale, scale_camera
 from driftmap.core.odometry.turn_check import TurnCheck, check_turn, mount_camera
 from driftmap.errors import BadInputError
@@ -55,9 +55,9 @@ def check_drive_turn(
     frames: Iterable[NDArray[np.uint8]], camera: CameraModel, turn_rad: float, *, reverse: bool = False
 ) -> tuple[TurnCheck, CameraModel | None]:
     """Dead-reckon a drive that turns through ``turn_rad`` (+ left) with ``camera``; the check and the camera
-    with the mounting found (the fitted lever, ``forward_sign``), or None when the turn came out the wrong
-    way (a mirrored ground plane: fit it again)."""
-    result = check_turn(dead_reckon(frames, camera), camera.y_c_m, turn_rad, reverse=reverse)
+    with the mounting found (its lever, ``forward_sign``), or None when the turn came out the wrong way (a
+    mirrored ground plane: fit it again)."""
+    result = check_turn(match_frames(frames, camera), camera, turn_rad, reverse=reverse)
     return result, None if result.direction_wrong else mount_camera(camera, result)
 
 
