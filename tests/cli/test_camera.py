@@ -242,7 +242,10 @@ class TestCheckCommand:
         )
         result = runner.invoke(app, ["camera", "check", str(drive), "--turn-deg", "45", "--out", str(out)])
         assert result.exit_code == 0, result.output
-        assert "(forward_sign is wrong)" in result.output and "the floor's rotation puts y_c at 0." in result.output
+        assert (
+            "(forward_sign is wrong)" in result.output
+            and "the floor's rotation puts y_c at 0." in result.output
+        )
         fixed = complete_camera(read_camera_file(out), out)
         assert fixed is not None and fixed.forward_sign == 1
         assert fixed.y_c_m == pytest.approx(TRUE_Y_C_M, abs=Y_C_TOL_M)
