@@ -1,9 +1,11 @@
 // The camera set-up page (surveyors and admins): floor frames, the ground region dragged on the frame, floor
 // points clicked and measured, an optional lens, the ground fit (POST /api/cameras/ground), previews of the
-// undistorted frame and of the floor from above beside the frame, and the result saved as a camera profile and
-// given to a vehicle. Everything stays in the page until saved.
+// undistorted frame and of the floor from above beside the frame, a check of the camera against a stored drive
+// (whose corrected camera the page can take), and the result saved as a camera profile and given to a vehicle.
+// Everything stays in the page until saved.
 import { useEffect, useReducer, useRef, useState } from "react";
 import { apiPost } from "../../api/client";
+import { scaledGround, type CameraBlock } from "../../lib/cameraCheck";
 import {
   NO_POINTS,
   cameraBlock,
@@ -16,6 +18,7 @@ import {
   type Roi,
 } from "../../lib/cameraSetup";
 import { useErrors } from "../useErrors";
+import { DriveCheckPanel } from "./DriveCheckPanel";
 import { FrameCanvas, type ClickMode } from "./FrameCanvas";
 import { FramePicker, type Frame } from "./FramePicker";
 import { GroundFit } from "./GroundFit";
@@ -39,6 +42,8 @@ export function CamerasView() {
   const [lensSize, setLensSize] = useState<Size | null>(null);
   const [mount, setMount] = useState<Mount>({ y_c: 0, forward_sign: 1 });
   const [fit, setFit] = useState<{ key: string; ground: GroundRead } | null>(null);
+  // a drive's corrected camera taken while the page had no fit of its own; a fit replaces it
+  const [taken, setTaken] = useState<CameraBlock | null>(null);
   const [busy, setBusy] = useState(false);
   const [fitError, run] = useErrors();
 
@@ -52,7 +57,12 @@ export function CamerasView() {
   const body = size ? groundBody(points.rows, size.width, size.height, roi, lens) : null;
   const key = JSON.stringify(body);
   const ground = fit && fit.key === key ? fit.ground : null;
-  const block = ground && size ? cameraBlock(ground, size.width, size.height, mount, lens) : null;
+  const block =
+    ground && size
+      ? cameraBlock(ground, size.width, size.height, mount, lens)
+      : taken
+        ? { ...taken, y_c: mount.y_c, forward_sign: mount.forward_sign }
+        : null;
   const missing = incompleteRows(points.rows);
   const blocked = !size
     ? "Upload a floor frame first"
@@ -78,11 +88,20 @@ export function CamerasView() {
       try {
         const found = await apiPost("/api/cameras/ground", {}, body);
         setFit({ key, ground: found });
+        setTaken(null);
         dispatch({ type: "residuals", residuals_m: found.residuals_m });
       } finally {
         setBusy(false);
       }
     });
+
+  // a drive check's corrected camera: its lever and forward_sign into the mount, its floor scale into the fit
+  // (without a fit, the whole block is taken as the page's camera)
+  const takeCorrected = (corrected: CameraBlock) => {
+    setMount({ y_c: corrected.y_c, forward_sign: corrected.forward_sign === -1 ? -1 : 1 });
+    if (fit && ground) setFit({ key: fit.key, ground: scaledGround(ground, corrected) });
+    else setTaken(corrected);
+  };
 
   return (
     <>
@@ -157,6 +176,7 @@ export function CamerasView() {
           fit={ground}
           error={fitError}
         />
+        <DriveCheckPanel block={block} taken={!ground && taken !== null} onUse={takeCorrected} />
         <ProfilesPanel block={block} />
       </aside>
     </>
