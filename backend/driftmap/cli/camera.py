@@ -1,6 +1,7 @@
 """``driftmap camera``: set up a camera: lens intrinsics from a chessboard, the ground plane from floor points,
 checks of the floor scale against a drive over a measured distance and of the mounting (``forward_sign``, the
-turn's direction, the lever ``y_c``) against a drive that turns, and named camera profiles (``save``, ``profiles``) that drive imports and vehicles use.
+turn's direction, the lever ``y_c``) against a drive that turns, and named camera profiles (``save``,
+``profiles``) that drive imports and vehicles use.
 
 The set-up commands read an optional ``--camera camera.json`` (a camera block in progress), add what they measure
 and write ``--out``, so ``intrinsics`` then ``ground`` combine into one camera block (``docs/formats.md``).
