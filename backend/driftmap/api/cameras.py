@@ -172,20 +172,20 @@ def post_camera_check(
         reverse=body.reverse,
         camera=body.camera,
     )
-    run = found.scale or found.turn
-    assert run is not None
+    common = {"y_c_m": found.y_c_m, "camera": found.camera}
+    if found.scale is not None:
+        scale = found.scale
+        return CameraCheckRead(
+            travelled_m=scale.travelled_m, sign_wrong=scale.sign_wrong, ratio=scale.ratio, turned_deg=None,
+            direction_wrong=None, fitted_y_c_m=None, fitted_se_m=None, turn_y_c_m=None, **common,
+        )  # fmt: skip
+    turn = found.turn
+    assert turn is not None
     return CameraCheckRead(
-        travelled_m=run.travelled_m,
-        sign_wrong=run.sign_wrong,
-        ratio=found.scale.ratio if found.scale is not None else None,
-        turned_deg=math.degrees(found.turn.turned_rad) if found.turn is not None else None,
-        direction_wrong=found.turn.direction_wrong if found.turn is not None else None,
-        y_c_m=found.y_c_m,
-        fitted_y_c_m=found.turn.fitted_y_c_m if found.turn is not None else None,
-        fitted_se_m=found.turn.fitted_se_m if found.turn is not None else None,
-        turn_y_c_m=found.turn.turn_y_c_m if found.turn is not None else None,
-        camera=found.camera,
-    )
+        travelled_m=turn.travelled_m, sign_wrong=turn.sign_wrong, ratio=None,
+        turned_deg=math.degrees(turn.turned_rad), direction_wrong=turn.direction_wrong,
+        fitted_y_c_m=turn.fitted_y_c_m, fitted_se_m=turn.fitted_se_m, turn_y_c_m=turn.turn_y_c_m, **common,
+    )  # fmt: skip
 
 
 @router.post("/cameras/preview", dependencies=[Depends(SURVEYOR), Depends(check_content_length)])

@@ -12,6 +12,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy import func, insert, select
 from sqlalchemy.orm import Session
 
@@ -25,6 +27,7 @@ from driftmap.formats.drive_folder import (
     write_drive_folder,
 )
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
+from driftmap.formats.frame_images import decode_gray
 from driftmap.formats.records import DriveKind, DriveMeta, FrameRow, GroundingRow
 from driftmap.formats.video import read_calibration_json, read_video_drive
 from driftmap.store.blobs import BlobBatch, BlobStore
@@ -227,6 +230,12 @@ def drive_meta(drive: Drive) -> DriveMeta:
 def frame_rows(session: Session, drive: Drive) -> list[Frame]:
     """The frames of ``drive`` in frame order."""
     return list(session.scalars(select(Frame).where(Frame.drive_id == drive.id).order_by(Frame.index)))
+
+
+def stored_frames(blobs: BlobStore, shas: Iterable[str]) -> Iterator[NDArray[np.uint8]]:
+    """The gray ``(H, W)`` uint8 frames stored under ``shas`` (``frames.blob_sha256``), decoded one at a time."""
+    for sha in shas:
+        yield decode_gray(blobs.get(sha), f"blob {sha}")
 
 
 def grounding_rows(session: Session, drive: Drive) -> list[GroundingRow]:

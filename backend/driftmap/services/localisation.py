@@ -40,8 +40,7 @@ from driftmap.core.types import F64, I64, ProgressFn
 from driftmap.errors import BadInputError
 from driftmap.formats.csv_exports import LocalisationRow
 from driftmap.formats.drive_json import parse_camera_block
-from driftmap.formats.frame_images import decode_gray
-from driftmap.services.drives import frame_rows
+from driftmap.services.drives import frame_rows, stored_frames
 from driftmap.services.maps import LOCALISER_DB_KEY, get_map_version, load_topomap
 from driftmap.store.blobs import BlobStore
 from driftmap.store.models import Drive, Frame, MapNodeFrame, MapPose, MapVersion, Site
@@ -111,9 +110,10 @@ def _thumbs_from_frames(
     ).all()
     lenses = _drive_lenses(session, {int(drive_id) for _n, _s, drive_id in rows})
     h, w = (image_params.size_px or (0, 0))[::-1]
+    frames = stored_frames(blobs, [sha for _node, sha, _drive in rows])
     thumbs = [
-        thumbnails(decode_gray(blobs.get(sha), f"blob {sha}"), image_params, lenses[drive_id])
-        for _node, sha, drive_id in rows
+        thumbnails(frame, image_params, lenses[drive_id])
+        for frame, (_node, _sha, drive_id) in zip(frames, rows, strict=True)
     ]
     counts = np.bincount(np.array([r[0] for r in rows], dtype=np.int64), minlength=n_nodes)
     stack = np.stack(thumbs) if thumbs else np.zeros((0, h, w), dtype=np.float32)
@@ -348,8 +348,7 @@ def load_localisation_drives(session: Session, blobs: BlobStore, site: Site) -> 
         shas = [f.blob_sha256 for f in rows]
 
         def frames(shas: list[str] = shas) -> Iterator[NDArray[np.uint8]]:
-            for sha in shas:
-                yield decode_gray(blobs.get(sha), f"blob {sha}")
+            return stored_frames(blobs, shas)
 
         out.append(
             RecordedDrive(

@@ -35,9 +35,8 @@ from driftmap.core.mapping.pipeline import (
 )
 from driftmap.core.types import ProgressFn
 from driftmap.errors import NotFoundError
-from driftmap.formats.frame_images import decode_gray
 from driftmap.processes import end_with_parent
-from driftmap.services.drives import drive_meta
+from driftmap.services.drives import drive_meta, stored_frames
 from driftmap.services.map_pieces import drive_content, segment_keys
 from driftmap.store.blobs import BlobBatch, BlobStore
 from driftmap.store.db import Database
@@ -47,8 +46,7 @@ from driftmap.store.npz import arrays_bytes, bytes_arrays
 
 def _frame_range(blobs: BlobStore, shas: list[str]) -> Callable[[int, int], Iterator[NDArray[np.uint8]]]:
     def frames(begin: int, stop: int) -> Iterator[NDArray[np.uint8]]:
-        for sha in shas[begin:stop]:
-            yield decode_gray(blobs.get(sha), f"blob {sha}")
+        return stored_frames(blobs, shas[begin:stop])
 
     return frames
 

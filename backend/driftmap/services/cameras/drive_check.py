@@ -10,7 +10,7 @@ check`` runs them on a drive folder's frames, ``POST /api/drives/{id}/camera-che
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,8 +24,7 @@ from driftmap.core.odometry.scale_check import ScaleCheck, check_scale, scale_ca
 from driftmap.core.odometry.turn_check import TurnCheck, check_turn, mount_camera
 from driftmap.errors import BadInputError
 from driftmap.formats.drive_json import camera_to_json, parse_camera_block
-from driftmap.formats.frame_images import decode_gray
-from driftmap.services.drives import frame_rows
+from driftmap.services.drives import frame_rows, stored_frames
 from driftmap.store.blobs import BlobStore
 from driftmap.store.models import Drive
 
@@ -117,15 +116,10 @@ def check_stored_drive(
             f"drive {drive.name!r} has {len(rows)} frames; a check drive has at most {MAX_CHECK_FRAMES}",
             field="drive",
         )
-    shas = [f.blob_sha256 for f in rows]
-
-    def frames() -> Iterator[NDArray[np.uint8]]:
-        for sha in shas:
-            yield decode_gray(blobs.get(sha), f"blob {sha}")
-
+    frames = stored_frames(blobs, [f.blob_sha256 for f in rows])
     if distance_m is not None:
-        scale, fixed = check_drive_scale(frames(), model, distance_m, reverse=reverse)
+        scale, fixed = check_drive_scale(frames, model, distance_m, reverse=reverse)
         return DriveCheck(scale, None, model.y_c_m, camera_to_json(fixed))
     assert turn_deg is not None
-    turn, mounted = check_drive_turn(frames(), model, math.radians(turn_deg), reverse=reverse)
+    turn, mounted = check_drive_turn(frames, model, math.radians(turn_deg), reverse=reverse)
     return DriveCheck(None, turn, model.y_c_m, None if mounted is None else camera_to_json(mounted))
